@@ -1,0 +1,36 @@
+"""ament_python packaging: `colcon build` on a ROS 2 machine, `pip install` in a venv."""
+from setuptools import find_packages, setup
+
+package_name = 'epuck_ros'
+
+setup(
+    name=package_name,
+    version='0.1.0',
+    packages=find_packages(exclude=['test']),
+    package_data={package_name: ['worlds/*.yaml']},
+    data_files=[
+        ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
+        ('share/' + package_name, ['package.xml']),
+        ('share/' + package_name + '/worlds', ['epuck_ros/worlds/default.yaml']),
+    ],
+    install_requires=['setuptools', 'numpy', 'pyyaml', 'mcap', 'zstandard', 'lz4', 'matplotlib'],
+    extras_require={'test': ['pytest', 'rosbags', 'mcap-ros2-support']},
+    zip_safe=True,
+    maintainer='epuck_ros maintainers',
+    maintainer_email='maintainers@epuck-ros.invalid',
+    description='Fast deterministic e-puck simulator, course behaviours and MCAP tools for ROS 2 Jazzy.',
+    license='Apache-2.0',
+    entry_points={
+        'console_scripts': [
+            'sim = epuck_ros.nodes.sim_node:main',
+            'forward = epuck_ros.nodes.behaviour_nodes:main_forward',
+            'spin = epuck_ros.nodes.behaviour_nodes:main_spin',
+            'circle = epuck_ros.nodes.behaviour_nodes:main_circle',
+            'rectangle = epuck_ros.nodes.behaviour_nodes:main_rectangle',
+            'avoid = epuck_ros.nodes.behaviour_nodes:main_avoid',
+            'record = epuck_ros.nodes.record_node:main',
+            'bringup = epuck_ros.bringup:main',
+            'bag = epuck_ros.bag.cli:main',
+        ],
+    },
+)
