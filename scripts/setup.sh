@@ -1,0 +1,19 @@
+#!/usr/bin/env bash
+# Creates .venv with ROS 2 Jazzy from PyPI and installs epuck_ros into it (editable).
+# Idempotent: it reinstalls only when requirements.txt or setup.py changed.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+python=${PYTHON:-python3}
+if [ ! -x .venv/bin/python ]; then
+  echo "[setup] creating .venv with $($python --version)" >&2
+  "$python" -m venv .venv
+fi
+stamp=.venv/.epuck_ros_installed
+want=$(cat requirements.txt setup.py setup.cfg package.xml | sha256sum | cut -d' ' -f1)
+if [ ! -f "$stamp" ] || [ "$(cat "$stamp")" != "$want" ]; then
+  echo "[setup] installing ROS 2 Jazzy (rclpy, common_interfaces) and epuck_ros into .venv" >&2
+  .venv/bin/python -m pip install --quiet --upgrade pip
+  .venv/bin/python -m pip install --quiet -r requirements.txt
+  .venv/bin/python -m pip install --quiet --no-deps -e .
+  echo "$want" > "$stamp"
+fi
