@@ -1,0 +1,268 @@
+"""`sim`: the e-puck simulator node — a thin ROS 2 shell around `epuck_ros.simulation.Simulation`.
+
+The simulation steps in its own thread, paced by `real_time_factor` against the wall clock
+(0 = as fast as the machine can go), and is the source of `/clock`; the executor thread only
+receives commands and service calls. Every message of a step carries that step's simulated time.
+"""
+from __future__ import annotations
+
+import math
+import threading
+import time
+
+import rclpy
+import yaml
+from builtin_interfaces.msg import Time
+from geometry_msgs.msg import Twist, TwistStamped
+from nav_msgs.msg import Odometry
+from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor, SetParametersResult
+from rclpy.exceptions import ParameterException
+from rclpy.executors import ExternalShutdownException
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+from rclpy.qos import DurabilityPolicy, QoSProfile
+from rosgraph_msgs.msg import Clock
+from sensor_msgs.msg import JointState, Range
+from std_msgs.msg import Float64MultiArray, String, UInt32
+from std_srvs.srv import Empty
+
+from epuck_ros.model import SENSOR_NAMES, RobotModel
+from epuck_ros.simulation import CommandError, Simulation
+from epuck_ros.world import WorldError, default_world, load_world
+
+JOINT_NAMES = ['left_wheel_joint', 'right_wheel_joint']
+
+# Diagonal covariances (x, y, z, roll, pitch, yaw): the planar robot knows nothing of z, roll and
+# pitch (a large variance says so, as REP 105 users expect); x, y and yaw are of the order of
+# the encoder quantisation (2π/1000 rad · 0.02 m ≈ 1.3e-4 m per tick).
+_UNKNOWN = 1e6
+POSE_COVARIANCE = [1e-6, 1e-6, _UNKNOWN, _UNKNOWN, _UNKNOWN, 1e-5]
+TWIST_COVARIANCE = [1e-5, 1e-5, _UNKNOWN, _UNKNOWN, _UNKNOWN, 1e-4]
+WARN_PERIOD = 1.0
+"""Seconds between two warnings about the same kind of refused command."""
+
+
+def _diagonal(values: list[float]) -> list[float]:
+    matrix = [0.0] * 36
+    for i, value in enumerate(values):
+        matrix[7 * i] = value
+    return matrix
+
+
+def _float_param(description: str, low: float, high: float, read_only: bool = False) -> ParameterDescriptor:
+    return ParameterDescriptor(
+        description=description, read_only=read_only,
+        floating_point_range=[FloatingPointRange(from_value=low, to_value=high, step=0.0)])
+
+
+class SimNode(Node):
+    """Publishes odom, ground_truth, proximity, joint_states, world and /clock; takes cmd_vel and wheel_cmd."""
+
+    def __init__(self) -> None:
+        super().__init__('sim')
+        self._declare_parameters()
+        world_path = self.get_parameter('world').value
+        world = load_world(world_path) if world_path else default_world()
+        self._time_step = self.get_parameter('time_step').value
+        self._rtf = self.get_parameter('real_time_factor').value
+        self._sim = Simulation(
+            world, RobotModel(), time_step=self._time_step, seed=self.get_parameter('seed').value,
+            noise=self.get_parameter('noise').value, cmd_timeout=self.get_parameter('cmd_timeout').value)
+        self._lock = threading.Lock()
+        self._running = threading.Event()
+        self._thread = threading.Thread(target=self._run, name='sim_loop', daemon=True)
+        self.add_on_set_parameters_callback(self._on_set_parameters)
+
+        prefix = self.get_parameter('frame_prefix').value
+        self._frames = {name: prefix + name for name in ('odom', 'base_link', 'world', *SENSOR_NAMES)}
+        self._make_messages(world)
+        self._make_interfaces()
+        self.get_logger().info(
+            f'sim ready: world {world_path or "default arena"}, time step {self._time_step} s, '
+            f'real-time factor {self._rtf or "max"}, seed {self.get_parameter("seed").value}, '
+            f'noise {"on" if self.get_parameter("noise").value else "off"}')
+
+    def _declare_parameters(self) -> None:
+        self.declare_parameter('time_step', 0.032, _float_param(
+            'simulated seconds per step (Webots basicTimeStep is 32 ms)', 0.001, 1.0, read_only=True))
+        self.declare_parameter('real_time_factor', 1.0, _float_param(
+            'simulated seconds per wall second; 0 = as fast as possible', 0.0, 10000.0))
+        self.declare_parameter('world', '', ParameterDescriptor(
+            description='path to a world YAML file; empty = the built-in 1 m x 1 m arena', read_only=True))
+        self.declare_parameter('seed', 0, ParameterDescriptor(
+            description='seed of every random draw: same seed, same run', read_only=True,
+            integer_range=[IntegerRange(from_value=0, to_value=2**31 - 1, step=1)]))
+        self.declare_parameter('noise', True, ParameterDescriptor(
+            description='IR sensor noise (Webots lookup table, relative Gaussian) on or off', read_only=True))
+        self.declare_parameter('cmd_timeout', 0.5, _float_param(
+            'simulated seconds without a command before the robot stops; 0 = never', 0.0, 3600.0))
+        self.declare_parameter('cmd_vel_stamped', False, ParameterDescriptor(
+            description='subscribe cmd_vel as geometry_msgs/TwistStamped instead of Twist', read_only=True))
+        self.declare_parameter('frame_prefix', '', ParameterDescriptor(
+            description='prefix of every frame_id (e.g. "robot1/") for several robots in one TF tree',
+            read_only=True))
+
+    def _on_set_parameters(self, params: list[Parameter]) -> SetParametersResult:
+        with self._lock:
+            for param in params:
+                if param.name == 'real_time_factor':
+                    self._rtf = param.value
+                elif param.name == 'cmd_timeout':
+                    self._sim.cmd_timeout = param.value
+        return SetParametersResult(successful=True)
+
+    def _make_messages(self, world: object) -> None:
+        """Messages are built once and refilled every step: it halves the cost of publishing."""
+        self._odom = Odometry()
+        self._odom.header.frame_id = self._frames['odom']
+        self._odom.child_frame_id = self._frames['base_link']
+        self._odom.pose.covariance = _diagonal(POSE_COVARIANCE)
+        self._odom.twist.covariance = _diagonal(TWIST_COVARIANCE)
+        self._truth = Odometry()
+        self._truth.header.frame_id = self._frames['world']
+        self._truth.child_frame_id = self._frames['base_link']
+        model = RobotModel()
+        self._ranges = []
+        for name in SENSOR_NAMES:
+            msg = Range()
+            msg.header.frame_id = self._frames[name]
+            msg.radiation_type = Range.INFRARED
+            msg.field_of_view = model.ir_aperture
+            msg.min_range = 0.0
+            msg.max_range = model.ir_range
+            self._ranges.append(msg)
+        self._joints = JointState()
+        self._joints.name = JOINT_NAMES
+        self._clock = Clock()
+        self._world_msg = String(data=yaml.safe_dump(world.to_dict(), sort_keys=False))
+
+    def _make_interfaces(self) -> None:
+        self._pub_clock = self.create_publisher(Clock, '/clock', 10)
+        self._pub_odom = self.create_publisher(Odometry, 'odom', 10)
+        self._pub_truth = self.create_publisher(Odometry, 'ground_truth', 10)
+        self._pub_range = self.create_publisher(Range, 'proximity', 16)
+        self._pub_joints = self.create_publisher(JointState, 'joint_states', 10)
+        latched = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+        self.create_publisher(String, 'world', latched).publish(self._world_msg)
+        self._pub_collisions = self.create_publisher(UInt32, 'collisions', latched)
+        self._pub_collisions.publish(UInt32(data=0))
+        if self.get_parameter('cmd_vel_stamped').value:
+            self.create_subscription(TwistStamped, 'cmd_vel', lambda m: self._on_twist(m.twist), 10)
+        else:
+            self.create_subscription(Twist, 'cmd_vel', self._on_twist, 10)
+        self.create_subscription(Float64MultiArray, 'wheel_cmd', self._on_wheel_cmd, 10)
+        self.create_service(Empty, 'reset', self._on_reset)
+
+    def _on_twist(self, msg: Twist) -> None:
+        self._command('cmd_vel', self._sim.command_twist, msg.linear.x, msg.angular.z)
+
+    def _on_wheel_cmd(self, msg: Float64MultiArray) -> None:
+        if len(msg.data) != 2:
+            self.get_logger().warning(
+                f'wheel_cmd refused: data must be [left, right] rad/s, got {len(msg.data)} values',
+                throttle_duration_sec=WARN_PERIOD)
+            return
+        self._command('wheel_cmd', self._sim.command_wheels, msg.data[0], msg.data[1])
+
+    def _command(self, topic: str, apply: object, first: float, second: float) -> None:
+        try:
+            with self._lock:
+                apply(first, second)
+        except CommandError as error:
+            self.get_logger().warning(f'{topic} refused: {error}', throttle_duration_sec=WARN_PERIOD)
+
+    def _on_reset(self, request: Empty.Request, response: Empty.Response) -> Empty.Response:
+        with self._lock:
+            self._sim.reset()
+        self.get_logger().info('reset: robot back at its start pose, odometry zeroed')
+        return response
+
+    def start(self) -> None:
+        self._running.set()
+        self._thread.start()
+
+    def stop(self) -> None:
+        self._running.clear()
+        if self._thread.is_alive():
+            self._thread.join(timeout=5.0)
+
+    def _run(self) -> None:
+        """Step, publish, and sleep so that simulated time runs `real_time_factor` times wall time."""
+        wall_origin, sim_origin = time.monotonic(), self._sim.time
+        paced_rtf = self._rtf
+        while self._running.is_set() and rclpy.ok():
+            with self._lock:
+                events = self._sim.step()
+                self._publish()
+                rtf, now_sim = self._rtf, self._sim.time
+            for robot in events.new_contacts:
+                count = int(self._sim.collisions[robot])
+                x, y, _ = self._sim.true_pose[robot]
+                self._pub_collisions.publish(UInt32(data=count))
+                self.get_logger().warning(f'collision #{count} at x={x:.3f} y={y:.3f} (t={now_sim:.2f} s)')
+            if rtf <= 0.0:
+                continue
+            if rtf != paced_rtf:
+                wall_origin, sim_origin, paced_rtf = time.monotonic(), now_sim, rtf
+            delay = wall_origin + (now_sim - sim_origin) / rtf - time.monotonic()
+            if delay > 0.0:
+                time.sleep(delay)
+            elif delay < -0.5:  # far behind (machine too slow): pace from here rather than burst
+                wall_origin, sim_origin = time.monotonic(), now_sim
+
+    def _publish(self) -> None:
+        sim = self._sim
+        stamp = _stamp(sim.time)
+        self._clock.clock = stamp
+        self._pub_clock.publish(self._clock)
+        _fill_odometry(self._odom, stamp, sim.odom_pose[0], sim.odom_twist[0])
+        self._pub_odom.publish(self._odom)
+        _fill_odometry(self._truth, stamp, sim.true_pose[0], sim.true_twist[0])
+        self._pub_truth.publish(self._truth)
+        for msg, value in zip(self._ranges, sim.ir_range[0]):
+            msg.header.stamp = stamp
+            msg.range = float(value)
+            self._pub_range.publish(msg)
+        self._joints.header.stamp = stamp
+        self._joints.position = [float(a) for a in sim.wheel_angles[0]]
+        self._joints.velocity = [float(w) for w in sim.wheel_speeds[0]]
+        self._pub_joints.publish(self._joints)
+
+
+def _stamp(seconds: float) -> Time:
+    nanoseconds = round(seconds * 1e9)
+    return Time(sec=nanoseconds // 1_000_000_000, nanosec=nanoseconds % 1_000_000_000)
+
+
+def _fill_odometry(msg: Odometry, stamp: object, pose: object, twist: object) -> None:
+    x, y, yaw = (float(v) for v in pose)
+    msg.header.stamp = stamp
+    msg.pose.pose.position.x = x
+    msg.pose.pose.position.y = y
+    msg.pose.pose.orientation.z = math.sin(yaw / 2.0)
+    msg.pose.pose.orientation.w = math.cos(yaw / 2.0)
+    msg.twist.twist.linear.x = float(twist[0])
+    msg.twist.twist.angular.z = float(twist[1])
+
+
+def main(args: list[str] | None = None) -> None:
+    rclpy.init(args=args)
+    node = None
+    try:
+        node = SimNode()
+        node.start()
+        rclpy.spin(node)
+    except (WorldError, ParameterException) as error:
+        rclpy.logging.get_logger('sim').fatal(f'cannot start: {error}')
+        raise SystemExit(2)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        if node is not None:
+            node.stop()
+            node.destroy_node()
+        rclpy.try_shutdown()
+
+
+if __name__ == '__main__':
+    main()
