@@ -153,3 +153,20 @@ def test_node(rclpy_context: None) -> Iterator[RosTestNode]:
     node = RosTestNode()
     yield node
     node.destroy()
+
+
+def processes_in_this_domain() -> list[tuple[int, str]]:
+    """(pid, command line) of every other process running with this test run's ROS_DOMAIN_ID."""
+    marker = f'ROS_DOMAIN_ID={os.environ["ROS_DOMAIN_ID"]}'.encode()
+    found = []
+    for entry in Path('/proc').iterdir():
+        if not entry.name.isdigit() or int(entry.name) == os.getpid():
+            continue
+        try:
+            environ = (entry / 'environ').read_bytes().split(b'\0')
+            cmdline = (entry / 'cmdline').read_bytes().replace(b'\0', b' ').decode(errors='replace')
+        except OSError:
+            continue
+        if marker in environ:
+            found.append((int(entry.name), cmdline))
+    return found

@@ -1,0 +1,79 @@
+"""The entry script: starts sim + behaviour (+ recorder) as processes and always stops them all."""
+from __future__ import annotations
+
+import os
+import re
+import signal
+import time
+
+import pytest
+from conftest import processes_in_this_domain
+
+from epuck_ros.bringup import parse_args
+
+
+def wait_until(predicate, timeout: float, what: str) -> None:
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        if predicate():
+            return
+        time.sleep(0.1)
+    raise AssertionError(f'timed out waiting for {what}')
+
+
+def behaviour_pids(name: str) -> list[int]:
+    return [pid for pid, cmd in processes_in_this_domain() if re.search(rf'/{name}\b', cmd)]
+
+
+def test_parameters_go_to_the_node_that_declares_them():
+    args = parse_args(['rectangle', '--seed', '7', '--no-noise', '-p', 'turn_mode:=timed',
+                       '-p', 'cmd_timeout:=2.0', '-p', 'rectangle.side_a:=0.2', '-p', 'sim.time_step:=0.016'])
+    assert args.behaviour_params == ['turn_mode:=timed', 'side_a:=0.2']
+    assert set(args.sim_params) >= {'seed:=7', 'noise:=false', 'cmd_timeout:=2.0', 'time_step:=0.016',
+                                    'real_time_factor:=1.0'}
+
+
+@pytest.mark.parametrize('argv, message', [
+    (['dance'], 'invalid choice'),
+    (['avoid', '--duration', '-3'], '--duration'),
+    (['avoid', '-p', 'oops'], 'NAME:=VALUE'),
+    (['avoid', '-p', 'turtle.speed:=1'], 'unknown node'),
+    (['avoid', '--world', '/no/such.yaml'], 'no such file'),
+])
+def test_bad_arguments_are_refused(argv, message, capsys):
+    with pytest.raises(SystemExit) as exit_info:
+        parse_args(argv)
+    assert exit_info.value.code == 2
+    assert message in capsys.readouterr().err
+
+
+def test_a_run_with_duration_ends_by_itself_and_leaves_no_process(launch):
+    run = launch('bringup', 'forward', '--duration', '4', '--real-time-factor', '8', '--no-noise')
+    assert run.proc.wait(timeout=60) == 0, run.output()
+    summary = re.search(r'simulated ([\d.]+) s .* distance travelled ([\d.]+) m; collisions (\d+)', run.output())
+    assert summary, run.output()
+    simulated, distance, collisions = float(summary[1]), float(summary[2]), int(summary[3])
+    assert 4.0 <= simulated < 5.0
+    # The behaviour starts after the simulator is up; it then drives at 0.0628 m/s for the rest of the run.
+    assert 0.0628 * 2.0 < distance <= 0.0628 * simulated + 1e-3
+    assert collisions == 0
+    assert processes_in_this_domain() == []
+
+
+def test_sigterm_stops_every_child_cleanly(launch):
+    run = launch('bringup', 'spin', '--real-time-factor', '4')
+    wait_until(lambda: behaviour_pids('spin'), 30, 'the spin process')
+    run.proc.send_signal(signal.SIGTERM)
+    assert run.proc.wait(timeout=40) == 0, run.output()
+    assert processes_in_this_domain() == []
+
+
+def test_a_dying_behaviour_stops_the_rest_and_fails_the_run(launch):
+    run = launch('bringup', 'circle', '--real-time-factor', '4')
+    wait_until(lambda: behaviour_pids('circle'), 30, 'the circle process')
+    time.sleep(1.0)  # let it run a little
+    (pid,) = behaviour_pids('circle')
+    os.kill(pid, signal.SIGKILL)
+    assert run.proc.wait(timeout=40) == 1
+    assert 'circle exited unexpectedly with code -9' in run.output()
+    assert processes_in_this_domain() == []

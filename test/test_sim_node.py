@@ -1,0 +1,149 @@
+"""The `sim` executable in its own process, checked over DDS by a node in the test process."""
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import pytest
+from conftest import ros_args
+from nav_msgs.msg import Odometry
+from rclpy.qos import DurabilityPolicy, QoSProfile
+from rosgraph_msgs.msg import Clock
+from sensor_msgs.msg import JointState, Range
+from std_msgs.msg import Float64MultiArray, String, UInt32
+from std_srvs.srv import Empty
+
+from epuck_ros.model import MAX_WHEEL_SPEED, SENSOR_NAMES
+
+HALF_SPEED = 0.5 * MAX_WHEEL_SPEED
+LINEAR_SPEED = HALF_SPEED * 0.02  # 0.0628 m/s
+STEP = 0.032
+LATCHED = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+
+
+def stamp_seconds(msg: object) -> float:
+    return msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
+
+
+def start_sim(launch, **params):
+    sim = launch('sim', *ros_args({'noise': False, 'real_time_factor': 5.0, **params}))
+    sim.wait_for_output('sim ready')
+    return sim
+
+
+def wheel_cmd(left: float, right: float) -> Float64MultiArray:
+    return Float64MultiArray(data=[left, right])
+
+
+def test_one_command_moves_the_robot_until_the_timeout(launch, test_node):
+    start_sim(launch, cmd_timeout=1.0)
+    truth = test_node.collect(Odometry, 'ground_truth')
+    odom = test_node.collect(Odometry, 'odom')
+    pub = test_node.node.create_publisher(Float64MultiArray, 'wheel_cmd', 10)
+    test_node.spin_until(lambda: len(truth) > 5 and pub.get_subscription_count() > 0, what='sim topics')
+    start = truth[-1].pose.pose.position
+    pub.publish(wheel_cmd(HALF_SPEED, HALF_SPEED))
+    test_node.spin_until(lambda: truth[-1].twist.twist.linear.x > 0, what='the robot to move')
+    test_node.spin_until(lambda: truth[-1].twist.twist.linear.x == 0.0, what='the timeout to stop the robot')
+    test_node.spin_for(0.3)
+    end = truth[-1].pose.pose.position
+    travelled = math.hypot(end.x - start.x, end.y - start.y)
+    # 1.0 s of commands is 31.25 steps of 32 ms: 31 or 32 steps of motion at 0.0628 m/s.
+    assert 31 * STEP * LINEAR_SPEED - 1e-6 <= travelled <= 32 * STEP * LINEAR_SPEED + 1e-6
+    moving = [m for m in odom if m.twist.twist.linear.x > 0]
+    assert moving and all(abs(m.twist.twist.linear.x - LINEAR_SPEED) < 2e-3 for m in moving)
+    assert abs(odom[-1].pose.pose.position.x - (end.x - start.x)) < 2e-3  # odometry agrees when nothing slips
+
+
+def test_proximity_is_eight_ranges_per_cycle_in_index_order(launch, test_node):
+    start_sim(launch)
+    ranges = test_node.collect(Range, 'proximity', 50)
+    test_node.spin_until(lambda: len(ranges) >= 8 * 20, what='20 sensing cycles')
+    first = next(i for i, m in enumerate(ranges) if m.header.frame_id == 'ps0')
+    cycles = [ranges[i:i + 8] for i in range(first, len(ranges) - 7, 8)]
+    for cycle in cycles:
+        assert [m.header.frame_id for m in cycle] == list(SENSOR_NAMES)
+        assert len({stamp_seconds(m) for m in cycle}) == 1
+    for msg in ranges:
+        assert msg.radiation_type == Range.INFRARED
+        assert msg.field_of_view == pytest.approx(0.1)
+        assert (msg.min_range, msg.max_range) == (0.0, pytest.approx(0.07))
+        assert msg.range == math.inf or 0.0 <= msg.range <= 0.07
+    stamps = [stamp_seconds(c[0]) for c in cycles]
+    assert all(b - a == pytest.approx(STEP, abs=1e-6) for a, b in zip(stamps, stamps[1:]))
+
+
+def test_clock_advances_one_time_step_per_step(launch, test_node):
+    start_sim(launch, real_time_factor=0.0)
+    clocks = test_node.collect(Clock, '/clock', 100)
+    test_node.spin_until(lambda: len(clocks) >= 200, what='200 /clock messages')
+    times = [c.clock.sec + c.clock.nanosec * 1e-9 for c in clocks]
+    assert all(later > earlier for earlier, later in zip(times, times[1:]))
+    assert min(b - a for a, b in zip(times, times[1:])) == pytest.approx(STEP, abs=1e-6)
+
+
+def test_reset_puts_the_robot_back_and_zeroes_odometry(launch, test_node):
+    start_sim(launch, real_time_factor=10.0)
+    truth = test_node.collect(Odometry, 'ground_truth')
+    odom = test_node.collect(Odometry, 'odom')
+    joints = test_node.collect(JointState, 'joint_states')
+    pub = test_node.node.create_publisher(Float64MultiArray, 'wheel_cmd', 10)
+    test_node.spin_until(lambda: truth and pub.get_subscription_count() > 0, what='sim topics')
+    home = truth[-1].pose.pose.position
+    pub.publish(wheel_cmd(HALF_SPEED, 0.3 * MAX_WHEEL_SPEED))
+    test_node.spin_until(lambda: odom and odom[-1].pose.pose.position.x > 0.02, what='the robot to move')
+    assert joints[-1].position[0] > 0.5 and joints[-1].velocity[0] == pytest.approx(HALF_SPEED)
+    client = test_node.node.create_client(Empty, 'reset')
+    assert client.wait_for_service(timeout_sec=10.0)
+    future = client.call_async(Empty.Request())
+    test_node.spin_until(future.done, what='the reset service')
+    count = len(truth)
+    test_node.spin_until(lambda: len(truth) > count + 2, what='messages after reset')
+    after = truth[-1].pose.pose.position
+    assert (after.x, after.y) == (pytest.approx(home.x, abs=1e-9), pytest.approx(home.y, abs=1e-9))
+    assert odom[-1].pose.pose.position.x == pytest.approx(0.0, abs=1e-9)
+    assert joints[-1].position == pytest.approx([0.0, 0.0])
+
+
+def test_bad_commands_are_refused_and_the_simulation_goes_on(launch, test_node):
+    sim = start_sim(launch)
+    clocks = test_node.collect(Clock, '/clock', 100)
+    truth = test_node.collect(Odometry, 'ground_truth')
+    pub = test_node.node.create_publisher(Float64MultiArray, 'wheel_cmd', 10)
+    test_node.spin_until(lambda: clocks and pub.get_subscription_count() > 0, what='sim topics')
+    pub.publish(wheel_cmd(math.nan, 1.0))
+    sim.wait_for_output('wheel_cmd refused')
+    pub.publish(Float64MultiArray(data=[1.0, 2.0, 3.0]))
+    sim.wait_for_output('got 3 values')
+    count = len(clocks)
+    test_node.spin_until(lambda: len(clocks) > count + 20, what='the clock to go on')
+    assert all(m.twist.twist.linear.x == 0.0 for m in truth)
+    assert sim.proc.poll() is None
+
+
+def test_world_and_collision_count_are_latched(launch, test_node):
+    start_sim(launch)
+    worlds = test_node.collect(String, 'world', LATCHED)
+    collisions = test_node.collect(UInt32, 'collisions', LATCHED)
+    test_node.spin_until(lambda: worlds and collisions, what='latched world and collisions')
+    assert 'arena' in worlds[0].data
+    assert collisions[0].data == 0
+
+
+@pytest.mark.parametrize('param, expected', [
+    ('time_step:=-1.0', 'time_step'),
+    ('real_time_factor:=fast', 'real_time_factor'),
+    ('world:=/no/such/world.yaml', '/no/such/world.yaml'),
+])
+def test_bad_parameters_are_refused_at_start(launch, param, expected):
+    sim = launch('sim', '--ros-args', '-p', param)
+    assert sim.proc.wait(timeout=20) != 0
+    assert expected in sim.output()
+
+
+def test_malformed_world_file_names_the_field(launch, tmp_path: Path):
+    world = tmp_path / 'bad.yaml'
+    world.write_text('boxes:\n  - position: [0.3, 0.2]\n    size: [0.1, -0.1]\n')
+    sim = launch('sim', *ros_args({'world': str(world)}))
+    assert sim.proc.wait(timeout=20) == 2
+    assert 'boxes[0].size' in sim.output() and str(world) in sim.output()
