@@ -110,8 +110,8 @@ HEADING_APPROACH = Approach(slow_zone=math.radians(20.0), minimum=0.01, toleranc
 class Behaviour(ABC):
     """Observation -> WheelCommand. Until it has heard every input it needs, it commands STOP.
 
-    `state` is a short human-readable description of what it is doing; it changes only at real
-    transitions (a corner reached, the goal reached), so a node can log each change.
+    `state` is a short human-readable description of what it is doing, set by the behaviour only at real
+    transitions (a corner reached, the goal reached); `status` is what a node logs when it changes.
     """
 
     needs_odom: bool = False
@@ -120,6 +120,8 @@ class Behaviour(ABC):
     def __init__(self) -> None:
         self.done = False
         self.state = 'starting'
+        self.waiting_for = ''
+        """The inputs not heard yet, while there are some."""
         self._last_time: float | None = None
         self.period = 0.0
         """Seconds between the last two ticks (0 until there were two): timed states end on the nearest tick."""
@@ -128,8 +130,8 @@ class Behaviour(ABC):
         missing = [name for name, needed, value in (('odom', self.needs_odom, obs.odom),
                                                     ('proximity', self.needs_proximity, obs.ranges))
                    if needed and value is None]
+        self.waiting_for = ' and '.join(missing)
         if missing:
-            self.state = f'waiting for {" and ".join(missing)}: wheels stopped'
             return STOP
         if self._last_time is not None:
             self.period = obs.time - self._last_time
@@ -137,6 +139,10 @@ class Behaviour(ABC):
         if self.done:
             return STOP
         return self.control(obs)
+
+    @property
+    def status(self) -> str:
+        return f'waiting for {self.waiting_for}: wheels stopped' if self.waiting_for else self.state
 
     def elapsed(self, since: float, now: float, duration: float) -> bool:
         """True once `duration` has passed, to the nearest tick: ends a 1 s state after 31 ticks of 32 ms

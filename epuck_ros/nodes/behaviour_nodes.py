@@ -93,7 +93,7 @@ class BehaviourNode(Node):
             self.create_subscription(Range, 'proximity', self._on_range, QOS)
         self._publisher = self.create_publisher(Float64MultiArray, 'wheel_cmd', QOS)
         self._command = Float64MultiArray()
-        self._logged_state = ''
+        self._logged_status = ''
         self.create_timer(period, self._on_tick)
         summary = ', '.join(f'{setting}={value}' for setting, value in settings.items())
         self.get_logger().info(f'{spec.summary}; {summary}, control_period={period}')
@@ -118,9 +118,9 @@ class BehaviourNode(Node):
     def _on_tick(self) -> None:
         now = self.get_clock().now().nanoseconds * 1e-9
         command = self.behaviour.update(Observation(now, self._odom, self._ranges))
-        if self.behaviour.state != self._logged_state:
-            self._logged_state = self.behaviour.state
-            self.get_logger().info(f'{self._logged_state} (t={now:.3f} s)')
+        if self.behaviour.status != self._logged_status:
+            self._logged_status = self.behaviour.status
+            self.get_logger().info(f'{self._logged_status} (t={now:.3f} s)')
         self._command.data = [command.left, command.right]
         self._publisher.publish(self._command)
 

@@ -1,0 +1,192 @@
+"""The course behaviours without ROS: each state machine on made-up observations, then in closed loop with the
+pure simulator (`Simulation`), judged on the robot's true pose."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from epuck_ros.behaviours import BEHAVIOURS, STOP, Avoid, AvoidConfig, ConfigError, Forward, ForwardConfig, \
+    Observation, Rectangle, RectangleConfig, WheelCommand
+from epuck_ros.behaviours.avoid import COURSE_THRESHOLD
+from epuck_ros.behaviours.base import describe
+from epuck_ros.model import MAX_WHEEL_SPEED
+
+DT = 0.032
+FREE = (math.inf,) * 8
+
+
+def fractions(command: WheelCommand) -> tuple[float, float]:
+    return round(command.left / MAX_WHEEL_SPEED, 6), round(command.right / MAX_WHEEL_SPEED, 6)
+
+
+def ranges(**close: float) -> tuple[float, ...]:
+    """Eight ranges, inf except the named sensors: ranges(ps0=0.03)."""
+    return tuple(close.get(f'ps{i}', math.inf) for i in range(8))
+
+
+# --- the state machines on made-up observations -------------------------------------------------------------
+
+@pytest.mark.parametrize('name, expected', [('forward', (0.5, 0.5)), ('spin', (0.5, -0.5)), ('circle', (0.3, 0.6))])
+def test_open_loop_behaviours_drive_the_course_speeds_without_any_input(name: str, expected: tuple) -> None:
+    spec = BEHAVIOURS[name]
+    behaviour = spec.make(spec.defaults)
+    assert fractions(behaviour.update(Observation(0.0))) == expected
+    assert not behaviour.done
+
+
+@pytest.mark.parametrize('behaviour, missing', [
+    (Forward(ForwardConfig(goal_distance=0.5)), 'odom'),
+    (Rectangle(RectangleConfig()), 'odom'),
+    (Avoid(AvoidConfig()), 'proximity'),
+])
+def test_a_behaviour_stops_until_it_has_heard_what_it_needs(behaviour: object, missing: str) -> None:
+    assert behaviour.update(Observation(0.0)) == STOP
+    assert behaviour.status == f'waiting for {missing}: wheels stopped'
+    moving = behaviour.update(Observation(DT, odom=(0.0, 0.0, 0.0), ranges=FREE))
+    assert moving != STOP
+    assert behaviour.status == behaviour.state and 'waiting' not in behaviour.status
+
+
+def test_timed_rectangle_needs_nothing_and_avoid_needs_no_odometry() -> None:
+    assert Rectangle(RectangleConfig(turn_mode='timed')).update(Observation(0.0)) != STOP
+    assert Avoid(AvoidConfig()).update(Observation(0.0, ranges=FREE)) != STOP
+
+
+def test_forward_slows_down_near_the_goal_then_stops_for_good() -> None:
+    heading = math.radians(30.0)
+    forward = Forward(ForwardConfig(goal_distance=0.2))
+
+    def at(distance: float) -> tuple[float, float]:
+        odom = (1.0 + distance * math.cos(heading), 2.0 + distance * math.sin(heading), heading)
+        return fractions(forward.update(Observation(0.0, odom=odom)))
+
+    assert at(0.0) == (0.5, 0.5)
+    assert at(0.15) == (0.5, 0.5)
+    left, right = at(0.195)
+    assert left == right and 0.02 < left < 0.5
+    assert at(0.1993) == (0.02, 0.02)  # the minimum speed, 0.08 mm per step
+    assert not forward.done
+    assert at(0.1996) == (0.0, 0.0)  # within 0.5 mm
+    assert forward.done and 'goal reached: 0.1996 m' in forward.state
+    assert at(0.1) == (0.0, 0.0)  # done means done, wherever odometry says it is
+
+
+def test_forward_goal_backwards_measures_progress_behind_the_start() -> None:
+    forward = Forward(ForwardConfig(speed=-0.5, goal_distance=0.1))
+    assert fractions(forward.update(Observation(0.0, odom=(0.0, 0.0, 0.0)))) == (-0.5, -0.5)
+    assert fractions(forward.update(Observation(0.0, odom=(-0.1, 0.0, 0.0)))) == (0.0, 0.0)
+    assert forward.done
+
+
+def timed_commands(config: RectangleConfig, seconds: float) -> list[tuple[float, float]]:
+    rectangle = Rectangle(config)
+    return [fractions(rectangle.update(Observation(k * DT))) for k in range(round(seconds / DT))]
+
+
+def runs(commands: list[tuple[float, float]]) -> list[tuple[tuple[float, float], int]]:
+    """Run-length encoding: [(command, ticks), ...]."""
+    out: list[tuple[tuple[float, float], int]] = []
+    for command in commands:
+        if out and out[-1][0] == command:
+            out[-1] = (command, out[-1][1] + 1)
+        else:
+            out.append((command, 1))
+    return out
+
+
+def test_timed_rectangle_is_the_course_state_machine_to_the_nearest_tick() -> None:
+    # 5 s = 156.25 ticks -> 156; 1 s = 31.25 ticks -> 31.
+    assert runs(timed_commands(RectangleConfig(turn_mode='timed'), 13.0))[:4] == [
+        ((0.5, 0.5), 156), ((-0.3, 0.3), 31), ((0.5, 0.5), 156), ((-0.3, 0.3), 31)]
+
+
+def test_timed_rectangle_sides_become_times_and_negative_turn_speed_turns_right() -> None:
+    config = RectangleConfig(turn_mode='timed', side_a=0.0628, side_b=0.1256, turn_speed=-0.4, turn_time=0.5)
+    assert runs(timed_commands(config, 6.0))[:5] == [
+        ((0.5, 0.5), 31), ((0.4, -0.4), 16), ((0.5, 0.5), 62), ((0.4, -0.4), 16), ((0.5, 0.5), 31)]
+
+
+def test_odometry_rectangle_aims_at_ideal_corners_and_headings() -> None:
+    rectangle = Rectangle(RectangleConfig(side_a=0.3, side_b=0.2, laps=1))
+
+    def at(x: float, y: float, yaw_deg: float) -> tuple[float, float]:
+        return fractions(rectangle.update(Observation(0.0, odom=(x, y, math.radians(yaw_deg)))))
+
+    assert at(0.0, 0.0, 0.0) == (0.5, 0.5)
+    assert at(0.2993, 0.001, 0.0) == (0.02, 0.02)
+    assert at(0.2996, 0.001, 0.0) == (-0.3, 0.3)  # side 1 done: turn left at full turn speed
+    assert 'corner 1/4' in rectangle.state
+    left, right = at(0.3, 0.0, 85.0)
+    assert left == -right and 0.01 < right < 0.3  # slowing down near 90 degrees
+    assert at(0.3, 0.0, 90.3) == (0.01, -0.01)  # overshot: come back, slowly
+    assert at(0.3, 0.0, 89.95) == (0.5, 0.5)  # within 0.1 degree: side 2 (side_b) starts
+    assert 'side 2/4: forward 0.200 m' in rectangle.state
+    assert at(0.31, 0.15, 90.0) == (0.5, 0.5)
+    assert at(0.31, 0.1996, 90.0)[0] == -0.3  # side 2 ends at the ideal corner (0.3, 0.2), not 0.2 from here
+    for x, y, yaw in ((0.3, 0.2, 180.0), (0.0, 0.2, 180.0), (0.0, 0.2, -90.0), (0.0, 0.0, -90.0)):
+        at(x, y, yaw)  # finishes corner 2, side 3, corner 3, side 4
+    assert not rectangle.done
+    assert at(0.0, 0.0, 0.0) == (0.0, 0.0)
+    assert rectangle.done and 'finished 1 lap' in rectangle.state
+
+
+def test_avoid_rules_turn_away_from_the_front_until_clear_with_hysteresis() -> None:
+    avoid = Avoid(AvoidConfig())
+
+    def sees(**close: float) -> tuple[float, float]:
+        return fractions(avoid.update(Observation(0.0, ranges=ranges(**close))))
+
+    assert sees() == (0.5, 0.5)
+    assert sees(ps1=0.06) == (-0.4, 0.4)  # front right: turn left, as the course does
+    assert sees(ps6=0.03) == (-0.4, 0.4)  # a corner: keeps its direction instead of rocking
+    assert sees(ps7=0.068) == (-0.4, 0.4)  # beyond the threshold but not clear yet
+    assert sees() == (0.5, 0.5)
+    assert sees(ps7=0.06) == (0.4, -0.4)  # front left: turn right
+    assert sees(ps0=0.069, ps2=0.01) == (0.4, -0.4)
+
+
+@pytest.mark.parametrize('close, expected', [
+    ({'ps2': 0.05}, (0.2, 0.5)),  # obstacle on the right: veer left, away from it (the course veers right)
+    ({'ps5': 0.05}, (0.5, 0.2)),  # on the left: veer right
+    ({'ps2': 0.05, 'ps5': 0.05}, (0.5, 0.5)),  # a corridor: straight on
+    ({'ps2': 0.068, 'ps3': 0.01, 'ps4': 0.01}, (0.5, 0.5)),  # beyond the threshold, and the back sensors are ignored
+])
+def test_avoid_rules_veer_away_from_a_side_obstacle(close: dict, expected: tuple) -> None:
+    assert fractions(Avoid(AvoidConfig()).update(Observation(0.0, ranges=ranges(**close)))) == expected
+
+
+def test_avoid_threshold_is_the_course_raw_value_80() -> None:
+    assert COURSE_THRESHOLD == pytest.approx(0.06653, abs=1e-5)
+
+
+def test_braitenberg_is_webots_e_puck_avoid_obstacles() -> None:
+    avoid = Avoid(AvoidConfig(mode='braitenberg'))
+    # nothing in range: every sensor reads raw 67.19, the weights bend the path slightly left (Webots does too)
+    free = avoid.update(Observation(0.0, ranges=FREE))
+    assert free.left == pytest.approx(3.14 - 4.55 * 67.19 / 4096 * 6.28)
+    assert free.right == pytest.approx(3.14 - 2.0 * 67.19 / 4096 * 6.28)
+    touching = avoid.update(Observation(0.0, ranges=ranges(ps0=0.0)))
+    assert -MAX_WHEEL_SPEED < touching.left < touching.right < 0.0  # obstacle front right: back off turning left
+
+
+@pytest.mark.parametrize('make, field', [
+    (lambda: RectangleConfig(turn_mode='square'), 'turn_mode'),
+    (lambda: RectangleConfig(side_a=-1.0), 'side_a'),
+    (lambda: RectangleConfig(turn_speed=0.0), 'turn_speed'),
+    (lambda: AvoidConfig(threshold=0.1), 'threshold'),
+    (lambda: AvoidConfig(threshold=0.05, release_distance=0.04), 'release_distance'),
+    (lambda: AvoidConfig(mode='wall-follow'), 'mode'),
+    (lambda: ForwardConfig(speed=0.0, goal_distance=1.0), 'speed'),
+])
+def test_bad_settings_name_what_is_wrong(make: object, field: str) -> None:
+    with pytest.raises(ConfigError, match=field):
+        make()
+
+
+@pytest.mark.parametrize('name', sorted(BEHAVIOURS))
+def test_every_setting_has_a_description_and_a_default_inside_its_range(name: str) -> None:
+    for setting, value, description, (low, high) in describe(BEHAVIOURS[name].defaults):
+        assert len(description) > 20, setting
+        assert low is None or low <= value <= high, setting
