@@ -1,0 +1,207 @@
+"""Decoding CDR message data without ROS: a generic decoder driven by the bag's ``ros2msg`` schema,
+and fast paths for the two types a run summary reads a lot of (Odometry and Range).
+
+The fast paths read a few fields with ``struct`` at offsets computed from the layout: CDR
+aligns each primitive to its size, counted from after the 4-byte encapsulation header, and
+the only variable-length parts before the numbers are the frame_id strings.
+"""
+from __future__ import annotations
+
+import math
+import re
+import struct
+from dataclasses import dataclass
+
+ENCAPSULATION = 4
+"""Bytes of the CDR encapsulation header in front of every message."""
+CDR_LE, CDR_BE = 1, 0
+
+_PRIMITIVES = {
+    'bool': '?', 'byte': 'B', 'char': 'B', 'int8': 'b', 'uint8': 'B', 'int16': 'h', 'uint16': 'H',
+    'int32': 'i', 'uint32': 'I', 'int64': 'q', 'uint64': 'Q', 'float32': 'f', 'float64': 'd',
+}
+_SIZES = {name: struct.calcsize(code) for name, code in _PRIMITIVES.items()}
+_TIME_TYPES = ('builtin_interfaces/Time', 'builtin_interfaces/Duration')
+_BUILTIN_DEFINITIONS = {name: [('int32', 'sec', None), ('uint32', 'nanosec', None)] for name in _TIME_TYPES}
+_FIELD_TYPE = re.compile(r'^([A-Za-z0-9_/]+)(?:<=\d+)?(?:\[(<=)?(\d*)\])?$')
+_SEPARATOR = re.compile(r'^={3,}$', re.MULTILINE)
+
+
+class CdrError(ValueError):
+    """Message data or schema the decoder cannot handle; the message says what."""
+
+
+def _aligned(position: int, base: int, size: int) -> int:
+    return base + ((position - base + size - 1) & -size)
+
+
+def _check_little_endian(buffer: bytes, start: int) -> int:
+    if buffer[start + 1] != CDR_LE:
+        raise CdrError(f'encapsulation {bytes(buffer[start:start + 2]).hex()} is not little-endian CDR')
+    return start + ENCAPSULATION
+
+
+def odometry_fields(buffer: bytes, start: int) -> tuple[int, float, float, float, float, float]:
+    """nav_msgs/Odometry -> (header stamp ns, x, y, yaw, linear.x, angular.z)."""
+    base = _check_little_endian(buffer, start)
+    sec, nanosec, frame_length = struct.unpack_from('<iII', buffer, base)
+    position = _aligned(base + 12 + frame_length, base, 4)
+    (child_length,) = struct.unpack_from('<I', buffer, position)
+    position = _aligned(position + 4 + child_length, base, 8)
+    x, y, _, qx, qy, qz, qw = struct.unpack_from('<7d', buffer, position)
+    # pose: 7 doubles + 36 covariance = 344 bytes; then twist.linear.x and twist.angular.z
+    vx, _, _, _, _, wz = struct.unpack_from('<6d', buffer, position + 344)
+    yaw = math.atan2(2.0 * (qw * qz + qx * qy), 1.0 - 2.0 * (qy * qy + qz * qz))
+    return sec * 1_000_000_000 + nanosec, x, y, yaw, vx, wz
+
+
+def range_fields(buffer: bytes, start: int) -> tuple[int, str, float]:
+    """sensor_msgs/Range -> (header stamp ns, frame_id, range)."""
+    base = _check_little_endian(buffer, start)
+    sec, nanosec, frame_length = struct.unpack_from('<iII', buffer, base)
+    frame_end = base + 12 + frame_length
+    frame_id = bytes(buffer[base + 12:frame_end - 1]).decode('utf-8', 'replace')
+    # radiation_type (uint8) at frame_end, then field_of_view, min_range, max_range, range
+    (distance,) = struct.unpack_from('<f', buffer, _aligned(frame_end + 1, base, 4) + 12)
+    return sec * 1_000_000_000 + nanosec, frame_id, distance
+
+
+@dataclass(frozen=True)
+class TimeValue:
+    """A builtin_interfaces Time or Duration, kept exact in nanoseconds."""
+
+    nanoseconds: int
+
+    def __str__(self) -> str:
+        sign = '-' if self.nanoseconds < 0 else ''
+        seconds, nanoseconds = divmod(abs(self.nanoseconds), 1_000_000_000)
+        return f'{sign}{seconds}.{nanoseconds:09d}'
+
+
+def _short_name(type_name: str) -> str:
+    """``pkg/msg/Type`` and ``pkg/Type`` -> ``pkg/Type``, the key the schema's MSG: blocks use."""
+    parts = type_name.split('/')
+    return f'{parts[0]}/{parts[-1]}' if len(parts) > 1 else type_name
+
+
+def parse_schema(type_name: str, text: str) -> dict[str, list[tuple[str, str, int | None]]]:
+    """ros2msg text -> {``pkg/Type``: [(field type, field name, array length or -1 for a sequence)]}."""
+    definitions = dict(_BUILTIN_DEFINITIONS)
+    name = _short_name(type_name)
+    for block in _SEPARATOR.split(text):
+        lines = block.strip('\n').split('\n')
+        if lines and lines[0].startswith('MSG: '):
+            name = _short_name(lines.pop(0)[5:].strip())
+        package = name.split('/')[0]
+        fields = []
+        for line in lines:
+            words = line.split('#', 1)[0].split()
+            if len(words) < 2 or '=' in words[1] or (len(words) > 2 and words[2].startswith('=')):
+                continue  # blank, comment or constant
+            match = _FIELD_TYPE.match(words[0])
+            if match is None:
+                raise CdrError(f'{type_name}: cannot parse field type {words[0]!r}')
+            base_type, bounded, length = match.groups()
+            if base_type not in _PRIMITIVES and base_type not in ('string', 'wstring'):
+                base_type = _short_name(base_type if '/' in base_type else f'{package}/{base_type}')
+            array = None if '[' not in words[0] else (-1 if bounded or not length else int(length))
+            fields.append((base_type, words[1], array))
+        definitions[name] = fields
+    return definitions
+
+
+class CdrDecoder:
+    """Decodes one message type, from its bag schema, into nested dicts; `flat` gives dotted columns."""
+
+    def __init__(self, type_name: str, schema_text: str) -> None:
+        self.type_name = _short_name(type_name)
+        self._definitions = parse_schema(type_name, schema_text)
+        self._check(self.type_name, ())
+
+    def _check(self, name: str, path: tuple[str, ...]) -> None:
+        if name not in self._definitions:
+            raise CdrError(f'{self.type_name}: the schema has no definition for {name}')
+        if name in path:
+            raise CdrError(f'{self.type_name}: {name} contains itself')
+        for field_type, field_name, _ in self._definitions[name]:
+            if field_type == 'wstring':
+                raise CdrError(f'{self.type_name}: field {field_name} is a wstring, which is not supported')
+            if field_type not in _PRIMITIVES and field_type != 'string':
+                self._check(field_type, (*path, name))
+
+    def decode(self, buffer: bytes, start: int = 0, end: int | None = None) -> dict:
+        end = len(buffer) if end is None else end
+        kind = buffer[start + 1]
+        if kind not in (CDR_LE, CDR_BE) or buffer[start] != 0:
+            raise CdrError(f'encapsulation {bytes(buffer[start:start + 2]).hex()} is not plain CDR')
+        self._order = '<' if kind == CDR_LE else '>'
+        self._base = start + ENCAPSULATION
+        try:
+            value, position = self._read_message(buffer, self.type_name, self._base)
+        except struct.error:
+            position = end + 1
+        if position > end:
+            raise CdrError(f'{self.type_name}: message data ends before the message does')
+        return value
+
+    def _read_message(self, buffer: bytes, name: str, position: int) -> tuple[object, int]:
+        message = {}
+        for field_type, field_name, array in self._definitions[name]:
+            if array is None:
+                message[field_name], position = self._read_value(buffer, field_type, position)
+                continue
+            if array < 0:
+                position = _aligned(position, self._base, 4)
+                (array,) = struct.unpack_from(self._order + 'I', buffer, position)
+                position += 4
+            message[field_name], position = self._read_array(buffer, field_type, array, position)
+        if name in _TIME_TYPES:
+            return TimeValue(message['sec'] * 1_000_000_000 + message['nanosec']), position
+        return message, position
+
+    def _read_array(self, buffer: bytes, field_type: str, count: int, position: int) -> tuple[list, int]:
+        code = _PRIMITIVES.get(field_type)
+        if code is None:
+            values = []
+            for _ in range(count):
+                value, position = self._read_value(buffer, field_type, position)
+                values.append(value)
+            return values, position
+        size = _SIZES[field_type]
+        position = _aligned(position, self._base, size) if count else position
+        values = list(struct.unpack_from(f'{self._order}{count}{code}', buffer, position))
+        return values, position + size * count
+
+    def _read_value(self, buffer: bytes, field_type: str, position: int) -> tuple[object, int]:
+        code = _PRIMITIVES.get(field_type)
+        if code is not None:
+            size = _SIZES[field_type]
+            position = _aligned(position, self._base, size)
+            return struct.unpack_from(self._order + code, buffer, position)[0], position + size
+        if field_type == 'string':
+            position = _aligned(position, self._base, 4)
+            (length,) = struct.unpack_from(self._order + 'I', buffer, position)
+            text = bytes(buffer[position + 4:position + 4 + max(length - 1, 0)]).decode('utf-8', 'replace')
+            return text, position + 4 + length
+        return self._read_message(buffer, field_type, position)
+
+    def flat(self, buffer: bytes, start: int = 0, end: int | None = None,
+             join_arrays: bool = False) -> dict[str, object]:
+        """One message as {dotted.name or name[i]: value}; primitive arrays joined by spaces if asked."""
+        columns: dict[str, object] = {}
+        _flatten(self.decode(buffer, start, end), '', columns, join_arrays)
+        return columns
+
+
+def _flatten(value: object, name: str, columns: dict[str, object], join_arrays: bool) -> None:
+    if isinstance(value, dict):
+        for key, item in value.items():
+            _flatten(item, f'{name}.{key}' if name else key, columns, join_arrays)
+    elif isinstance(value, list):
+        if join_arrays and not any(isinstance(v, (dict, list)) for v in value):
+            columns[name] = ' '.join(str(v) for v in value)
+            return
+        for index, item in enumerate(value):
+            _flatten(item, f'{name}[{index}]', columns, join_arrays)
+    else:
+        columns[name] = value
