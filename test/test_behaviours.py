@@ -7,11 +7,13 @@ import math
 import numpy as np
 import pytest
 
-from epuck_ros.behaviours import BEHAVIOURS, STOP, Avoid, AvoidConfig, ConfigError, Forward, ForwardConfig, \
-    Observation, Rectangle, RectangleConfig, WheelCommand
-from epuck_ros.behaviours.avoid import COURSE_THRESHOLD
+from epuck_ros.behaviours import BEHAVIOURS, STOP, Avoid, AvoidConfig, Behaviour, ConfigError, Forward, \
+    ForwardConfig, Observation, Rectangle, RectangleConfig, WheelCommand
+from epuck_ros.behaviours.avoid import COURSE_THRESHOLD, braitenberg
 from epuck_ros.behaviours.base import describe
 from epuck_ros.model import MAX_WHEEL_SPEED
+from epuck_ros.simulation import Simulation
+from epuck_ros.world import World, default_world
 
 DT = 0.032
 FREE = (math.inf,) * 8
@@ -121,7 +123,7 @@ def test_odometry_rectangle_aims_at_ideal_corners_and_headings() -> None:
     left, right = at(0.3, 0.0, 85.0)
     assert left == -right and 0.01 < right < 0.3  # slowing down near 90 degrees
     assert at(0.3, 0.0, 90.3) == (0.01, -0.01)  # overshot: come back, slowly
-    assert at(0.3, 0.0, 89.95) == (0.5, 0.5)  # within 0.1 degree: side 2 (side_b) starts
+    assert at(0.3, 0.0, 89.9) == (0.5, 0.5)  # within 0.15 degree: side 2 (side_b) starts
     assert 'side 2/4: forward 0.200 m' in rectangle.state
     assert at(0.31, 0.15, 90.0) == (0.5, 0.5)
     assert at(0.31, 0.1996, 90.0)[0] == -0.3  # side 2 ends at the ideal corner (0.3, 0.2), not 0.2 from here
@@ -162,13 +164,24 @@ def test_avoid_threshold_is_the_course_raw_value_80() -> None:
 
 
 def test_braitenberg_is_webots_e_puck_avoid_obstacles() -> None:
-    avoid = Avoid(AvoidConfig(mode='braitenberg'))
     # nothing in range: every sensor reads raw 67.19, the weights bend the path slightly left (Webots does too)
-    free = avoid.update(Observation(0.0, ranges=FREE))
+    free = braitenberg(np.array(FREE), 0.5)
     assert free.left == pytest.approx(3.14 - 4.55 * 67.19 / 4096 * 6.28)
     assert free.right == pytest.approx(3.14 - 2.0 * 67.19 / 4096 * 6.28)
-    touching = avoid.update(Observation(0.0, ranges=ranges(ps0=0.0)))
-    assert -MAX_WHEEL_SPEED < touching.left < touching.right < 0.0  # obstacle front right: back off turning left
+    touching = braitenberg(np.array(ranges(ps0=0.0)), 0.5)  # raw 4095 front right: back off turning left
+    assert -MAX_WHEEL_SPEED < touching.left < touching.right < 0.0
+    assert fractions(braitenberg(np.array(ranges(ps0=0.0, ps1=0.0)), 0.5)) == (-1.0, -1.0)  # clipped
+    right = braitenberg(np.array(ranges(ps2=0.005)), 0.5)
+    assert right.left < right.right  # obstacle on the right: turn left
+
+
+def test_braitenberg_mode_steers_on_the_weights_until_the_front_escape_takes_over() -> None:
+    avoid = Avoid(AvoidConfig(mode='braitenberg'))
+    side = ranges(ps2=0.02)
+    assert avoid.update(Observation(0.0, ranges=side)) == braitenberg(np.array(side), 0.5)
+    assert fractions(avoid.update(Observation(0.0, ranges=ranges(ps7=0.06)))) == (0.4, -0.4)
+    assert fractions(avoid.update(Observation(0.0, ranges=ranges(ps7=0.069)))) == (0.4, -0.4)
+    assert avoid.update(Observation(0.0, ranges=FREE)) == braitenberg(np.array(FREE), 0.5)
 
 
 @pytest.mark.parametrize('make, field', [
@@ -190,3 +203,138 @@ def test_every_setting_has_a_description_and_a_default_inside_its_range(name: st
     for setting, value, description, (low, high) in describe(BEHAVIOURS[name].defaults):
         assert len(description) > 20, setting
         assert low is None or low <= value <= high, setting
+
+
+# --- closed loop with the pure simulator, judged on the true pose ---------------------------------------------
+
+OPEN_FLOOR = World(arena_size=(4.0, 4.0))
+"""Nothing to bump into: the kinematic behaviours are judged on kinematics alone."""
+
+
+def drive(behaviour: Behaviour, sim: Simulation, seconds: float) -> tuple[np.ndarray, list[str]]:
+    """Run the behaviour on the simulator as a node would; the true pose before and after every step (unwrapped
+    yaw), and the behaviour's state during each step."""
+    poses, states = [sim.true_pose[0].copy()], []
+    for _ in range(round(seconds / sim.time_step)):
+        command = behaviour.update(Observation(sim.time, tuple(sim.odom_pose[0]), tuple(sim.ir_range[0])))
+        states.append(behaviour.state)
+        sim.command_wheels(command.left, command.right)
+        sim.step()
+        poses.append(sim.true_pose[0].copy())
+    poses = np.array(poses)
+    poses[:, 2] = np.unwrap(poses[:, 2])
+    return poses, states
+
+
+def segments(states: list[str], word: str) -> list[tuple[int, int]]:
+    """(first, last + 1) step indices of each run of states containing `word`."""
+    runs, start = [], None
+    for index, state in enumerate([*states, '']):
+        if start is not None and (state != states[start]):
+            runs.append((start, index))
+            start = None
+        if start is None and word in state:
+            start = index
+    return runs
+
+
+def noiseless(world: World = OPEN_FLOOR) -> Simulation:
+    return Simulation(world, noise=False)
+
+
+def path_length(poses: np.ndarray) -> float:
+    return float(np.hypot(*np.diff(poses[:, :2], axis=0).T).sum())
+
+
+def test_closed_loop_forward_drives_straight_at_the_course_speed() -> None:
+    sim = noiseless()
+    poses, _ = drive(Forward(ForwardConfig()), sim, 10.0)
+    speed = path_length(poses) / sim.time
+    heading_change = math.degrees(abs(poses[-1, 2] - poses[0, 2]))
+    print(f'forward: {speed:.5f} m/s (course 0.0628), heading change {heading_change:.4f} deg')
+    assert speed == pytest.approx(0.5 * MAX_WHEEL_SPEED * 0.02, rel=0.02)
+    assert heading_change < 1.0
+
+
+@pytest.mark.parametrize('goal', [0.05, 0.314, 1.0])
+def test_closed_loop_forward_stops_within_5_mm_of_its_goal(goal: float) -> None:
+    forward = Forward(ForwardConfig(goal_distance=goal))
+    poses, states = drive(forward, noiseless(), goal / 0.0628 + 5.0)
+    assert forward.done
+    reached = states.index(forward.state)
+    travelled = float(np.hypot(*(poses[-1, :2] - poses[0, :2])))
+    print(f'forward goal {goal} m: stopped at {travelled:.5f} m (true) after {reached * DT:.2f} s')
+    assert travelled == pytest.approx(goal, abs=0.005)
+    assert np.allclose(poses[reached + 1:], poses[-1])  # and stays there
+
+
+def test_closed_loop_spin_turns_in_place_at_2_415_rad_s() -> None:
+    sim = noiseless()
+    poses, _ = drive(BEHAVIOURS['spin'].make(BEHAVIOURS['spin'].defaults), sim, 10.0)
+    rate = (poses[-1, 2] - poses[0, 2]) / sim.time
+    drift = float(np.hypot(*(poses[:, :2] - poses[0, :2]).T).max())
+    print(f'spin: {rate:.4f} rad/s (course -2.415), largest drift {drift * 1000:.4f} mm')
+    assert rate == pytest.approx(-0.02 / 0.052 * MAX_WHEEL_SPEED, rel=0.02)
+    assert drift < 0.002
+
+
+def fitted_circle(xy: np.ndarray) -> tuple[float, float, float]:
+    """Least-squares circle (Kasa): x^2 + y^2 = 2 a x + 2 b y + c; centre (a, b), radius sqrt(c + a^2 + b^2)."""
+    design = np.column_stack([2.0 * xy[:, 0], 2.0 * xy[:, 1], np.ones(len(xy))])
+    (a, b, c), *_ = np.linalg.lstsq(design, (xy ** 2).sum(axis=1), rcond=None)
+    return a, b, math.sqrt(c + a * a + b * b)
+
+
+def test_closed_loop_circle_has_the_course_radius() -> None:
+    poses, _ = drive(BEHAVIOURS['circle'].make(BEHAVIOURS['circle'].defaults), noiseless(), 20.0)
+    x, y, radius = fitted_circle(poses[:, :2])
+    print(f'circle: fitted radius {radius:.5f} m (course 0.078), centre ({x:.4f}, {y:.4f})')
+    assert radius == pytest.approx(0.026 * 0.9 / 0.3, rel=0.03)
+    assert (x, y) == pytest.approx((0.0, radius), abs=0.002)  # counter-clockwise: the centre is on the left
+
+
+def corner_angles(poses: np.ndarray, states: list[str]) -> list[float]:
+    return [math.degrees(poses[end, 2] - poses[start, 2]) for start, end in segments(states, 'corner')]
+
+
+@pytest.mark.parametrize('config', [
+    RectangleConfig(laps=1),
+    RectangleConfig(laps=1, side_a=0.3, side_b=0.15, turn_speed=-0.3),
+], ids=['course-square-left', 'rectangle-right'])
+def test_closed_loop_odometry_rectangle_closes_with_true_right_angles(config: RectangleConfig) -> None:
+    rectangle = Rectangle(config)
+    poses, states = drive(rectangle, noiseless(default_world()), 40.0)
+    assert rectangle.done
+    angles = corner_angles(poses, states)
+    corners = [poses[start, :2] for start, _ in segments(states, 'corner')]
+    sides = np.hypot(*np.diff([poses[0, :2], *corners], axis=0).T)
+    closure = float(np.hypot(*(poses[-1, :2] - poses[0, :2])))
+    print(f'rectangle {config.side_a}x{config.side_b}: corners {np.round(angles, 3)} deg, '
+          f'sides {np.round(sides, 4)} m, back within {closure * 1000:.2f} mm of the start')
+    assert len(angles) == 4
+    assert np.allclose(angles, math.copysign(90.0, config.turn_speed), atol=2.0)
+    assert np.allclose(sides, [config.side_a, config.side_b, config.side_a, config.side_b], atol=0.005)
+    assert closure < 0.01
+
+
+def test_closed_loop_timed_rectangle_turns_the_courses_83_degrees() -> None:
+    poses, states = drive(Rectangle(RectangleConfig(turn_mode='timed', laps=1)), noiseless(default_world()), 30.0)
+    angles = corner_angles(poses, states)
+    print(f'timed rectangle: corners {np.round(angles, 3)} deg (1 s at 1.449 rad/s = 83.0)')
+    assert len(angles) == 4
+    assert np.allclose(angles, 83.0, atol=1.5)
+
+
+@pytest.mark.parametrize('mode', ['rules', 'braitenberg'])
+def test_closed_loop_avoid_explores_the_default_world_for_5_minutes_without_a_collision(mode: str) -> None:
+    """Bounds: cruising the whole time would drive 0.0628 m/s * 300 s = 18.8 m; at least half of that says the
+    robot is not stuck turning. The 1 m arena has 100 cells of 10 cm and a wall-follower would visit only the
+    36 along the walls; 40 says it crosses the room. Seeds 0 to 19 drove 12.0 to 17.1 m over 45 to 84 cells."""
+    sim = Simulation(default_world(), seed=0, noise=True)
+    poses, _ = drive(Avoid(AvoidConfig(mode=mode)), sim, 300.0)
+    distance = path_length(poses)
+    cells = len(set(map(tuple, np.floor((poses[:, :2] + 0.5) / 0.1).astype(int))))
+    print(f'avoid {mode}: {sim.collisions[0]} collisions, {distance:.2f} m driven, {cells} of 100 cells visited')
+    assert sim.collisions[0] == 0
+    assert distance > 0.5 * 0.0628 * 300.0
+    assert cells >= 40

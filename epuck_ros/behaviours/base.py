@@ -102,9 +102,11 @@ DISTANCE_APPROACH = Approach(slow_zone=0.02, minimum=0.02, tolerance=0.0005)
 """Over the last 2 cm down to 0.02 * MAX_SPEED (2.5 mm/s, 0.08 mm per 32 ms step); stop within 0.5 mm.
 A full-speed step at 0.5 * MAX_SPEED is 2 mm, so arriving without slowing down would miss by up to that."""
 
-HEADING_APPROACH = Approach(slow_zone=math.radians(20.0), minimum=0.01, tolerance=math.radians(0.1))
+HEADING_APPROACH = Approach(slow_zone=math.radians(20.0), minimum=0.01, tolerance=math.radians(0.15))
 """Over the last 20 degrees down to 0.01 * MAX_SPEED (0.09 degrees per step turning in place); stop within
-0.1 degree, about the odometry's own resolution (one encoder tick turns the odometry yaw by 0.14 degree)."""
+0.15 degree. Turning in place, both encoders tick together and each pair of ticks turns the odometry yaw by
+2 * R/L * 2pi/1000 = 0.28 degree, so the odometry can only land within 0.14 degree of a target: a tighter
+tolerance would rock back and forth around it forever."""
 
 
 class Behaviour(ABC):
