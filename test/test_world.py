@@ -1,0 +1,190 @@
+"""The world: default arena, YAML loading with named-field errors, ray casting and collision push-out."""
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+
+from epuck_ros.world import Box, Cylinder, World, WorldError, default_world, load_world, world_from_dict
+
+WORLDS = Path(__file__).resolve().parent.parent / 'epuck_ros' / 'worlds'
+RADIUS = 0.037
+
+
+def cast(world: World, x: float, y: float, yaw: float, max_range: float = 10.0) -> float:
+    return float(world.cast_rays(np.array([[x, y]]), np.array([yaw]), max_range)[0])
+
+
+# --- the default world and the shipped files ------------------------------------------------------------
+
+def test_default_world_file_equals_the_built_in_default():
+    assert load_world(WORLDS / 'default.yaml') == default_world()
+
+
+def test_default_world_is_the_course_arena_with_a_few_boxes_clear_of_the_start():
+    world = default_world()
+    assert world.arena_size == (1.0, 1.0)
+    assert 3 <= len(world.boxes) <= 5
+    assert all((box.size_x, box.size_y) == (0.1, 0.1) for box in world.boxes)
+    x, y, _ = world.start_pose
+    assert world.overlapping(x, y, RADIUS) == []
+    # the 0.078 m circle either way around and the 0.31 m rectangle turning either way stay clear of the boxes
+    for px, py in [(0.0, 0.156), (0.0, -0.156), (0.078, 0.078), (-0.078, 0.078), (0.314, 0.314), (0.314, -0.314)]:
+        assert world.clearance(np.array([[px, py]]))[0] >= RADIUS
+
+
+@pytest.mark.parametrize('name', ['default.yaml', 'corridor.yaml'])
+def test_shipped_worlds_round_trip_through_to_dict(name):
+    world = load_world(WORLDS / name)
+    assert world_from_dict(world.to_dict()) == world
+    assert world_from_dict(yaml.safe_load(yaml.safe_dump(world.to_dict()))) == world
+
+
+def test_missing_fields_take_defaults():
+    world = world_from_dict({'boxes': [{'position': [0.3, 0.3], 'size': [0.1, 0.2]}], 'robot': None})
+    assert world.arena_size == (1.0, 1.0)
+    assert world.boxes == (Box(0.3, 0.3, 0.1, 0.2, 0.0),)
+    assert world.cylinders == ()
+    assert world.start_pose == (0.0, 0.0, 0.0)
+
+
+def test_empty_file_is_an_empty_arena(tmp_path):
+    path = tmp_path / 'empty.yaml'
+    path.write_text('')
+    assert load_world(path) == World()
+
+
+# --- world-file errors name the file, the field and the problem -------------------------------------------
+
+@pytest.mark.parametrize('text, field, problem', [
+    ('- 1\n- 2\n', '<top level>', 'expected a mapping'),
+    ('obstacles: []\n', '<top level>', "unknown key 'obstacles'"),
+    ('arena: {size: [1.0]}\n', 'arena.size', 'expected a list of 2 numbers'),
+    ('arena: {size: [1.0, .nan]}\n', 'arena.size[1]', 'must be finite'),
+    ('arena: {size: [0.0, 1.0]}\n', 'arena.size[0]', 'must be positive'),
+    ('arena: [1, 1]\n', 'arena', 'expected a mapping'),
+    ('boxes: {position: [0, 0]}\n', 'boxes', 'expected a list'),
+    ('boxes:\n- {position: [0.3, 0.3], size: [0.1, 0.1]}\n- {position: [0.3, -0.3], size: [0.1, 0.1]}\n'
+     '- {position: [-0.3, 0.3]}\n', 'boxes[2].size', 'missing'),
+    ('boxes: [{size: [0.1, 0.1]}]\n', 'boxes[0].position', 'missing'),
+    ('boxes: [{position: [0.3, 0.3], size: big}]\n', 'boxes[0].size', 'expected a list of 2 numbers'),
+    ('boxes: [{position: [0.3, 0.3], size: [0.1, -0.2]}]\n', 'boxes[0].size[1]', 'must be positive'),
+    ('boxes: [{position: [0.3, "a"], size: [0.1, 0.1]}]\n', 'boxes[0].position[1]', 'expected a number'),
+    ('boxes: [{position: [0.3, 0.3], size: [0.1, 0.1], yaw: true}]\n', 'boxes[0].yaw', 'expected a number'),
+    ('boxes: [{position: [0.3, 0.3], size: [0.1, 0.1], colour: red}]\n', 'boxes[0]', "unknown key 'colour'"),
+    ('cylinders: [{position: [0.3, 0.3], radius: 0}]\n', 'cylinders[0].radius', 'must be positive'),
+    ('cylinders: [{position: [0.3, 0.3]}]\n', 'cylinders[0].radius', 'missing'),
+    ('robot: {start: [0, 0]}\n', 'robot.start', 'expected a list of 3 numbers'),
+    ('robot: {start: [0, 0, .inf]}\n', 'robot.start[2]', 'must be finite'),
+    ('robot: {start: [0.48, 0, 0]}\n', 'robot.start', 'not inside the 1.0 m x 1.0 m arena'),
+    ('robot: {start: [2.0, 0, 0]}\n', 'robot.start', 'not inside'),
+    ('boxes: [{position: [0.3, 0.3], size: [0.1, 0.1]}]\nrobot: {start: [0.3, 0.23, 0]}\n',
+     'robot.start', 'overlaps boxes[0]'),
+    ('cylinders: [{position: [0.1, 0], radius: 0.07}]\n', 'robot.start', 'overlaps cylinders[0]'),
+])
+def test_bad_world_files_name_the_field(tmp_path, text, field, problem):
+    path = tmp_path / 'bad.yaml'
+    path.write_text(text)
+    with pytest.raises(WorldError) as caught:
+        load_world(path)
+    message = str(caught.value)
+    assert message.startswith(f'{path}: {field}: '), message
+    assert problem in message
+
+
+def test_missing_file_and_broken_yaml_are_world_errors(tmp_path):
+    with pytest.raises(WorldError, match='nowhere.yaml: file not found'):
+        load_world(tmp_path / 'nowhere.yaml')
+    path = tmp_path / 'broken.yaml'
+    path.write_text('arena: {size: [1, 1]\n')
+    with pytest.raises(WorldError, match='broken.yaml: not valid YAML'):
+        load_world(path)
+    with pytest.raises(WorldError, match='cannot read'):
+        load_world(tmp_path)
+
+
+# --- ray casting -------------------------------------------------------------------------------------------
+
+def test_rays_hit_the_arena_walls():
+    world = World()
+    assert cast(world, 0.0, 0.0, 0.0) == pytest.approx(0.5)
+    assert cast(world, 0.2, 0.1, math.pi) == pytest.approx(0.7)
+    assert cast(world, 0.2, 0.1, -math.pi / 2) == pytest.approx(0.6)
+    assert cast(world, 0.0, 0.0, math.pi / 4) == pytest.approx(0.5 * math.sqrt(2))
+    assert cast(world, 0.0, 0.0, 0.3) == pytest.approx(0.5 / math.cos(0.3))
+
+
+def test_rays_beyond_max_range_are_inf():
+    world = World()
+    assert cast(world, 0.44, 0.0, 0.0, max_range=0.07) == pytest.approx(0.06)
+    assert cast(world, 0.42, 0.0, 0.0, max_range=0.07) == math.inf
+
+
+def test_rays_hit_the_nearest_face_of_a_box_even_rotated():
+    world = World(boxes=[Box(0.3, 0.0, 0.1, 0.2), Box(-0.3, 0.0, 0.1, 0.1, math.pi / 4)])
+    assert cast(world, 0.0, 0.0, 0.0) == pytest.approx(0.25)
+    assert cast(world, 0.0, 0.05, 0.0) == pytest.approx(0.25)
+    assert cast(world, 0.0, 0.15, 0.0) == pytest.approx(0.5)   # passes above the box
+    assert cast(world, 0.0, 0.0, math.pi) == pytest.approx(0.3 - 0.05 * math.sqrt(2))  # the diamond's corner
+
+
+def test_rays_hit_cylinders():
+    world = World(cylinders=[Cylinder(0.3, 0.0, 0.05)])
+    assert cast(world, 0.0, 0.0, 0.0) == pytest.approx(0.25)
+    assert cast(world, 0.0, 0.03, 0.0) == pytest.approx(0.3 - math.sqrt(0.05 ** 2 - 0.03 ** 2))
+    assert cast(world, 0.0, 0.06, 0.0) == pytest.approx(0.5)   # misses it
+    assert cast(world, 0.0, 0.0, math.pi) == pytest.approx(0.5)  # it is behind
+
+
+def test_many_rays_in_one_call():
+    world = default_world()
+    yaws = np.linspace(-math.pi, math.pi, 64, endpoint=False)
+    origins = np.tile([0.1, -0.2], (64, 1))
+    distances = world.cast_rays(origins, yaws, 2.0)
+    assert distances.shape == (64,)
+    assert np.all(np.isfinite(distances))
+    assert distances == pytest.approx([cast(world, 0.1, -0.2, yaw, 2.0) for yaw in yaws])
+
+
+# --- collisions --------------------------------------------------------------------------------------------
+
+@pytest.mark.parametrize('world, inside, expected', [
+    (World(), (0.48, 0.1), (0.5 - RADIUS, 0.1)),                                  # a wall
+    (World(), (-0.49, -0.47), (-0.5 + RADIUS, -0.5 + RADIUS)),                    # a corner of the arena
+    (World(boxes=[Box(0.2, 0.0, 0.1, 0.1)]), (0.12, 0.01), (0.15 - RADIUS, 0.01)),  # a box face
+    (World(boxes=[Box(0.2, 0.0, 0.1, 0.1, math.pi / 2)]), (0.2, -0.07), (0.2, -0.05 - RADIUS)),
+    (World(cylinders=[Cylinder(0.0, 0.2, 0.03)]), (0.0, 0.14), (0.0, 0.2 - 0.03 - RADIUS)),
+])
+def test_a_penetrating_disc_is_pushed_out_to_touch(world, inside, expected):
+    xy, contact = world.resolve_collision(np.array([inside]), RADIUS)
+    assert xy[0] == pytest.approx(expected, abs=1e-12)
+    assert contact[0]
+    assert world.clearance(xy)[0] == pytest.approx(RADIUS)
+
+
+def test_a_disc_at_a_box_corner_is_pushed_diagonally():
+    world = World(boxes=[Box(0.0, 0.0, 0.1, 0.1)])
+    xy, contact = world.resolve_collision(np.array([[0.07, 0.07]]), RADIUS)
+    assert contact[0]
+    assert xy[0] == pytest.approx([0.05 + RADIUS / math.sqrt(2)] * 2)
+
+
+def test_a_disc_clear_of_everything_is_untouched():
+    world = default_world()
+    xy, contact = world.resolve_collision(np.array([[0.0, 0.0], [0.2, 0.3]]), RADIUS)
+    np.testing.assert_array_equal(xy, [[0.0, 0.0], [0.2, 0.3]])
+    assert not contact.any()
+
+
+def test_a_disc_in_a_gap_narrower_than_itself_goes_back_to_where_it_was_clear():
+    world = World(boxes=[Box(0.0, 0.0, 0.1, 0.1), Box(0.0, 0.11, 0.1, 0.1)])   # 1 cm gap at y = 0.055
+    xy, contact = world.resolve_collision(np.array([[0.04, 0.055]]), RADIUS, previous=np.array([[0.1, 0.055]]))
+    assert contact[0]
+    np.testing.assert_array_equal(xy, [[0.1, 0.055]])
+
+
+def test_clearance_is_the_distance_to_the_nearest_surface():
+    world = World(boxes=[Box(0.2, 0.0, 0.1, 0.1)], cylinders=[Cylinder(-0.2, 0.0, 0.05)])
+    points = np.array([[0.0, 0.0], [0.0, 0.45], [0.2, 0.0], [-0.12, 0.0]])
+    np.testing.assert_allclose(world.clearance(points), [0.15, 0.05, 0.0, 0.03])
