@@ -39,7 +39,9 @@ class StepEvents:
 class Simulation:
     """One e-puck in a World, stepped by `time_step`; read the public properties after each `step()`.
 
-    Arrays returned by the properties are the simulator's state: read them, do not write to them.
+    `seed` seeds the IR noise (the only random draw); `noise=False` gives the exact table values. The arrays
+    the properties return are the simulator's own state, updated in place by `step()`: read them, copy what
+    you keep, do not write to them.
     """
 
     def __init__(self, world: World, model: RobotModel = RobotModel(), time_step: float = 0.032,
@@ -62,15 +64,15 @@ class Simulation:
         self._sensor_offsets_left = np.column_stack([-self._sensor_poses[:, 1], self._sensor_poses[:, 0]])
         # Beyond this distance from the body's centre no IR ray can reach anything: the sensor farthest out plus
         # the ray. Farther from every surface, a step casts no rays at all.
-        self._sensing_reach = float(np.hypot(self._sensor_poses[:, 0], self._sensor_poses[:, 1]).max()) + model.ir_range
+        self._sensing_reach = float(np.hypot(*self._sensor_poses[:, :2].T).max()) + model.ir_range
         self._steps = 0
         n, sensors = len(self._start), len(self._sensor_poses)
         self._true, self._odom = np.empty((n, 3)), np.empty((n, 3))
         self._true_twist, self._odom_twist = np.empty((n, 2)), np.empty((n, 2))
         self._wheel_rotation, self._encoders = np.empty((n, 2)), np.empty((n, 2))
         self._wheel_speeds, self._command, self._stopped = np.empty((n, 2)), np.empty((n, 2)), np.zeros((n, 2))
-        self._ir_raw, self._ir_range, self._no_hits = np.empty((n, sensors)), np.empty((n, sensors)), np.full(
-            n * sensors, np.inf)
+        self._ir_raw, self._ir_range = np.empty((n, sensors)), np.empty((n, sensors))
+        self._no_hits = np.full(n * sensors, np.inf)
         self._in_contact = np.zeros(n, dtype=bool)
         self._collisions = np.zeros(n, dtype=int)
         self._last_command_time = 0.0

@@ -182,26 +182,23 @@ class _Geometry:
 
         Indexes run over the walls at -x, -y, +x, +y, then the boxes, then the cylinders. The normal points from
         the surface towards the point; the distance is negative inside an obstacle (the normal then points to
-        the nearest way out), so a push of (radius - distance) along the normal always frees a disc.
+        the nearest way out), so a push of (radius - distance) along the normal frees a disc from that surface.
         """
         found = [(index, gap, nx, ny) for index, (gap, nx, ny) in enumerate((
             (x + self.half_x, 1.0, 0.0), (y + self.half_y, 0.0, 1.0),
             (self.half_x - x, -1.0, 0.0), (self.half_y - y, 0.0, -1.0))) if gap < reach]
-        index = 4
-        for bx, by, cos, sin, half_x, half_y, bound in self.boxes:
+        for index, (bx, by, cos, sin, half_x, half_y, bound) in enumerate(self.boxes, start=4):
             dx, dy = x - bx, y - by
             if dx * dx + dy * dy < (bound + reach) ** 2:
                 distance, local_nx, local_ny = _box_distance(dx * cos + dy * sin, dy * cos - dx * sin, half_x, half_y)
                 if distance < reach:
                     found.append((index, distance, local_nx * cos - local_ny * sin, local_nx * sin + local_ny * cos))
-            index += 1
-        for cx, cy, radius in self.cylinders:
+        for index, (cx, cy, radius) in enumerate(self.cylinders, start=4 + len(self.boxes)):
             dx, dy = x - cx, y - cy
             centre_distance = math.hypot(dx, dy)
             if centre_distance - radius < reach:
                 nx, ny = (dx / centre_distance, dy / centre_distance) if centre_distance > 0.0 else (1.0, 0.0)
                 found.append((index, centre_distance - radius, nx, ny))
-            index += 1
         return found
 
 
