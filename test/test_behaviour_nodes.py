@@ -1,0 +1,176 @@
+"""The behaviour executables over DDS: the real `sim` process (use_sim_time, real_time_factor 5) and a real
+behaviour process, judged on the `ground_truth` and `odom` topics a test node reads. Figures and tolerances
+are those of the pure closed-loop tests in test_behaviours.py."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from nav_msgs.msg import Odometry
+from rclpy.qos import DurabilityPolicy, QoSProfile
+from std_msgs.msg import Float64MultiArray, UInt32
+
+from conftest import ros_args
+from epuck_ros.nodes.behaviour_nodes import RangeAssembler
+from test_behaviours import fitted_circle
+
+REAL_TIME_FACTOR = 5.0
+"""Fast enough to keep the run short, slow enough that the behaviour node keeps up on a busy 2-core machine."""
+HISTORY = 2000
+"""The test node keeps every ground_truth message of a run."""
+
+
+# --- message conversion, no DDS ---------------------------------------------------------------------------------
+
+def test_range_assembler_hands_over_only_complete_cycles_in_sensor_order() -> None:
+    assembler = RangeAssembler()
+    for i in (7, 0, 1, 2, 3, 4, 5):
+        assert assembler.add(f'ps{i}', (1, 0), 0.01 * i) is None
+    assert assembler.add('ps6', (1, 0), math.inf) == (0.0, 0.01, 0.02, 0.03, 0.04, 0.05, math.inf, 0.07)
+    assert assembler.add('ps6', (1, 0), 0.5) is None  # a duplicate does not hand the cycle over again
+
+
+def test_range_assembler_drops_an_interrupted_cycle_and_ignores_frame_prefixes() -> None:
+    assembler = RangeAssembler()
+    for i in range(4):
+        assembler.add(f'ps{i}', (1, 0), 0.03)
+    results = [assembler.add(f'robot1/ps{i}', (1, 32_000_000), 0.05) for i in range(8)]
+    assert results[:7] == [None] * 7 and results[7] == (0.05,) * 8
+    with pytest.raises(KeyError):
+        assembler.add('ps8', (2, 0), 0.05)
+
+
+# --- processes ----------------------------------------------------------------------------------------------------
+
+def trajectory(messages: list[Odometry]) -> np.ndarray:
+    """Rows of (t, x, y, yaw) with the yaw unwrapped."""
+    rows = np.array([(m.header.stamp.sec + 1e-9 * m.header.stamp.nanosec, m.pose.pose.position.x,
+                      m.pose.pose.position.y, 2.0 * math.atan2(m.pose.pose.orientation.z, m.pose.pose.orientation.w))
+                     for m in messages])
+    rows[:, 3] = np.unwrap(rows[:, 3])
+    return rows
+
+
+def moving(rows: np.ndarray) -> np.ndarray:
+    """The rows from the first pose change to the last one."""
+    changed = np.flatnonzero(np.any(np.diff(rows[:, 1:], axis=0) != 0.0, axis=1))
+    return rows[changed[0]:changed[-1] + 2]
+
+
+class Run:
+    """`sim` and one behaviour, started in this order, with the test node reading ground_truth and odom."""
+
+    def __init__(self, launch: object, test_node: object, behaviour: str, params: dict, noise: bool = False) -> None:
+        self.test_node = test_node
+        self.truth: list[Odometry] = test_node.collect(Odometry, 'ground_truth', HISTORY)
+        self.odom: list[Odometry] = test_node.collect(Odometry, 'odom', HISTORY)
+        latched = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+        self.collisions: list[UInt32] = test_node.collect(UInt32, 'collisions', latched)
+        self.sim = launch('sim', *ros_args({'real_time_factor': REAL_TIME_FACTOR, 'noise': noise}))
+        self.wait_for(self.sim, 'sim ready')
+        self.behaviour = launch(behaviour, *ros_args({'use_sim_time': True, **params}))
+
+    def wait_for(self, process: object, text: str, timeout: float = 20.0) -> None:
+        """Like `wait_for_output`, but spinning: the test node must keep up with ground_truth meanwhile."""
+        self.test_node.spin_until(lambda: text in process.output() or process.proc.poll() is not None,
+                                  timeout=timeout, what=f'{process.name} to print {text!r}')
+        assert text in process.output(), process.output()
+
+    def sim_time(self) -> float:
+        stamp = self.truth[-1].header.stamp if self.truth else None
+        return stamp.sec + 1e-9 * stamp.nanosec if stamp else 0.0
+
+    def until(self, seconds: float) -> None:
+        """Spin the test node until the simulation has run `seconds` of simulated time."""
+        self.test_node.spin_until(lambda: self.sim_time() >= seconds, timeout=5.0 + 3.0 * seconds / REAL_TIME_FACTOR,
+                                  what=f'{seconds} s of simulated time')
+
+
+def test_forward_stops_at_its_goal_over_dds(launch: object, test_node: object) -> None:
+    run = Run(launch, test_node, 'forward', {'goal_distance': 0.2})
+    run.wait_for(run.behaviour, 'goal reached', timeout=20.0)
+    run.until(run.sim_time() + 1.0)
+    truth, odom = trajectory(run.truth), trajectory(run.odom)
+    travelled = float(np.hypot(*(truth[-1, 1:3] - truth[0, 1:3])))
+    on_odom = float(np.hypot(*(odom[-1, 1:3] - odom[0, 1:3])))
+    cruise = moving(truth)
+    cruise = cruise[(cruise[:, 1] - truth[0, 1] > 0.02) & (cruise[:, 1] - truth[0, 1] < 0.15)]
+    speed = np.polyfit(cruise[:, 0], cruise[:, 1], 1)[0]
+    heading_change = math.degrees(abs(truth[-1, 3] - truth[0, 3]))
+    print(f'forward over DDS: {speed:.5f} m/s, stopped at {travelled:.5f} m (odom {on_odom:.5f}) of 0.2, '
+          f'heading change {heading_change:.4f} deg')
+    assert speed == pytest.approx(0.0628, rel=0.02)
+    assert travelled == pytest.approx(0.2, abs=0.005)
+    assert on_odom == pytest.approx(0.2, abs=0.005)
+    assert heading_change < 1.0
+
+
+def test_spin_turns_in_place_over_dds(launch: object, test_node: object) -> None:
+    run = Run(launch, test_node, 'spin', {})
+    run.wait_for(run.behaviour, 'driving')
+    run.until(run.sim_time() + 6.0)
+    rows = moving(trajectory(run.truth))[5:-5]
+    rate = np.polyfit(rows[:, 0], rows[:, 3], 1)[0]
+    drift = float(np.hypot(*(rows[:, 1:3] - rows[0, 1:3]).T).max())
+    print(f'spin over DDS: {rate:.4f} rad/s, largest drift {drift * 1000:.4f} mm')
+    assert rate == pytest.approx(-2.415, rel=0.02)
+    assert drift < 0.002
+
+
+def test_circle_has_the_course_radius_over_dds(launch: object, test_node: object) -> None:
+    run = Run(launch, test_node, 'circle', {})
+    run.wait_for(run.behaviour, 'driving')
+    run.until(run.sim_time() + 10.0)
+    _, _, radius = fitted_circle(moving(trajectory(run.truth))[:, 1:3])
+    print(f'circle over DDS: fitted radius {radius:.5f} m')
+    assert radius == pytest.approx(0.078, rel=0.03)
+
+
+def test_rectangle_closes_with_true_right_angles_over_dds(launch: object, test_node: object) -> None:
+    run = Run(launch, test_node, 'rectangle', {'laps': 1})
+    run.wait_for(run.behaviour, 'finished 1 lap', timeout=30.0)
+    run.until(run.sim_time() + 0.5)
+    rows = trajectory(run.truth)
+    turning = np.abs(np.diff(rows[:, 3])) > 0.0
+    starts = np.flatnonzero(np.diff(turning.astype(int)) == 1) + 1
+    ends = np.flatnonzero(np.diff(turning.astype(int)) == -1) + 1
+    angles = np.degrees(rows[ends, 3] - rows[starts, 3])
+    closure = float(np.hypot(*(rows[-1, 1:3] - rows[0, 1:3])))
+    print(f'rectangle over DDS: corners {np.round(angles, 3)} deg, back within {closure * 1000:.2f} mm')
+    assert len(angles) == 4
+    assert np.allclose(angles, 90.0, atol=2.0)
+    assert closure < 0.01
+
+
+@pytest.mark.parametrize('mode', ['rules', 'braitenberg'])
+def test_avoid_drives_without_a_collision_over_dds(launch: object, test_node: object, mode: str) -> None:
+    """30 simulated seconds, noise on: no contact, and cruising at least half of the time (see the pure test)."""
+    run = Run(launch, test_node, 'avoid', {'mode': mode}, noise=True)
+    run.wait_for(run.behaviour, 'cruising')
+    start = run.sim_time()
+    run.until(start + 30.0)
+    rows = trajectory(run.truth)
+    rows = rows[rows[:, 0] >= start]
+    distance = float(np.hypot(*np.diff(rows[:, 1:3], axis=0).T).sum())
+    collisions = max(m.data for m in run.collisions)
+    print(f'avoid {mode} over DDS: {collisions} collisions, {distance:.3f} m in 30 s')
+    assert collisions == 0
+    assert distance > 0.5 * 0.0628 * 30.0
+
+
+def test_a_behaviour_without_its_inputs_commands_stop_and_says_so_once(launch: object, test_node: object) -> None:
+    commands: list[Float64MultiArray] = test_node.collect(Float64MultiArray, 'wheel_cmd')
+    avoid = launch('avoid')  # wall clock, no sim: no proximity ever arrives
+    test_node.spin_until(lambda: len(commands) >= 5, what='5 wheel commands')
+    assert all(list(c.data) == [0.0, 0.0] for c in commands)
+    assert avoid.output().count('waiting for proximity: wheels stopped') == 1
+
+
+@pytest.mark.parametrize('param, named', [('turn_mode:=square', 'turn_mode'), ('laps:=-1', 'laps'),
+                                          ('side_a:=1', 'side_a')])
+def test_a_bad_parameter_stops_the_node_with_a_message_naming_it(launch: object, param: str, named: str) -> None:
+    rectangle = launch('rectangle', '--ros-args', '-p', param)
+    assert rectangle.proc.wait(timeout=15.0) == 2
+    output = rectangle.output()
+    assert 'cannot start' in output and named in output and 'Traceback' not in output
