@@ -18,12 +18,13 @@ import subprocess
 import sys
 import threading
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
 BEHAVIOURS = ('forward', 'spin', 'circle', 'rectangle', 'avoid')
 SIM_PARAMETERS = ('time_step', 'real_time_factor', 'world', 'seed', 'noise', 'cmd_timeout', 'cmd_vel_stamped',
-                  'frame_prefix')
+                  'frame_prefix', 'paused', 'pause_at')
 STOP_ORDER = ('behaviour', 'record', 'sim')
 """The behaviour stops first so the robot is still simulated while the recorder closes its bag."""
 READY_TIMEOUT = 30.0
@@ -84,7 +85,9 @@ def parse_args(argv: list[str]) -> argparse.Namespace:
 
 def route_parameters(parser: argparse.ArgumentParser, args: argparse.Namespace) -> tuple[list[str], list[str]]:
     """Split the `-p` assignments between sim and behaviour; the options above become sim parameters."""
-    sim = [f'world:={Path(args.world).resolve()}' if args.world else None, f'seed:={args.seed}',
+    # The simulator starts paused; `run` resumes it once the behaviour is up, so both start at t = 0.
+    sim = ['paused:=true', f'pause_at:={float(args.duration)}', f'seed:={args.seed}',
+           f'world:={Path(args.world).resolve()}' if args.world else None,
            f'real_time_factor:={float(args.real_time_factor)}', 'noise:=false' if args.no_noise else None]
     sim = [p for p in sim if p]
     behaviour = []
@@ -181,6 +184,17 @@ class RunMonitor:
     def _on_collisions(self, msg: object) -> None:
         self.collisions = msg.data
 
+    def resume_sim(self, timeout: float) -> bool:
+        """Set the simulator's `paused` parameter to false; True once it said yes."""
+        from rclpy.parameter import Parameter
+        from rclpy.parameter_client import AsyncParameterClient
+        client = AsyncParameterClient(self.node, 'sim')
+        if not client.wait_for_services(timeout):
+            return False
+        future = client.set_parameters([Parameter('paused', value=False)])
+        self._rclpy.spin_until_future_complete(self.node, future, timeout_sec=timeout)
+        return future.done() and all(r.successful for r in future.result().results)
+
     def spin_once(self, timeout: float) -> None:
         self._rclpy.spin_once(self.node, timeout_sec=timeout)
 
@@ -189,70 +203,95 @@ class RunMonitor:
         self._rclpy.try_shutdown()
 
 
-def run(args: argparse.Namespace) -> int:
-    stop_requested = threading.Event()
-    for signum in (signal.SIGINT, signal.SIGTERM):
-        signal.signal(signum, lambda *_: stop_requested.set())
-    monitor = RunMonitor(args.namespace)
-    children: list[Child] = []
-    failure = ''
-    wall_start = time.monotonic()
-    try:
-        sim = start_child('sim', 'sim', args.sim_params, args.namespace, ready_text='sim ready')
-        children.append(sim)
-        if not wait_ready(sim, stop_requested):
-            failure = f'sim did not become ready within {READY_TIMEOUT:.0f} s'
+class Supervisor:
+    """Starts the children one after the other and watches them: a child that dies ends the run."""
+
+    def __init__(self, args: argparse.Namespace, monitor: RunMonitor) -> None:
+        self.args = args
+        self.monitor = monitor
+        self.children: list[Child] = []
+        self.stop_requested = threading.Event()
+
+    def watch(self, done: Callable[[], bool], timeout: float, what: str) -> str:
+        """Spin until `done()` or a stop request (''), a child's death or the timeout (what went wrong)."""
+        deadline = time.monotonic() + timeout
+        while not self.stop_requested.is_set() and not done():
+            self.monitor.spin_once(0.05)
+            for child in self.children:
+                if child.process.poll() is not None:
+                    time.sleep(0.2)  # let its last lines arrive
+                    lines = '\n  '.join(child.tail) or '(no output)'
+                    return (f'{child.name} exited unexpectedly with code {child.process.returncode}; '
+                            f'last lines:\n  {lines}')
+            if time.monotonic() > deadline:
+                return f'{what} within {timeout:.0f} s'
+        return ''
+
+    def start(self, role: str, name: str, params: list[str], args: tuple[str, ...] = (),
+              ready_text: str = '') -> Child:
+        child = start_child(role, name, params, self.args.namespace, args, ready_text)
+        self.children.append(child)
+        return child
+
+    def run(self) -> str:
+        """Start everything, resume the simulation, and watch until the end; returns what went wrong, if anything."""
+        args = self.args
+        sim = self.start('sim', 'sim', args.sim_params, ready_text='sim ready')
+        failure = self.watch(sim.ready.is_set, READY_TIMEOUT, 'sim did not become ready')
         if not failure and args.record is not None:
-            record_args = ('-o', args.record) if args.record else ()
-            recorder = start_child('record', 'record', [], args.namespace, record_args, ready_text='Recording')
-            children.append(recorder)
-            if not wait_ready(recorder, stop_requested):
-                failure = f'record did not start within {READY_TIMEOUT:.0f} s'
+            recorder = self.start('record', 'record', [], ('-o', args.record) if args.record else (),
+                                  ready_text='Recording')
+            failure = self.watch(recorder.ready.is_set, READY_TIMEOUT, 'record did not start')
         if not failure:
-            children.append(start_child('behaviour', args.behaviour, args.behaviour_params, args.namespace))
-            failure = supervise(children, monitor, args.duration, stop_requested)
+            self.start('behaviour', args.behaviour, args.behaviour_params)
+            failure = self.watch(lambda: self.monitor.node.count_publishers('wheel_cmd') > 0, READY_TIMEOUT,
+                                 f'{args.behaviour} did not start publishing wheel_cmd')
+        if failure or self.stop_requested.is_set():
+            return failure
+        if not self.monitor.resume_sim(READY_TIMEOUT):
+            return 'sim did not accept paused:=false'
+        print(f'[bringup] running {args.behaviour}' + (f' for {args.duration:g} simulated s' if args.duration else
+                                                      ' until Ctrl-C'), flush=True)
+        # The simulator pauses itself at exactly `pause_at` = duration: the run ends on that very step.
+        return self.watch(lambda: bool(args.duration) and self.monitor.sim_time >= args.duration - 1e-6,
+                          math.inf, '')
+
+
+def run(args: argparse.Namespace) -> int:
+    monitor = RunMonitor(args.namespace)
+    supervisor = Supervisor(args, monitor)
+    for signum in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(signum, lambda *_: supervisor.stop_requested.set())
+    wall_start = time.monotonic()
+    failure = ''
+    try:
+        failure = supervisor.run()
     finally:
-        problems = stop_children(children)
-        for _ in range(5):  # let the last ground_truth and collision messages in
-            monitor.spin_once(0.02)
-        wall = time.monotonic() - wall_start
+        # The figures are those of the run itself, not of the seconds the simulator keeps going while stopping.
+        summary = RunSummary(monitor.sim_time, time.monotonic() - wall_start, monitor.distance, monitor.collisions)
+        problems = stop_children(supervisor.children)
         monitor.close()
     if failure:
         problems.insert(0, failure)
-    print_summary(monitor, wall, problems)
+    summary.print(problems)
     return 1 if problems else 0
 
 
-def wait_ready(child: Child, stop_requested: threading.Event) -> bool:
-    deadline = time.monotonic() + READY_TIMEOUT
-    while time.monotonic() < deadline and not stop_requested.is_set():
-        if child.ready.wait(0.1):
-            return True
-        if child.process.poll() is not None:
-            return False
-    return stop_requested.is_set()
+@dataclass(frozen=True)
+class RunSummary:
+    """What the run did, as printed at its end."""
 
+    sim_time: float
+    wall_time: float
+    distance: float
+    collisions: int
 
-def supervise(children: list[Child], monitor: RunMonitor, duration: float, stop_requested: threading.Event) -> str:
-    """Spin until the duration is reached or a stop is asked for ('' returned), or a child dies (its story)."""
-    while not stop_requested.is_set():
-        monitor.spin_once(0.05)
-        for child in children:
-            if child.process.poll() is not None:
-                time.sleep(0.2)  # let its last lines arrive
-                lines = '\n  '.join(child.tail) or '(no output)'
-                return f'{child.name} exited unexpectedly with code {child.process.returncode}; last lines:\n  {lines}'
-        if duration and monitor.sim_time >= duration:
-            break
-    return ''
-
-
-def print_summary(monitor: RunMonitor, wall: float, problems: list[str]) -> None:
-    speed = f'{monitor.sim_time / wall:.1f}x real time' if wall > 0 else ''
-    print(f'[bringup] simulated {monitor.sim_time:.2f} s in {wall:.1f} s wall ({speed}); '
-          f'distance travelled {monitor.distance:.3f} m; collisions {monitor.collisions}', flush=True)
-    for problem in problems:
-        print(f'[bringup] error: {problem}', file=sys.stderr, flush=True)
+    def print(self, problems: list[str]) -> None:
+        speed = self.sim_time / self.wall_time if self.wall_time > 0 else 0.0
+        print(f'[bringup] simulated {self.sim_time:.2f} s in {self.wall_time:.1f} s wall ({speed:.1f}x real time); '
+              f'distance travelled {self.distance:.3f} m; collisions {self.collisions}', flush=True)
+        for problem in problems:
+            print(f'[bringup] error: {problem}', file=sys.stderr, flush=True)
 
 
 def main(argv: list[str] | None = None) -> None:

@@ -4,21 +4,11 @@ from __future__ import annotations
 import os
 import re
 import signal
-import time
 
 import pytest
 from conftest import processes_in_this_domain
 
 from epuck_ros.bringup import parse_args
-
-
-def wait_until(predicate, timeout: float, what: str) -> None:
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        if predicate():
-            return
-        time.sleep(0.1)
-    raise AssertionError(f'timed out waiting for {what}')
 
 
 def behaviour_pids(name: str) -> list[int]:
@@ -53,16 +43,16 @@ def test_a_run_with_duration_ends_by_itself_and_leaves_no_process(launch):
     summary = re.search(r'simulated ([\d.]+) s .* distance travelled ([\d.]+) m; collisions (\d+)', run.output())
     assert summary, run.output()
     simulated, distance, collisions = float(summary[1]), float(summary[2]), int(summary[3])
-    assert 4.0 <= simulated < 5.0
-    # The behaviour starts after the simulator is up; it then drives at 0.0628 m/s for the rest of the run.
-    assert 0.0628 * 2.0 < distance <= 0.0628 * simulated + 1e-3
+    assert simulated == pytest.approx(4.0, abs=0.032)
+    # The simulator resumes once the behaviour is up: it drives at 0.0628 m/s for (almost) the whole run.
+    assert 0.0628 * (simulated - 0.2) < distance <= 0.0628 * simulated + 1e-3
     assert collisions == 0
     assert processes_in_this_domain() == []
 
 
 def test_sigterm_stops_every_child_cleanly(launch):
     run = launch('bringup', 'spin', '--real-time-factor', '4')
-    wait_until(lambda: behaviour_pids('spin'), 30, 'the spin process')
+    run.wait_for_output('[bringup] running spin', timeout=30)
     run.proc.send_signal(signal.SIGTERM)
     assert run.proc.wait(timeout=40) == 0, run.output()
     assert processes_in_this_domain() == []
@@ -70,8 +60,7 @@ def test_sigterm_stops_every_child_cleanly(launch):
 
 def test_a_dying_behaviour_stops_the_rest_and_fails_the_run(launch):
     run = launch('bringup', 'circle', '--real-time-factor', '4')
-    wait_until(lambda: behaviour_pids('circle'), 30, 'the circle process')
-    time.sleep(1.0)  # let it run a little
+    run.wait_for_output('[bringup] running circle', timeout=30)
     (pid,) = behaviour_pids('circle')
     os.kill(pid, signal.SIGKILL)
     assert run.proc.wait(timeout=40) == 1

@@ -55,6 +55,31 @@ def _float_param(description: str, low: float, high: float, read_only: bool = Fa
         floating_point_range=[FloatingPointRange(from_value=low, to_value=high, step=0.0)])
 
 
+class Pacer:
+    """Sleeps so that simulated time runs `factor` times wall time (factor 0: no sleep at all)."""
+
+    FALL_BEHIND = 0.5
+    """Wall seconds behind schedule after which pacing starts afresh instead of bursting to catch up."""
+
+    def __init__(self) -> None:
+        self._origin: tuple[float, float, float] | None = None  # wall time, sim time, factor
+
+    def restart(self) -> None:
+        self._origin = None
+
+    def wait(self, sim_time: float, factor: float) -> None:
+        now = time.monotonic()
+        if factor <= 0.0 or self._origin is None or self._origin[2] != factor:
+            self._origin = (now, sim_time, factor)
+            return
+        wall_origin, sim_origin, _ = self._origin
+        delay = wall_origin + (sim_time - sim_origin) / factor - now
+        if delay > 0.0:
+            time.sleep(delay)
+        elif delay < -self.FALL_BEHIND:
+            self._origin = (now, sim_time, factor)
+
+
 class SimNode(Node):
     """Publishes odom, ground_truth, proximity, joint_states, world and /clock; takes cmd_vel and wheel_cmd."""
 
@@ -65,6 +90,8 @@ class SimNode(Node):
         world = load_world(world_path) if world_path else default_world()
         self._time_step = self.get_parameter('time_step').value
         self._rtf = self.get_parameter('real_time_factor').value
+        self._paused = self.get_parameter('paused').value
+        self._pause_at = self.get_parameter('pause_at').value
         self._sim = Simulation(
             world, RobotModel(), time_step=self._time_step, seed=self.get_parameter('seed').value,
             noise=self.get_parameter('noise').value, cmd_timeout=self.get_parameter('cmd_timeout').value)
@@ -87,6 +114,10 @@ class SimNode(Node):
             'simulated seconds per step (Webots basicTimeStep is 32 ms)', 0.001, 1.0, read_only=True))
         self.declare_parameter('real_time_factor', 1.0, _float_param(
             'simulated seconds per wall second; 0 = as fast as possible', 0.0, 10000.0))
+        self.declare_parameter('paused', False, ParameterDescriptor(
+            description='while true, simulated time stands still (nothing is stepped or published)'))
+        self.declare_parameter('pause_at', 0.0, _float_param(
+            'simulated time (s) at which the simulation pauses by itself, exactly; 0 = never', 0.0, 1e9))
         self.declare_parameter('world', '', ParameterDescriptor(
             description='path to a world YAML file; empty = the built-in 1 m x 1 m arena', read_only=True))
         self.declare_parameter('seed', 0, ParameterDescriptor(
@@ -107,6 +138,10 @@ class SimNode(Node):
             for param in params:
                 if param.name == 'real_time_factor':
                     self._rtf = param.value
+                elif param.name == 'paused':
+                    self._paused = param.value
+                elif param.name == 'pause_at':
+                    self._pause_at = param.value
                 elif param.name == 'cmd_timeout':
                     self._sim.cmd_timeout = param.value
         return SetParametersResult(successful=True)
@@ -133,7 +168,7 @@ class SimNode(Node):
             self._ranges.append(msg)
         self._joints = JointState()
         self._joints.name = JOINT_NAMES
-        self._clock = Clock()
+        self._clock_msg = Clock()
         self._world_msg = String(data=yaml.safe_dump(world.to_dict(), sort_keys=False))
 
     def _make_interfaces(self) -> None:
@@ -187,10 +222,13 @@ class SimNode(Node):
             self._thread.join(timeout=5.0)
 
     def _run(self) -> None:
-        """Step, publish, and sleep so that simulated time runs `real_time_factor` times wall time."""
-        wall_origin, sim_origin = time.monotonic(), self._sim.time
-        paced_rtf = self._rtf
+        """Step and publish until stopped, paced by the real-time factor; idle while paused."""
+        pacer = Pacer()
         while self._running.is_set() and rclpy.ok():
+            if self._paused:
+                pacer.restart()
+                time.sleep(0.01)
+                continue
             with self._lock:
                 events = self._sim.step()
                 self._publish()
@@ -200,21 +238,16 @@ class SimNode(Node):
                 x, y, _ = self._sim.true_pose[robot]
                 self._pub_collisions.publish(UInt32(data=count))
                 self.get_logger().warning(f'collision #{count} at x={x:.3f} y={y:.3f} (t={now_sim:.2f} s)')
-            if rtf <= 0.0:
-                continue
-            if rtf != paced_rtf:
-                wall_origin, sim_origin, paced_rtf = time.monotonic(), now_sim, rtf
-            delay = wall_origin + (now_sim - sim_origin) / rtf - time.monotonic()
-            if delay > 0.0:
-                time.sleep(delay)
-            elif delay < -0.5:  # far behind (machine too slow): pace from here rather than burst
-                wall_origin, sim_origin = time.monotonic(), now_sim
+            if 0.0 < self._pause_at <= now_sim + 1e-9:
+                self.set_parameters([Parameter('paused', value=True)])
+                self.get_logger().info(f'paused at t={now_sim:.3f} s (pause_at)')
+            pacer.wait(now_sim, rtf)
 
     def _publish(self) -> None:
         sim = self._sim
         stamp = _stamp(sim.time)
-        self._clock.clock = stamp
-        self._pub_clock.publish(self._clock)
+        self._clock_msg.clock = stamp
+        self._pub_clock.publish(self._clock_msg)
         _fill_odometry(self._odom, stamp, sim.odom_pose[0], sim.odom_twist[0])
         self._pub_odom.publish(self._odom)
         _fill_odometry(self._truth, stamp, sim.true_pose[0], sim.true_twist[0])
