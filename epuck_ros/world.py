@@ -5,7 +5,8 @@ so the free area is exactly `arena_size`. Geometry is 2-D (everything is taller 
 prepares its obstacles once: NumPy arrays for casting all rays in one batch, plain floats for the per-disc
 collision queries (see `_Geometry` for why).
 
-World file (every field optional; a missing section means an empty 1 m x 1 m arena with the robot at the origin):
+World file. Every section is optional (none at all: an empty 1 m x 1 m arena, the robot at the origin facing +x);
+a box needs position and size (yaw defaults to 0), a cylinder position and radius:
 
     arena: {size: [1.0, 1.0]}
     boxes: [{position: [x, y], size: [sx, sy], yaw: 0.0}]
