@@ -96,6 +96,7 @@ class SimNode(Node):
             world, RobotModel(), time_step=self._time_step, seed=self.get_parameter('seed').value,
             noise=self.get_parameter('noise').value, cmd_timeout=self.get_parameter('cmd_timeout').value)
         self._lock = threading.Lock()
+        self.failure = ''
         self._running = threading.Event()
         self._thread = threading.Thread(target=self._run, name='sim_loop', daemon=True)
         self.add_on_set_parameters_callback(self._on_set_parameters)
@@ -222,9 +223,19 @@ class SimNode(Node):
             self._thread.join(timeout=5.0)
 
     def _run(self) -> None:
+        """The loop thread: a failure in it ends the node (exit code 1) instead of freezing time silently."""
+        try:
+            self._loop()
+        except Exception as error:  # noqa: BLE001 - anything at all ends the node, with its story
+            if self.context.ok():  # not merely the context going away under us while shutting down
+                self.failure = f'simulation loop failed: {error!r}'
+                self.get_logger().fatal(self.failure)
+                self.context.try_shutdown()
+
+    def _loop(self) -> None:
         """Step and publish until stopped, paced by the real-time factor; idle while paused."""
         pacer = Pacer()
-        while self._running.is_set() and rclpy.ok():
+        while self._running.is_set() and self.context.ok():
             if self._paused:
                 pacer.restart()
                 time.sleep(0.01)
@@ -295,6 +306,8 @@ def main(args: list[str] | None = None) -> None:
             node.stop()
             node.destroy_node()
         rclpy.try_shutdown()
+    if node is not None and node.failure:
+        raise SystemExit(1)
 
 
 if __name__ == '__main__':
