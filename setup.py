@@ -1,4 +1,6 @@
 """ament_python packaging: `colcon build` on a ROS 2 machine, `pip install` in a venv."""
+from glob import glob
+
 from setuptools import find_packages, setup
 
 package_name = 'epuck_ros'
@@ -11,7 +13,7 @@ setup(
     data_files=[
         ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
         ('share/' + package_name, ['package.xml']),
-        ('share/' + package_name + '/worlds', ['epuck_ros/worlds/default.yaml']),
+        ('share/' + package_name + '/worlds', glob('epuck_ros/worlds/*.yaml')),
     ],
     install_requires=['setuptools', 'numpy', 'pyyaml', 'mcap', 'zstandard', 'lz4', 'matplotlib'],
     extras_require={'test': ['pytest', 'rosbags', 'mcap-ros2-support']},

@@ -7,6 +7,7 @@ receives commands and service calls. Every message of a step carries that step's
 from __future__ import annotations
 
 import math
+import os
 import threading
 import time
 
@@ -290,6 +291,9 @@ def _fill_odometry(msg: Odometry, stamp: object, pose: object, twist: object) ->
 
 
 def main(args: list[str] | None = None) -> None:
+    # FastDDS sends from its own thread instead of inside publish(): the loop thread is then free to step
+    # (measured with benchmarks/bench_sim_node.py: about 1.5x the real-time factor with a subscriber attached).
+    os.environ.setdefault('RMW_FASTRTPS_PUBLICATION_MODE', 'ASYNCHRONOUS')
     rclpy.init(args=args)
     node = None
     try:
