@@ -71,6 +71,8 @@ def parse_args(argv: list[str]) -> argparse.Namespace:
                              'behaviour); repeatable')
     parser.add_argument('--record', nargs='?', const='', default=None, metavar='DIR',
                         help='record all topics to an MCAP bag (default folder: bags/<timestamp>)')
+    parser.add_argument('--record-compression', choices=('none', 'zstd', 'lz4'), default='none',
+                        help='chunk compression of the recording (default none, as rosbag2)')
     parser.add_argument('--namespace', default='', help='ROS namespace of the robot (e.g. robot1)')
     args = parser.parse_args(argv)
     if not math.isfinite(args.duration) or args.duration < 0:
@@ -239,8 +241,8 @@ class Supervisor:
         sim = self.start('sim', 'sim', args.sim_params, ready_text='sim ready')
         failure = self.watch(sim.ready.is_set, READY_TIMEOUT, 'sim did not become ready')
         if not failure and args.record is not None:
-            recorder = self.start('record', 'record', [], ('-o', args.record) if args.record else (),
-                                  ready_text='Recording')
+            record_args = ('--compression', args.record_compression, *(('-o', args.record) if args.record else ()))
+            recorder = self.start('record', 'record', [], record_args, ready_text='Recording')
             failure = self.watch(recorder.ready.is_set, READY_TIMEOUT, 'record did not start')
         if not failure:
             self.start('behaviour', args.behaviour, args.behaviour_params)
