@@ -66,3 +66,15 @@ def test_a_dying_behaviour_stops_the_rest_and_fails_the_run(launch):
     assert run.proc.wait(timeout=40) == 1
     assert 'circle exited unexpectedly with code -9' in run.output()
     assert processes_in_this_domain() == []
+
+
+def test_avoid_for_five_simulated_minutes_without_a_collision(launch):
+    """Noise on, default world, through real processes: the bound is the one of test_behaviours' pure runs
+    (cruising at 0.0628 m/s at least half of 300 s gives > 9.4 m; spinning in place gives ~0)."""
+    run = launch('bringup', 'avoid', '--duration', '300', '--real-time-factor', '10', '--seed', '5')
+    assert run.proc.wait(timeout=240) == 0, run.output()
+    summary = re.search(r'simulated ([\d.]+) s .* distance travelled ([\d.]+) m; collisions (\d+)', run.output())
+    assert summary, run.output()
+    assert float(summary[1]) == pytest.approx(300.0, abs=0.032)
+    assert int(summary[3]) == 0
+    assert float(summary[2]) > 9.4

@@ -99,6 +99,9 @@ def test_reset_puts_the_robot_back_and_zeroes_odometry(launch, test_node):
     test_node.spin_until(future.done, what='the reset service')
     count = len(truth)
     test_node.spin_until(lambda: len(truth) > count + 2, what='messages after reset')
+    settled = stamp_seconds(truth[-1])
+    test_node.spin_until(lambda: min(stamp_seconds(odom[-1]), stamp_seconds(joints[-1])) >= settled,
+                         what='odom and joint_states after reset')
     after = truth[-1].pose.pose.position
     assert (after.x, after.y) == (pytest.approx(home.x, abs=1e-9), pytest.approx(home.y, abs=1e-9))
     assert odom[-1].pose.pose.position.x == pytest.approx(0.0, abs=1e-9)

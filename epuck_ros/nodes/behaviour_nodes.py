@@ -17,7 +17,6 @@ import rclpy
 from nav_msgs.msg import Odometry
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
 from rclpy.exceptions import ParameterException
-from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import Range
@@ -26,6 +25,7 @@ from std_msgs.msg import Float64MultiArray
 from epuck_ros.behaviours import BEHAVIOURS, BehaviourSpec, ConfigError, Observation
 from epuck_ros.behaviours.base import describe
 from epuck_ros.model import SENSOR_NAMES
+from epuck_ros.nodes.spinning import spin_until_shutdown
 
 CONTROL_PERIOD = 0.032
 """Seconds between two commands: the course's controllers run once per Webots basicTimeStep (32 ms)."""
@@ -130,12 +130,10 @@ def main(name: str, args: list[str] | None = None) -> None:
     node = None
     try:
         node = BehaviourNode(name, BEHAVIOURS[name])
-        rclpy.spin(node)
+        spin_until_shutdown(node)
     except (ConfigError, ParameterException) as error:
         rclpy.logging.get_logger(name).fatal(f'cannot start: {error}')
         raise SystemExit(2)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
     finally:
         if node is not None:
             node.destroy_node()

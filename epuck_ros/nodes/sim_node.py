@@ -18,7 +18,6 @@ from geometry_msgs.msg import Twist, TwistStamped
 from nav_msgs.msg import Odometry
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor, SetParametersResult
 from rclpy.exceptions import ParameterException
-from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, QoSProfile
@@ -28,6 +27,7 @@ from std_msgs.msg import Float64MultiArray, String, UInt32
 from std_srvs.srv import Empty
 
 from epuck_ros.model import SENSOR_NAMES, RobotModel
+from epuck_ros.nodes.spinning import spin_until_shutdown
 from epuck_ros.simulation import CommandError, Simulation
 from epuck_ros.world import WorldError, default_world, load_world
 
@@ -299,12 +299,10 @@ def main(args: list[str] | None = None) -> None:
     try:
         node = SimNode()
         node.start()
-        rclpy.spin(node)
+        spin_until_shutdown(node)
     except (WorldError, ParameterException) as error:
         rclpy.logging.get_logger('sim').fatal(f'cannot start: {error}')
         raise SystemExit(2)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
     finally:
         if node is not None:
             node.stop()
