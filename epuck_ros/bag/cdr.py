@@ -66,6 +66,15 @@ def range_fields(buffer: bytes, start: int) -> tuple[int, str, float]:
     return sec * 1_000_000_000 + nanosec, frame_id, distance
 
 
+def shortest_float32(value: float) -> float:
+    """The shortest decimal that reads back as the same float32: 0.05, not 0.05000000074505806."""
+    for digits in range(6, 10):
+        short = float(f'{value:.{digits}g}')
+        if struct.unpack('<f', struct.pack('<f', short))[0] == value:
+            return short
+    return value
+
+
 @dataclass(frozen=True)
 class TimeValue:
     """A builtin_interfaces Time or Duration, kept exact in nanoseconds."""
@@ -111,7 +120,10 @@ def parse_schema(type_name: str, text: str) -> dict[str, list[tuple[str, str, in
 
 
 class CdrDecoder:
-    """Decodes one message type, from its bag schema, into nested dicts; `flat` gives dotted columns."""
+    """Decodes one message type, from its bag schema, into nested dicts; `flat` gives dotted columns.
+
+    float32 values come out as their shortest decimal (`shortest_float32`), as ROS tools print them.
+    """
 
     def __init__(self, type_name: str, schema_text: str) -> None:
         self.type_name = _short_name(type_name)
@@ -170,6 +182,8 @@ class CdrDecoder:
         size = _SIZES[field_type]
         position = _aligned(position, self._base, size) if count else position
         values = list(struct.unpack_from(f'{self._order}{count}{code}', buffer, position))
+        if field_type == 'float32':
+            values = [shortest_float32(v) for v in values]
         return values, position + size * count
 
     def _read_value(self, buffer: bytes, field_type: str, position: int) -> tuple[object, int]:
@@ -177,7 +191,8 @@ class CdrDecoder:
         if code is not None:
             size = _SIZES[field_type]
             position = _aligned(position, self._base, size)
-            return struct.unpack_from(self._order + code, buffer, position)[0], position + size
+            (value,) = struct.unpack_from(self._order + code, buffer, position)
+            return shortest_float32(value) if field_type == 'float32' else value, position + size
         if field_type == 'string':
             position = _aligned(position, self._base, 4)
             (length,) = struct.unpack_from(self._order + 'I', buffer, position)

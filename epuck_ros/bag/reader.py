@@ -105,8 +105,13 @@ class McapFile:
         except OSError as error:
             raise BagError(f'{path}: {error.strerror}') from None
         self.size = path.stat().st_size
-        if self.size < len(MAGIC) + 9 or self._handle.read(len(MAGIC)) != MAGIC:
+        head = self._handle.read(len(MAGIC))
+        if not head or head != MAGIC[:len(head)]:
+            self._handle.close()
             raise BagError(f'{path}: not an MCAP file (no MCAP magic at the start)')
+        if self.size < len(MAGIC) + 9:
+            self._handle.close()
+            raise BagError(f'{path}: truncated MCAP file ({self.size} bytes, not even a header)')
         self._map = mmap.mmap(self._handle.fileno(), 0, access=mmap.ACCESS_READ)
         self.topics: dict[int, Topic] = {}
         self.rosbag2_metadata: dict = {}
@@ -114,12 +119,17 @@ class McapFile:
         self.closed_properly = self._has_footer()
         self._chunks: list[tuple[int, frozenset[int]]] | None = None
         self._indexes: list = []
+        self.ignored_bytes = 0
+        """Bytes after the last complete record of a file that was not closed properly."""
         if self.closed_properly and self._load_summary():
             return
         self._scan()
 
     def close(self) -> None:
-        self._map.close()
+        try:
+            self._map.close()
+        except BufferError:
+            pass  # a message view still exists (e.g. in a traceback); the map closes when it goes
         self._handle.close()
 
     # -- opening ------------------------------------------------------------------------------
@@ -222,10 +232,13 @@ class McapFile:
         data, size = self._map, self.size
         schemas: dict[int, Schema] = {}
         position = len(MAGIC)
-        while position + 9 <= size:
-            opcode, length = _RECORD.unpack_from(data, position)
+        while position < size:
+            opcode, length = _RECORD.unpack_from(data, position) if position + 9 <= size else (0, size)
             end = position + 9 + length
-            if end > size or opcode == Opcode.FOOTER:
+            if end > size:
+                self.ignored_bytes = size - position
+                break
+            if opcode == Opcode.FOOTER:
                 break
             if opcode == Opcode.CHUNK:
                 yield from self._walk_chunk(position, channel_ids, schemas)

@@ -1,0 +1,195 @@
+"""`record`: records topics to a rosbag2-compatible MCAP bag, used like ``ros2 bag record``.
+
+    record [-o DIR] [--compression none|zstd|lz4] [--max-duration S] [TOPIC ...] [--ros-args ...]
+
+Topics (all visible ones when none is named) are found from the graph every `DISCOVERY_PERIOD`
+seconds, so topics that appear later are recorded too. Messages are subscribed raw — the CDR
+bytes go to the bag untouched — with a QoS that matches every publisher, and a thread writes
+the bag so callbacks only enqueue. log_time is the node's clock (simulated time under
+``use_sim_time``); publish_time is the publisher's source timestamp, as rosbag2 records them.
+"""
+from __future__ import annotations
+
+import argparse
+import importlib
+import signal
+import sys
+import time
+from functools import partial
+from pathlib import Path
+
+import rclpy
+from rclpy.clock import Clock, ClockType
+from rclpy.executors import ExternalShutdownException
+from rclpy.node import Node
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.task import Future
+from rclpy.topic_or_service_is_hidden import topic_or_service_is_hidden
+from rclpy.utilities import remove_ros_args
+
+from epuck_ros.bag.qos import QosProfile
+from epuck_ros.bag.writer import COMPRESSIONS, BackgroundWriter, BagExistsError, BagWriter
+
+DISCOVERY_PERIOD = 0.2
+"""s of wall time between two looks at the graph (rosbag2 polls every 0.1 s)."""
+SUBSCRIPTION_DEPTH = 1000
+"""Messages DDS may hold for the recorder while it is busy: bursts must never overflow it."""
+DEFAULT_BAG_FOLDER = Path('bags')
+
+
+def default_output() -> Path:
+    """``bags/rosbag2_YYYY_MM_DD-HH_MM_SS``, rosbag2's default name under the project's bag folder."""
+    return DEFAULT_BAG_FOLDER / time.strftime('rosbag2_%Y_%m_%d-%H_%M_%S')
+
+
+def offered_profile(qos: QoSProfile) -> QosProfile:
+    """A publisher's QoS (as the graph reports it) in the bag's plain form."""
+    return QosProfile(
+        history=qos.history.name.lower(), depth=qos.depth, reliability=qos.reliability.name.lower(),
+        durability=qos.durability.name.lower(), deadline_ns=qos.deadline.nanoseconds,
+        lifespan_ns=qos.lifespan.nanoseconds, liveliness=qos.liveliness.name.lower(),
+        liveliness_lease_duration_ns=qos.liveliness_lease_duration.nanoseconds,
+        avoid_ros_namespace_conventions=qos.avoid_ros_namespace_conventions)
+
+
+def subscription_qos(offered: list[QoSProfile]) -> QoSProfile:
+    """Compatible with every publisher: reliable / transient_local only if all of them offer it."""
+    reliable = all(q.reliability == ReliabilityPolicy.RELIABLE for q in offered)
+    latched = all(q.durability == DurabilityPolicy.TRANSIENT_LOCAL for q in offered)
+    return QoSProfile(
+        history=HistoryPolicy.KEEP_LAST, depth=SUBSCRIPTION_DEPTH,
+        reliability=ReliabilityPolicy.RELIABLE if reliable else ReliabilityPolicy.BEST_EFFORT,
+        durability=DurabilityPolicy.TRANSIENT_LOCAL if latched else DurabilityPolicy.VOLATILE)
+
+
+def message_class(type_name: str) -> type:
+    """``pkg/msg/Type`` -> the generated Python class (raw subscriptions still need its type support)."""
+    package, _, name = type_name.split('/')
+    return getattr(importlib.import_module(f'{package}.msg'), name)
+
+
+class Recorder(Node):
+    """Subscribes to the wanted topics as they appear and hands every message to the bag writer."""
+
+    def __init__(self, writer: BagWriter, topics: list[str], max_duration: float | None) -> None:
+        # No /rosout: the recorder's own log lines would end up in the bag, and its closing line
+        # would fail to publish once Ctrl-C has shut the context down.
+        super().__init__('recorder', enable_rosout=False)
+        self._bag = BackgroundWriter(writer)
+        self._wanted = {self.resolve_topic_name(t) for t in topics} or None
+        self._max_duration_ns = None if max_duration is None else int(max_duration * 1e9)
+        self._first_ns: int | None = None
+        self._use_sim_time = self.get_parameter('use_sim_time').value
+        self._before_clock: list[tuple[str, bytes, int]] = []
+        self._recording: set[str] = set()
+        self._skipped: set[str] = set()
+        self.done = Future()
+        """Completes when --max-duration of the node's clock has been recorded."""
+        # A steady-clock timer: discovery must run before /clock ticks under use_sim_time.
+        self.create_timer(DISCOVERY_PERIOD, self._discover, clock=Clock(clock_type=ClockType.STEADY_TIME))
+        self.get_logger().info(f'recording to {writer.path} '
+                               f'({"all topics" if self._wanted is None else ", ".join(sorted(self._wanted))})')
+        self._discover()
+
+    def _discover(self) -> None:
+        for topic, types in self.get_topic_names_and_types():
+            if topic in self._recording or topic in self._skipped:
+                continue
+            if self._wanted is None and topic_or_service_is_hidden(topic):
+                continue
+            if self._wanted is not None and topic not in self._wanted:
+                continue
+            publishers = self.get_publishers_info_by_topic(topic)
+            if not publishers:
+                continue
+            self._subscribe(topic, types, [p.qos_profile for p in publishers])
+
+    def _subscribe(self, topic: str, types: list[str], offered: list[QoSProfile]) -> None:
+        if len(types) != 1:
+            self._skip(topic, f'published with several types ({", ".join(types)})')
+            return
+        try:
+            msg_class = message_class(types[0])
+        except (ImportError, AttributeError, ValueError):
+            self._skip(topic, f'type {types[0]} is not installed here')
+            return
+        self._recording.add(topic)
+        self._bag.add_topic(topic, types[0], [offered_profile(q) for q in offered])
+        self.create_subscription(msg_class, topic, partial(self._on_message, topic),
+                                 subscription_qos(offered), raw=True)
+        self.get_logger().info(f'subscribed to {topic} ({types[0]})')
+
+    def _skip(self, topic: str, reason: str) -> None:
+        self._skipped.add(topic)
+        self.get_logger().warning(f'not recording {topic}: {reason}')
+
+    def _on_message(self, topic: str, data: bytes, info: dict) -> None:
+        now = self.get_clock().now().nanoseconds
+        if self._use_sim_time and now == 0:
+            # Before the first /clock tick sim time reads 0 (rosbag2 #764): hold the message
+            # and stamp it with the first simulated time instead.
+            self._before_clock.append((topic, data, info.get('source_timestamp') or 0))
+            return
+        if self._before_clock:
+            self._write_held(now)
+        self._bag.write(topic, data, now, info.get('source_timestamp') or now)
+        if self._max_duration_ns is not None:
+            self._first_ns = now if self._first_ns is None else self._first_ns
+            if now - self._first_ns >= self._max_duration_ns and not self.done.done():
+                self.done.set_result(True)
+
+    def _write_held(self, stamp: int) -> None:
+        for topic, data, published in self._before_clock:
+            self._bag.write(topic, data, stamp, published or stamp)
+        self._before_clock.clear()
+
+    def close(self) -> None:
+        """Write what is queued, the MCAP summary and metadata.yaml."""
+        if self._before_clock:  # /clock never came: their receive time is all there is
+            self._write_held(time.time_ns())
+        self._bag.close()
+        writer = self._bag.writer
+        self.get_logger().info(f'wrote {writer.times.count} messages on {len(writer.topics)} topics '
+                               f'to {writer.path}')
+
+
+def parse_arguments(argv: list[str]) -> argparse.Namespace:
+    parser = argparse.ArgumentParser(
+        prog='record', description='Record topics to a rosbag2-compatible MCAP bag (like ros2 bag record).')
+    parser.add_argument('topics', nargs='*', metavar='TOPIC', help='topics to record (default: all)')
+    parser.add_argument('-o', '--output', type=Path,
+                        help='bag folder to create (default: bags/rosbag2_YYYY_MM_DD-HH_MM_SS)')
+    parser.add_argument('--compression', choices=sorted(COMPRESSIONS), default='none',
+                        help='MCAP chunk compression (default: none, as rosbag2)')
+    parser.add_argument('--max-duration', type=float, metavar='SECONDS',
+                        help="stop after this long on the node's clock (simulated time with use_sim_time)")
+    return parser.parse_args(argv)
+
+
+def main(args: list[str] | None = None) -> None:
+    argv = sys.argv if args is None else args
+    options = parse_arguments(remove_ros_args(args=argv)[1:])
+    try:
+        writer = BagWriter(options.output or default_output(), options.compression)
+    except (BagExistsError, OSError) as error:
+        print(f'record: error: {error}', file=sys.stderr)
+        raise SystemExit(2)
+    rclpy.init(args=argv)
+    node = None
+    try:
+        node = Recorder(writer, options.topics, options.max_duration)
+        rclpy.spin_until_future_complete(node, node.done)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        signal.signal(signal.SIGINT, signal.SIG_IGN)  # a second Ctrl-C must not cut the bag short
+        if node is None:
+            writer.close()
+        else:
+            node.close()
+            node.destroy_node()
+        rclpy.try_shutdown()
+
+
+if __name__ == '__main__':
+    main()
