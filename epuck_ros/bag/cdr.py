@@ -142,6 +142,13 @@ class CdrDecoder:
                 self._check(field_type, (*path, name))
 
     def decode(self, buffer: bytes, start: int = 0, end: int | None = None) -> dict:
+        return self._decode(buffer, start, end)[0]
+
+    def size(self, buffer: bytes, start: int = 0) -> int:
+        """Bytes the message really takes, encapsulation header included (buffers may carry more)."""
+        return self._decode(buffer, start, None)[1] - start
+
+    def _decode(self, buffer: bytes, start: int, end: int | None) -> tuple[dict, int]:
         end = len(buffer) if end is None else end
         kind = buffer[start + 1]
         if kind not in (CDR_LE, CDR_BE) or buffer[start] != 0:
@@ -154,7 +161,7 @@ class CdrDecoder:
             position = end + 1
         if position > end:
             raise CdrError(f'{self.type_name}: message data ends before the message does')
-        return value
+        return value, position
 
     def _read_message(self, buffer: bytes, name: str, position: int) -> tuple[object, int]:
         message = {}

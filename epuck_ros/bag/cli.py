@@ -1,4 +1,4 @@
-"""``bag``: inspect recorded runs without ROS — ``info``, ``summary``, ``plot`` and ``csv``.
+"""bag: inspect recorded runs without ROS (info, summary, plot, csv).
 
 Each works on a bag folder or a single ``.mcap`` file. A bag that cannot be used gives one
 line on stderr naming the file and the problem, and exit code 2.

@@ -87,9 +87,9 @@ class Recorder(Node):
         """Completes when --max-duration of the node's clock has been recorded."""
         # A steady-clock timer: discovery must run before /clock ticks under use_sim_time.
         self.create_timer(DISCOVERY_PERIOD, self._discover, clock=Clock(clock_type=ClockType.STEADY_TIME))
-        self.get_logger().info(f'recording to {writer.path} '
-                               f'({"all topics" if self._wanted is None else ", ".join(sorted(self._wanted))})')
         self._discover()
+        self.get_logger().info(f'Recording to {writer.path}: '
+                               f'{"all topics" if self._wanted is None else ", ".join(sorted(self._wanted))}')
 
     def _discover(self) -> None:
         for topic, types in self.get_topic_names_and_types():

@@ -1,0 +1,306 @@
+"""Bags from our writer against the rosbag2 format: schema texts, QoS, metadata.yaml, and what
+rosbags, mcap_ros2 and our own reader make of them — including a writer killed mid-recording.
+
+The reference schema texts in test/data/ are rosbag2's algorithm applied to the Jazzy .msg files
+(shared/reference/rosbag2-mcap.md §1c).
+"""
+from __future__ import annotations
+
+import math
+import re
+import signal
+import subprocess
+import sys
+import textwrap
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+from builtin_interfaces.msg import Time
+from mcap.reader import make_reader
+from mcap_ros2.decoder import DecoderFactory
+from nav_msgs.msg import Odometry
+from rclpy.serialization import serialize_message
+from rosbags.highlevel import AnyReader
+from sensor_msgs.msg import JointState, Range
+from std_msgs.msg import String
+
+from epuck_ros.bag import msgdefs
+from epuck_ros.bag.cdr import CdrDecoder
+from epuck_ros.bag.info import format_info
+from epuck_ros.bag.qos import INFINITE_NS, QosProfile, profiles_to_yaml
+from epuck_ros.bag.reader import Bag
+from epuck_ros.bag.writer import BackgroundWriter, BagExistsError, BagWriter
+
+DATA = Path(__file__).parent / 'data'
+REFERENCES = {'nav_msgs/msg/Odometry': DATA / 'schema_nav_msgs_Odometry.ros2msg.txt',
+              'sensor_msgs/msg/Range': DATA / 'schema_sensor_msgs_Range.ros2msg.txt'}
+ODOMETRY_HASH = 'RIHS01_3cc97dc7fb7502f8714462c526d369e35b603cfc34d946e3f2eda2766dfec6e0'
+_BLOCK = re.compile(r'\n={80}\nMSG: (\S+)\n')
+LATCHED = QosProfile(depth=1, durability='transient_local')
+
+
+def reference_blocks(path: Path) -> list[tuple[str | None, str]]:
+    """A reference text cut into (MSG name, .msg text); the root block has no name."""
+    parts = _BLOCK.split(path.read_text(encoding='utf-8'))
+    return [(None, parts[0])] + list(zip(parts[1::2], parts[2::2]))
+
+
+@pytest.mark.parametrize('type_name', sorted(REFERENCES))
+def test_schema_text_is_rosbag2s_byte_for_byte(type_name, tmp_path, monkeypatch):
+    """Given the .msg files the reference was built from, the text is identical to the byte."""
+    package, _, name = type_name.split('/')
+    for block_name, text in reference_blocks(REFERENCES[type_name]):
+        block_package, block_type = (package, name) if block_name is None else block_name.split('/')
+        msg_file = tmp_path / 'share' / block_package / 'msg' / f'{block_type}.msg'
+        msg_file.parent.mkdir(parents=True, exist_ok=True)
+        msg_file.write_bytes(text.encode('utf-8'))
+    monkeypatch.setenv('AMENT_PREFIX_PATH', str(tmp_path))
+    assert msgdefs.schema_text(type_name).encode('utf-8') == REFERENCES[type_name].read_bytes()
+
+
+@pytest.mark.parametrize('type_name', sorted(REFERENCES))
+def test_schema_text_from_installed_msg_files_has_the_reference_layout(type_name, monkeypatch):
+    """Same blocks in the same order, each the installed .msg file (their comments may differ by release)."""
+    monkeypatch.delenv('AMENT_PREFIX_PATH', raising=False)
+    ours = _BLOCK.split(msgdefs.schema_text(type_name))
+    expected_names = [name for name, _ in reference_blocks(REFERENCES[type_name])[1:]]
+    assert ours[1::2] == expected_names
+    package, _, name = type_name.split('/')
+    for block_name, text in zip([f'{package}/{name}', *ours[1::2]], ours[0::2]):
+        block_package, block_type = block_name.split('/')
+        installed = Path(sys.prefix) / 'share' / block_package / 'msg' / f'{block_type}.msg'
+        assert text == installed.read_text(encoding='utf-8')
+
+
+def test_type_hash_and_unknown_types():
+    assert msgdefs.type_hash('nav_msgs/msg/Odometry') == ODOMETRY_HASH
+    unknown = msgdefs.message_definition('no_such_pkg/msg/Thing')
+    assert (unknown.encoding, unknown.text, unknown.type_hash) == ('unknown', '', '')
+
+
+def test_qos_yaml_is_v9_strings_with_infinite_durations():
+    text = profiles_to_yaml([QosProfile(history='unknown', depth=0, durability='transient_local')])
+    assert text.startswith('- history: unknown\n  depth: 0\n')
+    (profile,) = yaml.safe_load(text)
+    assert profile['durability'] == 'transient_local'
+    assert profile['deadline'] == {'sec': 9223372036, 'nsec': 854775807}
+    assert INFINITE_NS == 9223372036 * 10**9 + 854775807
+    with pytest.raises(ValueError, match='reliability'):
+        QosProfile(reliability='sometimes')
+
+
+# --- round trips ------------------------------------------------------------------------------------------
+
+def stamp(nanoseconds: int) -> Time:
+    return Time(sec=nanoseconds // 10**9, nanosec=nanoseconds % 10**9)
+
+
+def sample_messages() -> list[tuple[str, object, int]]:
+    """(topic, message, log_time): a latched world, odometry, eight ranges and joint states per step."""
+    messages = [('/world', String(data='arena: {size: [1.0, 1.0]}\n'), 10**9)]
+    for step in range(40):
+        t = 10**9 + step * 32_000_000
+        odom = Odometry(child_frame_id='base_link')
+        odom.header.stamp, odom.header.frame_id = stamp(t), 'odom'
+        odom.pose.pose.position.x, odom.pose.pose.orientation.z = 0.001 * step, math.sin(0.01 * step)
+        odom.pose.pose.orientation.w = math.cos(0.01 * step)
+        odom.twist.twist.linear.x, odom.pose.covariance[35] = 0.0628, 1e-5
+        messages.append(('/odom', odom, t))
+        for i in range(8):
+            ray = Range(radiation_type=Range.INFRARED, field_of_view=0.1, max_range=0.07,
+                        range=math.inf if (step + i) % 5 else 0.01 * i)
+            ray.header.stamp, ray.header.frame_id = stamp(t), f'ps{i}'
+            messages.append(('/proximity', ray, t))
+        messages.append(('/joint_states', JointState(
+            name=['left_wheel_joint', 'right_wheel_joint'], position=[0.1 * step, 0.2 * step],
+            velocity=[3.14, 3.14]), t))
+    return messages
+
+
+TYPES = {'/world': 'std_msgs/msg/String', '/odom': 'nav_msgs/msg/Odometry',
+         '/proximity': 'sensor_msgs/msg/Range', '/joint_states': 'sensor_msgs/msg/JointState'}
+
+
+DECODERS = {topic: CdrDecoder(name, msgdefs.schema_text(name)) for topic, name in TYPES.items()}
+
+
+def cdr(topic: str, message: object) -> bytes:
+    """The message's CDR bytes as DDS delivers them.
+
+    rmw_fastrtps's rmw_serialize reports its size *estimate* as the length, so serialize_message can
+    end in a few junk bytes (JointState does); rosbags checks lengths exactly, so cut them off.
+    Padding bytes inside are not initialised either: serialise a message once and keep the bytes.
+    """
+    data = serialize_message(message)
+    return data[:DECODERS[topic].size(data)]
+
+
+def write_bag(path: Path, compression: str = 'none', chunk_size: int = 4096) -> list[tuple[str, object, int, bytes]]:
+    """Write the sample messages; returns them as (topic, message, log_time, CDR bytes written)."""
+    messages = [(topic, message, t, cdr(topic, message)) for topic, message, t in sample_messages()]
+    writer = BagWriter(path, compression, chunk_size=chunk_size)
+    for topic, type_name in TYPES.items():
+        writer.add_topic(topic, type_name, [LATCHED if topic == '/world' else QosProfile()])
+    for topic, _, log_time, data in messages:
+        writer.write(topic, data, log_time, log_time + 5)
+    writer.close()
+    return messages
+
+
+def same_values(ours: object, theirs: object, field_type: str = '') -> None:
+    """Field by field, exactly; float32 fields as the float32 the wire carries."""
+    if hasattr(ours, 'get_fields_and_field_types'):
+        for name, sub_type in ours.get_fields_and_field_types().items():
+            same_values(getattr(ours, name), getattr(theirs, name), sub_type)
+    elif isinstance(ours, (list, tuple)) or hasattr(ours, 'tolist'):
+        assert list(ours) == list(theirs)
+    elif field_type == 'float':
+        assert np.float32(ours) == np.float32(theirs)
+    else:
+        assert ours == theirs
+
+
+@pytest.fixture(params=['none', 'zstd', 'lz4'])
+def written(request, tmp_path):
+    path = tmp_path / 'run'
+    return path, write_bag(path, request.param), request.param
+
+
+def test_rosbags_reads_folder_and_file_message_for_message(written):
+    path, messages, _ = written
+    for source in (path, path / 'run_0.mcap'):
+        with AnyReader([source]) as reader:
+            read = [(c.topic, reader.deserialize(raw, c.msgtype), t) for c, t, raw in reader.messages()]
+        assert [(topic, t) for topic, _, t in read] == [(topic, t) for topic, _, t, _ in messages]
+        for (_, ours, _, _), (_, theirs, _) in zip(messages, read):
+            same_values(ours, theirs)
+
+
+def test_mcap_ros2_decodes_message_for_message(written):
+    path, messages, _ = written
+    with open(path / 'run_0.mcap', 'rb') as stream:
+        reader = make_reader(stream, decoder_factories=[DecoderFactory()])
+        assert reader.get_header().profile == 'ros2'
+        read = list(reader.iter_decoded_messages())
+    assert [(c.topic, m.log_time, m.publish_time) for _, c, m, _ in read] == [
+        (topic, t, t + 5) for topic, _, t, _ in messages]
+    for (_, ours, _, _), (_, _, _, theirs) in zip(messages, read):
+        same_values(ours, theirs)
+
+
+def test_our_reader_returns_the_serialised_bytes_and_decodes_them(written):
+    path, messages, _ = written
+    with Bag(path) as bag:
+        read = list(bag.messages())
+        decoders = {t.name: CdrDecoder(t.type_name, t.schema_text) for t in bag.topics.values()}
+    assert [(m.topic, m.data, m.log_time, m.publish_time) for m in read] == [
+        (topic, data, t, t + 5) for topic, _, t, data in messages]
+    odom = decoders['/odom'].decode(read[1].data)
+    assert odom['pose']['pose']['position']['x'] == messages[1][1].pose.pose.position.x
+    assert odom['header']['frame_id'] == 'odom' and odom['pose']['covariance'][35] == 1e-5
+    joints = decoders['/joint_states'].flat(read[10].data)
+    assert joints['name[1]'] == 'right_wheel_joint' and joints['velocity[0]'] == 3.14
+
+
+def test_metadata_yaml_agrees_with_the_mcap_channels(written):
+    path, messages, compression = written
+    info = yaml.safe_load((path / 'metadata.yaml').read_text())['rosbag2_bagfile_information']
+    assert (info['version'], info['storage_identifier'], info['relative_file_paths']) == (9, 'mcap', ['run_0.mcap'])
+    assert info['message_count'] == len(messages) == info['files'][0]['message_count']
+    assert info['starting_time']['nanoseconds_since_epoch'] == messages[0][2]
+    assert info['duration']['nanoseconds'] == messages[-1][2] - messages[0][2]
+    assert info['compression_format'] == ''  # chunk compression is inside the MCAP, not rosbag2's
+    with open(path / 'run_0.mcap', 'rb') as stream:
+        summary = make_reader(stream).get_summary()
+    channels = {c.topic: c for c in summary.channels.values()}
+    for entry in info['topics_with_message_count']:
+        meta = entry['topic_metadata']
+        channel = channels[meta['name']]
+        assert meta['type'] == summary.schemas[channel.schema_id].name == TYPES[meta['name']]
+        assert meta['offered_qos_profiles'] == yaml.safe_load(channel.metadata['offered_qos_profiles'])
+        assert meta['type_description_hash'] == channel.metadata['topic_type_hash'] != ''
+        assert entry['message_count'] == summary.statistics.channel_message_counts[channel.id] == sum(
+            1 for topic, *_ in messages if topic == meta['name'])
+    assert channels['/world'].metadata['offered_qos_profiles'].count('transient_local') == 1
+    assert {c.compression for c in summary.chunk_indexes} == {'' if compression == 'none' else compression}
+
+
+def test_rosbag2_metadata_record_is_written_at_open_and_close(tmp_path):
+    write_bag(tmp_path / 'run')
+    with open(tmp_path / 'run' / 'run_0.mcap', 'rb') as stream:
+        records = [m for m in make_reader(stream).iter_metadata() if m.name == 'rosbag2']
+    opened, closed = (yaml.safe_load(r.metadata['serialized_metadata']) for r in records)
+    assert (opened['message_count'], opened['starting_time']['nanoseconds_since_epoch']) == (0, 2**63 - 1)
+    assert closed['message_count'] == len(sample_messages()) and closed['ros_distro']
+
+
+def test_an_existing_bag_is_never_overwritten(tmp_path):
+    write_bag(tmp_path / 'run')
+    with pytest.raises(BagExistsError, match='already exists'):
+        BagWriter(tmp_path / 'run')
+
+
+# --- a writer that never closes its bag -----------------------------------------------------------------
+
+KILLED_WRITER = textwrap.dedent('''
+    import sys, time
+    from epuck_ros.bag.qos import QosProfile
+    from epuck_ros.bag.writer import BackgroundWriter, BagWriter
+    writer = BagWriter(sys.argv[1], sys.argv[2], chunk_size=2000)
+    background = BackgroundWriter(writer, flush_period=0.1)
+    background.add_topic('/data', 'std_msgs/msg/String', [QosProfile()])
+    payload = bytes([0, 1, 0, 0, 4, 0, 0, 0]) + b'abc' + bytes(1)
+    for i in range(int(sys.argv[3])):
+        background.write('/data', payload, 1000 + i)
+    time.sleep(0.5)  # more than the flush period: everything written is now in complete chunks
+    print('written', flush=True)
+    time.sleep(60)
+''')
+
+
+@pytest.mark.parametrize('compression', ['none', 'zstd'])
+def test_a_killed_writer_leaves_its_complete_chunks_readable(tmp_path, compression):
+    path, count = tmp_path / 'killed', 5000
+    writer = subprocess.Popen([sys.executable, '-c', KILLED_WRITER, str(path), compression, str(count)],
+                              stdout=subprocess.PIPE, text=True)
+    try:
+        assert writer.stdout.readline().strip() == 'written'
+    finally:
+        writer.send_signal(signal.SIGKILL)
+        writer.wait()
+    assert not (path / 'metadata.yaml').exists()
+    with Bag(path) as bag:
+        assert not bag.closed_properly
+        assert bag.topics['/data'].message_count == count
+        assert [m.log_time for m in bag.messages()] == list(range(1000, 1000 + count))
+        assert 'not closed properly' in format_info(bag)
+
+
+def test_a_cut_file_yields_exactly_the_chunks_before_the_cut(tmp_path):
+    writer = BagWriter(tmp_path / 'run')
+    writer.add_topic('/data', 'std_msgs/msg/String', [QosProfile()])
+    sizes = []
+    for first in (0, 100, 200):
+        for i in range(first, first + 100):
+            writer.write('/data', serialize_message(String(data=str(i))), i)
+        writer.flush()  # one chunk per hundred messages
+        sizes.append((tmp_path / 'run' / 'run_0.mcap').stat().st_size)
+    writer.close()
+    whole = (tmp_path / 'run' / 'run_0.mcap').read_bytes()
+    # inside the second chunk; inside its message index (the chunk itself is whole); after it; after all
+    for cut_at, complete in ((sizes[0] + 40, 100), (sizes[1] - 5, 200), (sizes[1] + 3, 200), (sizes[2], 300)):
+        cut = tmp_path / f'cut{cut_at}.mcap'
+        cut.write_bytes(whole[:cut_at])
+        with Bag(cut) as bag:
+            assert not bag.closed_properly
+            assert bag.message_count == complete
+            assert [m.log_time for m in bag.messages()] == list(range(complete))
+
+
+def test_background_writer_reports_a_failure_on_close(tmp_path):
+    background = BackgroundWriter(BagWriter(tmp_path / 'run'))
+    background.write('/never_added', b'\x00\x01\x00\x00', 1)
+    with pytest.raises(RuntimeError, match='never_added'):
+        background.close()
