@@ -40,7 +40,8 @@ def _title(summary: RunSummary) -> str:
         details.append(f'circle radius {summary.circle.radius:.4f} m')
     if summary.corners is not None:
         details.append('corners ' + ', '.join(f'{a:.0f}°' for a in summary.corners.angles_deg))
-    return f'{Path(summary.bag).name} {summary.namespace}\n{first}' + (f'\n{", ".join(details)}' if details else '')
+    robot = '' if summary.namespace == '/' else f' ({summary.namespace})'
+    return f'{Path(summary.bag).name}{robot}\n{first}' + (f'\n{", ".join(details)}' if details else '')
 
 
 def plot_run(run: RunData, summary: RunSummary, output: str | Path, body_radius: float = 0.037) -> None:
@@ -64,7 +65,7 @@ def plot_run(run: RunData, summary: RunSummary, output: str | Path, body_radius:
     axes.set_xlabel('x (m)')
     axes.set_ylabel('y (m)')
     axes.set_title(_title(summary), fontsize=10)
-    axes.legend(loc='upper right', fontsize=8)
+    axes.legend(loc='upper center', bbox_to_anchor=(0.5, -0.1), ncol=3, fontsize=8, frameon=False)
     axes.grid(True, alpha=0.3)
     figure.savefig(output, dpi=120, bbox_inches='tight')
     plt.close(figure)

@@ -32,6 +32,8 @@ MOVING_SPEED = 0.005
 """m/s; slower than this the robot is standing (or turning in place)."""
 MIN_SEGMENT_TIME = 0.3
 """s; straight stretches shorter than this are not sides of a shape."""
+MIN_CORNER_DEG = 15.0
+"""Straight stretches whose headings differ by less than this are one side."""
 SLIP_RATIO = 0.5
 """Without a world: the true pose moving less than this fraction of the odometry's step means blocked."""
 
@@ -216,18 +218,30 @@ def straight_segments(trajectory: Trajectory) -> list[tuple[int, int]]:
     return segments
 
 
+def _merge_collinear(trajectory: Trajectory, segments: list[tuple[int, int]]) -> list[tuple[float, float]]:
+    """(heading, length) of each side: straight segments on one heading (e.g. after backing off) are one side."""
+    sides: list[tuple[float, float]] = []
+    for i, j in segments:
+        heading = float(np.mean(trajectory.yaw[i:j + 1]))
+        length = float(np.hypot(trajectory.x[j] - trajectory.x[i], trajectory.y[j] - trajectory.y[i]))
+        if sides and abs(heading - sides[-1][0]) < math.radians(MIN_CORNER_DEG):
+            sides[-1] = (sides[-1][0], sides[-1][1] + length)
+        else:
+            sides.append((heading, length))
+    return sides
+
+
 def course_shape(trajectory: Trajectory) -> tuple[CircleFit | None, Corners | None]:
     """Circle fit when the robot curves all along; corner angles when it drives straight sides."""
     if len(trajectory.t) < 3:
         return None, None
     segments = straight_segments(trajectory)
     turned = float(trajectory.yaw[-1] - trajectory.yaw[0])
-    if len(segments) >= 2:
-        headings = [float(np.mean(trajectory.yaw[i:j + 1])) for i, j in segments]
+    sides = _merge_collinear(trajectory, segments)
+    if len(sides) >= 2:
+        headings = [heading for heading, _ in sides]
         angles = [math.degrees(b - a) for a, b in zip(headings, headings[1:])]
-        sides = [float(np.hypot(trajectory.x[j] - trajectory.x[i], trajectory.y[j] - trajectory.y[i]))
-                 for i, j in segments]
-        return None, Corners(angles, sides)
+        return None, Corners(angles, [length for _, length in sides])
     straight_time = sum(trajectory.t[j] - trajectory.t[i] for i, j in segments)
     if abs(turned) >= math.pi and straight_time < 0.2 * trajectory.duration:
         radius, centre, rms = fit_circle(trajectory.x, trajectory.y)
