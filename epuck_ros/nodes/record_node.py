@@ -145,8 +145,8 @@ class Recorder(Node):
 
     def close(self) -> None:
         """Write what is queued, the MCAP summary and metadata.yaml."""
-        if self._before_clock:  # /clock never came: their receive time is all there is
-            self._write_held(time.time_ns())
+        if self._before_clock:  # nothing came after the first /clock tick, or no tick at all
+            self._write_held(self.get_clock().now().nanoseconds or time.time_ns())
         self._bag.close()
         writer = self._bag.writer
         self.get_logger().info(f'wrote {writer.times.count} messages on {len(writer.topics)} topics '

@@ -1,0 +1,152 @@
+"""The `record` executable in its own process, fed over DDS: completeness, QoS, clocks and shutdowns."""
+from __future__ import annotations
+
+import signal
+import subprocess
+import time
+from pathlib import Path
+
+import numpy as np
+import yaml
+from builtin_interfaces.msg import Time
+from conftest import BIN_DIR, ros_args
+from rclpy.parameter import Parameter
+from rclpy.parameter_client import AsyncParameterClient
+from rclpy.qos import DurabilityPolicy, QoSProfile
+from rosbags.highlevel import AnyReader
+from rosgraph_msgs.msg import Clock
+from std_msgs.msg import String, UInt32
+
+from epuck_ros.bag.cdr import odometry_fields
+from epuck_ros.bag.info import format_info
+from epuck_ros.bag.reader import Bag
+
+LATCHED = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+STEP_NS = 32_000_000
+
+
+def start_recorder(launch, bag: Path, *args: str, sim_time: bool = False):
+    recorder = launch('record', '-o', str(bag), *args, *ros_args({'use_sim_time': sim_time}))
+    recorder.wait_for_output('Recording to')
+    return recorder
+
+
+def wait_until_subscribed(test_node, publisher, subscriptions: int = 1) -> None:
+    test_node.spin_until(lambda: publisher.get_subscription_count() >= subscriptions, what='the recorder')
+
+
+def test_records_every_message_of_topics_that_appear_later(launch, test_node, tmp_path):
+    world = test_node.node.create_publisher(String, 'world', LATCHED)
+    world.publish(String(data='arena: {size: [1.0, 1.0]}'))
+    recorder = start_recorder(launch, tmp_path / 'bag')
+    chatter = test_node.node.create_publisher(String, 'chatter', 10)
+    wait_until_subscribed(test_node, chatter)
+    for i in range(300):
+        chatter.publish(String(data=f'message {i}'))
+        time.sleep(0.001)
+    test_node.spin_for(0.5)
+    assert recorder.stop() == 0
+
+    with AnyReader([tmp_path / 'bag']) as reader:
+        received = {}
+        for connection, _, raw in reader.messages():
+            received.setdefault(connection.topic, []).append(reader.deserialize(raw, connection.msgtype).data)
+        qos = {c.topic: c.ext.offered_qos_profiles for c in reader.connections}
+    assert received['/chatter'] == [f'message {i}' for i in range(300)]
+    assert received['/world'] == ['arena: {size: [1.0, 1.0]}']
+    assert qos['/world'][0].durability.name == 'TRANSIENT_LOCAL'
+    info = yaml.safe_load((tmp_path / 'bag' / 'metadata.yaml').read_text())['rosbag2_bagfile_information']
+    counts = {t['topic_metadata']['name']: t['message_count'] for t in info['topics_with_message_count']}
+    assert (counts['/chatter'], counts['/world']) == (300, 1)
+
+
+def test_sim_time_stamps_and_messages_held_until_the_first_clock_tick(launch, test_node, tmp_path):
+    world = test_node.node.create_publisher(String, 'world', LATCHED)
+    world.publish(String(data='{}'))
+    recorder = start_recorder(launch, tmp_path / 'bag', sim_time=True)
+    clock = test_node.node.create_publisher(Clock, '/clock', 10)
+    wait_until_subscribed(test_node, clock, 2)  # the recorder's clock (time source) and its recording
+    test_node.spin_for(0.5)  # the latched world has arrived: it must not be stamped 0
+    for tick in range(1, 21):
+        clock.publish(Clock(clock=Time(sec=100, nanosec=tick * STEP_NS)))
+        test_node.spin_for(0.01)
+    test_node.spin_for(0.5)
+    recorder.proc.send_signal(signal.SIGTERM)
+    assert recorder.proc.wait(10) == 0
+
+    with Bag(tmp_path / 'bag') as bag:
+        assert bag.closed_properly
+        times = {topic: [t for t2, t, *_ in bag.iter_raw() if t2 == topic] for topic in ('/world', '/clock')}
+    first_tick = 100 * 10**9 + STEP_NS
+    assert len(times['/clock']) == 20
+    assert min(times['/clock']) >= first_tick - STEP_NS  # sim time, give or take the tick in flight
+    assert first_tick - STEP_NS <= times['/world'][0] <= max(times['/clock'])
+
+
+def test_max_duration_stops_the_recorder_on_its_own(launch, test_node, tmp_path):
+    recorder = start_recorder(launch, tmp_path / 'bag', '/chatter', '--max-duration', '0.5')
+    chatter = test_node.node.create_publisher(String, 'chatter', 10)
+    wait_until_subscribed(test_node, chatter)
+    test_node.spin_until(lambda: chatter.publish(String(data='x')) or recorder.proc.poll() is not None,
+                         what='the recorder to stop after 0.5 s')
+    assert recorder.proc.wait(10) == 0
+    with Bag(tmp_path / 'bag') as bag:
+        assert bag.closed_properly and list(bag.topics) == ['/chatter']
+        assert 0.5e9 <= bag.end_ns - bag.start_ns < 1.0e9
+
+
+def test_a_killed_recorder_leaves_a_readable_bag(launch, test_node, tmp_path):
+    recorder = start_recorder(launch, tmp_path / 'bag', '/count')
+    count = test_node.node.create_publisher(UInt32, 'count', 1000)
+    wait_until_subscribed(test_node, count)
+    for i in range(1500):  # about 3 s: the recorder flushes a chunk every second
+        count.publish(UInt32(data=i))
+        time.sleep(0.002)
+    recorder.proc.send_signal(signal.SIGKILL)
+    recorder.proc.wait()
+    with Bag(tmp_path / 'bag') as bag:
+        assert not bag.closed_properly and 'not closed properly' in format_info(bag)
+        values = [int.from_bytes(m.data[4:8], 'little') for m in bag.messages()]
+    assert len(values) >= 500 and values == list(range(len(values)))
+
+
+def test_an_existing_bag_is_refused(tmp_path):
+    (tmp_path / 'bag').mkdir()
+    result = subprocess.run([str(BIN_DIR / 'record'), '-o', str(tmp_path / 'bag')], capture_output=True,
+                            text=True, timeout=30)
+    assert result.returncode == 2
+    assert result.stderr.strip().endswith('already exists; choose another output name')
+
+
+def test_a_sim_run_is_recorded_without_losing_a_message(launch, test_node, tmp_path):
+    """The sim at 10x real time, paused at t=3.2 s (100 steps of 12 messages), recorded from a separate process."""
+    steps = 100
+    sim = launch('sim', *ros_args({'real_time_factor': 10.0, 'paused': True, 'pause_at': steps * 0.032}))
+    sim.wait_for_output('sim ready')
+    recorder = start_recorder(launch, tmp_path / 'bag', sim_time=True)
+    for topic in ('/clock', '/odom', '/ground_truth', '/proximity', '/joint_states', '/world'):
+        recorder.wait_for_output(f'subscribed to {topic} ')
+    test_node.spin_until(lambda: test_node.node.count_subscribers('/proximity') >= 1, what='graph')
+    test_node.spin_for(1.0)  # let DDS match the recorder's readers with the sim's writers
+    client = AsyncParameterClient(test_node.node, 'sim')
+    test_node.spin_until(lambda: client.services_are_ready(), what='sim parameter services')
+    resumed = client.set_parameters([Parameter('paused', value=False)])
+    test_node.spin_until(resumed.done, what='sim to resume')
+    sim.wait_for_output('paused at t=', timeout=30)
+    test_node.spin_for(1.0)
+    assert recorder.stop() == 0
+
+    with Bag(tmp_path / 'bag') as bag:
+        counts = {name: topic.message_count for name, topic in bag.topics.items()}
+        odom_stamps = sorted(odometry_fields(buffer, start)[0] for _, _, _, buffer, start, _ in bag.iter_raw(['/odom']))
+        log_times = [t for _, t, *_ in bag.iter_raw()]
+    for topic in ('/clock', '/odom', '/ground_truth', '/joint_states'):
+        assert counts[topic] == steps, topic
+    assert counts['/proximity'] == 8 * steps and counts['/world'] == 1
+    assert np.array_equal(np.diff(odom_stamps), [STEP_NS] * (steps - 1))
+    assert min(log_times) > 0
+    with AnyReader([tmp_path / 'bag']) as reader:
+        assert sum(1 for _ in reader.messages()) == sum(counts.values())
+    summary = subprocess.run([str(BIN_DIR / 'bag'), 'summary', str(tmp_path / 'bag')], capture_output=True,
+                             text=True, timeout=60)
+    assert summary.returncode == 0 and 'Collisions:        0' in summary.stdout, summary.stderr
