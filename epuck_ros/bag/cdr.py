@@ -35,7 +35,16 @@ def _aligned(position: int, base: int, size: int) -> int:
     return base + ((position - base + size - 1) & -size)
 
 
-def _check_little_endian(buffer: bytes, start: int) -> int:
+_HEADER = struct.Struct('<iII')  # stamp sec, nanosec, frame_id length
+_LENGTH = struct.Struct('<I')
+_POSE = struct.Struct('<7d')  # position x y z, orientation x y z w
+_TWIST = struct.Struct('<6d')
+_FLOAT = struct.Struct('<f')
+_POSE_AND_COVARIANCE = 7 * 8 + 36 * 8
+
+
+def _little_endian_base(buffer: bytes, start: int) -> int:
+    """Where the CDR data starts (after the encapsulation header); only little-endian is read here."""
     if buffer[start + 1] != CDR_LE:
         raise CdrError(f'encapsulation {bytes(buffer[start:start + 2]).hex()} is not little-endian CDR')
     return start + ENCAPSULATION
@@ -43,27 +52,24 @@ def _check_little_endian(buffer: bytes, start: int) -> int:
 
 def odometry_fields(buffer: bytes, start: int) -> tuple[int, float, float, float, float, float]:
     """nav_msgs/Odometry -> (header stamp ns, x, y, yaw, linear.x, angular.z)."""
-    base = _check_little_endian(buffer, start)
-    sec, nanosec, frame_length = struct.unpack_from('<iII', buffer, base)
-    position = _aligned(base + 12 + frame_length, base, 4)
-    (child_length,) = struct.unpack_from('<I', buffer, position)
-    position = _aligned(position + 4 + child_length, base, 8)
-    x, y, _, qx, qy, qz, qw = struct.unpack_from('<7d', buffer, position)
-    # pose: 7 doubles + 36 covariance = 344 bytes; then twist.linear.x and twist.angular.z
-    vx, _, _, _, _, wz = struct.unpack_from('<6d', buffer, position + 344)
+    base = _little_endian_base(buffer, start)
+    sec, nanosec, frame_length = _HEADER.unpack_from(buffer, base)
+    child = base + ((12 + frame_length + 3) & -4)
+    (child_length,) = _LENGTH.unpack_from(buffer, child)
+    pose = base + ((child - base + 4 + child_length + 7) & -8)
+    x, y, _, qx, qy, qz, qw = _POSE.unpack_from(buffer, pose)
+    vx, _, _, _, _, wz = _TWIST.unpack_from(buffer, pose + _POSE_AND_COVARIANCE)
     yaw = math.atan2(2.0 * (qw * qz + qx * qy), 1.0 - 2.0 * (qy * qy + qz * qz))
     return sec * 1_000_000_000 + nanosec, x, y, yaw, vx, wz
 
 
-def range_fields(buffer: bytes, start: int) -> tuple[int, str, float]:
-    """sensor_msgs/Range -> (header stamp ns, frame_id, range)."""
-    base = _check_little_endian(buffer, start)
-    sec, nanosec, frame_length = struct.unpack_from('<iII', buffer, base)
-    frame_end = base + 12 + frame_length
-    frame_id = bytes(buffer[base + 12:frame_end - 1]).decode('utf-8', 'replace')
-    # radiation_type (uint8) at frame_end, then field_of_view, min_range, max_range, range
-    (distance,) = struct.unpack_from('<f', buffer, _aligned(frame_end + 1, base, 4) + 12)
-    return sec * 1_000_000_000 + nanosec, frame_id, distance
+def range_fields(buffer: bytes, start: int) -> tuple[int, float, bytes]:
+    """sensor_msgs/Range -> (header stamp ns, range, frame_id as UTF-8 bytes)."""
+    base = _little_endian_base(buffer, start)
+    sec, nanosec, frame_length = _HEADER.unpack_from(buffer, base)
+    # after frame_id: radiation_type (uint8), then 4-aligned field_of_view, min_range, max_range, range
+    (distance,) = _FLOAT.unpack_from(buffer, base + ((12 + frame_length + 4) & -4) + 12)
+    return sec * 1_000_000_000 + nanosec, distance, bytes(buffer[base + 12:base + 11 + frame_length])
 
 
 def shortest_float32(value: float) -> float:

@@ -190,17 +190,18 @@ class McapFile:
     def _scan(self) -> None:
         """Without a summary: walk every complete record once to find topics and counts."""
         self._chunks = None
-        counts: dict[int, list[int]] = {}
-        for channel_id, log_time, *_ in self._walk(None):
-            entry = counts.get(channel_id)
+        counts: dict[str, list[int]] = {}
+        for name, log_time, *_ in self._walk(None):
+            entry = counts.get(name)
             if entry is None:
-                counts[channel_id] = [1, log_time, log_time]
+                counts[name] = [1, log_time, log_time]
             else:
                 entry[0] += 1
                 entry[1] = min(entry[1], log_time)
                 entry[2] = max(entry[2], log_time)
-        for channel_id, (count, first, last) in counts.items():
-            self.topics[channel_id].add_times(count, first, last)
+        for topic in self.topics.values():
+            if topic.name in counts:
+                topic.add_times(*counts[topic.name])
 
     def _topic(self, channel: Channel, schemas: dict[int, Schema]) -> Topic:
         schema = schemas.get(channel.schema_id)
@@ -218,8 +219,8 @@ class McapFile:
 
     # -- reading ------------------------------------------------------------------------------
 
-    def iter_raw(self, channel_ids: frozenset[int] | None = None) -> Iterator[tuple[int, int, int, bytes, int, int]]:
-        """(channel id, log_time, publish_time, buffer, data start, data end) in file order."""
+    def iter_raw(self, channel_ids: frozenset[int] | None = None) -> Iterator[RawMessage]:
+        """Messages of some channels (all when None) in file order."""
         if self._chunks is None:
             yield from self._walk(channel_ids)
             return
@@ -280,7 +281,8 @@ class McapFile:
             if buffer[position] == Opcode.MESSAGE:
                 _, length, channel_id, _, log_time, publish_time = unpack_message(buffer, position)
                 if channel_ids is None or channel_id in channel_ids:
-                    yield channel_id, log_time, publish_time, buffer, position + MESSAGE_HEAD, position + 9 + length
+                    yield (topics[channel_id].name, log_time, publish_time,
+                           buffer, position + MESSAGE_HEAD, position + 9 + length)
             else:
                 opcode, length = unpack_record(buffer, position)
                 if opcode == Opcode.SCHEMA:
@@ -361,10 +363,8 @@ class Bag:
         """Messages of some topics (all when None) without copying: decode ``buffer[start:end]``."""
         wanted = None if topics is None else set(topics)
         for file in self.files:
-            names = {cid: t.name for cid, t in file.topics.items()}
-            ids = None if wanted is None else frozenset(c for c, n in names.items() if n in wanted)
-            for channel_id, log_time, publish_time, buffer, start, end in file.iter_raw(ids):
-                yield names[channel_id], log_time, publish_time, buffer, start, end
+            ids = None if wanted is None else frozenset(c for c, t in file.topics.items() if t.name in wanted)
+            yield from file.iter_raw(ids)
 
     def messages(self, topics: Iterable[str] | None = None) -> Iterator[BagMessage]:
         for topic, log_time, publish_time, buffer, start, end in self.iter_raw(topics):

@@ -7,7 +7,10 @@ keeps up with any bag size; no ROS needed.
 """
 from __future__ import annotations
 
+import gc
 import math
+from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import asdict, dataclass, field
 
 import numpy as np
@@ -67,7 +70,7 @@ class RunData:
     trajectory: Trajectory
     truth: Trajectory | None
     odom: Trajectory | None
-    ranges: tuple[np.ndarray, np.ndarray, list[str]] | None
+    ranges: tuple[np.ndarray, np.ndarray, tuple[bytes, ...]] | None
     """(stamps s, ranges m, frame_ids) of the proximity topic."""
     world: World | None
     closed_properly: bool
@@ -141,13 +144,14 @@ def load_run(bag: Bag, namespace: str | None = None) -> RunData:
         rows[proximity] = []
         handlers[proximity] = (range_fields, rows[proximity].append)
     world_messages: list[bytes] = []
-    for topic, _, _, buffer, start, end in bag.iter_raw([*handlers, *([world_topic] if world_topic else [])]):
-        handler = handlers.get(topic)
-        if handler is None:
-            world_messages.append(bytes(buffer[start:end]))
-        else:
-            decode, append = handler
-            append(decode(buffer, start))
+    with _cyclic_gc_paused():
+        for topic, _, _, buffer, start, end in bag.iter_raw([*handlers, *([world_topic] if world_topic else [])]):
+            handler = handlers.get(topic)
+            if handler is None:
+                world_messages.append(bytes(buffer[start:end]))
+            else:
+                decode, append = handler
+                append(decode(buffer, start))
 
     recorded = {name: topic for name, topic in odometry.items() if rows[topic]}
     if not recorded:
@@ -156,11 +160,24 @@ def load_run(bag: Bag, namespace: str | None = None) -> RunData:
     trajectories = {name: _trajectory(topic, rows[topic], origin) for name, topic in recorded.items()}
     ranges = None
     if rows.get(proximity):
-        stamps, frames, values = zip(*rows[proximity])
-        ranges = ((np.array(stamps, dtype=np.int64) - origin) * 1e-9, np.array(values), list(frames))
+        stamps, values, frames = zip(*rows[proximity])
+        ranges = ((np.array(stamps, dtype=np.int64) - origin) * 1e-9, np.array(values), frames)
     world = _world(bag, world_topic, world_messages[-1]) if world_messages else None
     truth, odom = trajectories.get('ground_truth'), trajectories.get('odom')
     return RunData(str(bag.path), namespace, truth or odom, truth, odom, ranges, world, bag.closed_properly)
+
+
+@contextmanager
+def _cyclic_gc_paused() -> Iterator[None]:
+    """Decoding keeps up to millions of small tuples alive; none is in a cycle, so the cyclic
+    garbage collector would only rescan them over and over (a third of the time on a big bag)."""
+    enabled = gc.isenabled()
+    gc.disable()
+    try:
+        yield
+    finally:
+        if enabled:
+            gc.enable()
 
 
 def _find_world_topic(bag: Bag, namespace: str) -> str | None:
@@ -283,7 +300,7 @@ def summarise(run: RunData, model: RobotModel = RobotModel()) -> RunSummary:
         finite = np.flatnonzero(np.isfinite(values))
         if len(finite):
             best = finite[np.argmin(values[finite])]
-            closest, sensor, when = float(values[best]), frames[best], float(stamps[best])
+            closest, sensor, when = float(values[best]), frames[best].decode(errors='replace'), float(stamps[best])
     circle, corners = course_shape(trajectory)
     distance, duration = trajectory.distance, trajectory.duration
     return RunSummary(
