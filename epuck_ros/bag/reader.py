@@ -117,7 +117,8 @@ class McapFile:
         self.rosbag2_metadata: dict = {}
         self.profile, self.library = '', ''
         self.closed_properly = self._has_footer()
-        self._chunks: list[tuple[int, frozenset[int]]] | None = None
+        self._chunks: list[tuple[int, frozenset[int] | None]] | None = None
+        """(offset, channels) of each chunk, from the summary; None: scan the file instead."""
         self._indexes: list = []
         self.ignored_bytes = 0
         """Bytes after the last complete record of a file that was not closed properly."""
@@ -155,18 +156,22 @@ class McapFile:
         for channel in summary.channels.values():
             self.topics[channel.id] = self._topic(channel, summary.schemas)
         self._indexes = sorted(summary.chunk_indexes, key=lambda c: c.chunk_start_offset)
-        self._chunks = [(c.chunk_start_offset, frozenset(c.message_index_offsets)) for c in self._indexes]
-        for channel_id, count in summary.statistics.channel_message_counts.items():
+        # A chunk without message indexes may hold any channel (None: always read it).
+        self._chunks = [(c.chunk_start_offset, frozenset(c.message_index_offsets) or None) for c in self._indexes]
+        statistics = summary.statistics
+        for channel_id, count in statistics.channel_message_counts.items():
             if count and channel_id in self.topics:
-                self.topics[channel_id].add_times(count, *self._time_range(channel_id))
+                first, last = self._time_range(channel_id)
+                self.topics[channel_id].add_times(count, statistics.message_start_time if first is None else first,
+                                                  statistics.message_end_time if last is None else last)
         for index in summary.metadata_indexes:
             if index.name == 'rosbag2':
                 body = self._map[index.offset + 9:index.offset + index.length]
                 self._keep_rosbag2_metadata(_read_record(body, Metadata))
         return True
 
-    def _time_range(self, channel_id: int) -> tuple[int, int]:
-        """First and last log_time of a channel, from the message indexes of the chunks at the ends."""
+    def _time_range(self, channel_id: int) -> tuple[int | None, int | None]:
+        """First and last log_time of a channel from the message indexes of the chunks at the ends (None without)."""
         chunks = [c for c in self._indexes if channel_id in c.message_index_offsets]
         first, last = None, None
         for chunk in sorted(chunks, key=lambda c: c.message_start_time):
@@ -225,7 +230,7 @@ class McapFile:
             yield from self._walk(channel_ids)
             return
         for offset, channels in self._chunks:
-            if channel_ids is None or not channels.isdisjoint(channel_ids):
+            if channel_ids is None or channels is None or not channels.isdisjoint(channel_ids):
                 yield from self._walk_chunk(offset, channel_ids)
 
     def _walk(self, channel_ids: frozenset[int] | None) -> Iterator[tuple]:

@@ -20,12 +20,14 @@ from pathlib import Path
 
 import rclpy
 from rclpy.clock import Clock, ClockType
+from rclpy.exceptions import InvalidTopicNameException
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.task import Future
 from rclpy.topic_or_service_is_hidden import topic_or_service_is_hidden
 from rclpy.utilities import remove_ros_args
+from rclpy.validate_topic_name import validate_topic_name
 
 from epuck_ros.bag.qos import QosProfile
 from epuck_ros.bag.writer import COMPRESSIONS, BackgroundWriter, BagExistsError, BagWriter
@@ -163,7 +165,15 @@ def parse_arguments(argv: list[str]) -> argparse.Namespace:
                         help='MCAP chunk compression (default: none, as rosbag2)')
     parser.add_argument('--max-duration', type=float, metavar='SECONDS',
                         help="stop after this long on the node's clock (simulated time with use_sim_time)")
-    return parser.parse_args(argv)
+    options = parser.parse_args(argv)
+    if options.max_duration is not None and not options.max_duration > 0:
+        parser.error(f'--max-duration must be a positive number of seconds, not {options.max_duration}')
+    for topic in options.topics:
+        try:
+            validate_topic_name(topic)
+        except InvalidTopicNameException as error:
+            parser.error(f'invalid topic name {topic!r}: {str(error).splitlines()[0]}')
+    return options
 
 
 def main(args: list[str] | None = None) -> None:
