@@ -39,6 +39,7 @@ JOINT_NAMES = ['left_wheel_joint', 'right_wheel_joint']
 _UNKNOWN = 1e6
 POSE_COVARIANCE = [1e-6, 1e-6, _UNKNOWN, _UNKNOWN, _UNKNOWN, 1e-5]
 TWIST_COVARIANCE = [1e-5, 1e-5, _UNKNOWN, _UNKNOWN, _UNKNOWN, 1e-4]
+PUBLISHER_HISTORY_STEPS = 300
 WARN_PERIOD = 1.0
 """Seconds between two warnings about the same kind of refused command."""
 
@@ -174,11 +175,15 @@ class SimNode(Node):
         self._world_msg = String(data=yaml.safe_dump(world.to_dict(), sort_keys=False))
 
     def _make_interfaces(self) -> None:
-        self._pub_clock = self.create_publisher(Clock, '/clock', 10)
-        self._pub_odom = self.create_publisher(Odometry, 'odom', 10)
-        self._pub_truth = self.create_publisher(Odometry, 'ground_truth', 10)
-        self._pub_range = self.create_publisher(Range, 'proximity', 16)
-        self._pub_joints = self.create_publisher(JointState, 'joint_states', 10)
+        # Reliable KEEP_LAST: a reader gets a sample only while it is still in the publisher's history, so
+        # the history holds about a second of steps at 10x real time; a recorder that stalls for a moment
+        # (a disk flush, a garbage collection) then loses nothing.
+        depth = PUBLISHER_HISTORY_STEPS
+        self._pub_clock = self.create_publisher(Clock, '/clock', depth)
+        self._pub_odom = self.create_publisher(Odometry, 'odom', depth)
+        self._pub_truth = self.create_publisher(Odometry, 'ground_truth', depth)
+        self._pub_range = self.create_publisher(Range, 'proximity', depth * len(SENSOR_NAMES))
+        self._pub_joints = self.create_publisher(JointState, 'joint_states', depth)
         latched = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
         self.create_publisher(String, 'world', latched).publish(self._world_msg)
         self._pub_collisions = self.create_publisher(UInt32, 'collisions', latched)
@@ -256,10 +261,9 @@ class SimNode(Node):
             pacer.wait(now_sim, rtf)
 
     def _publish(self) -> None:
+        """One step's messages; `/clock` goes last, so a node whose timer fires on that tick has its data."""
         sim = self._sim
         stamp = _stamp(sim.time)
-        self._clock_msg.clock = stamp
-        self._pub_clock.publish(self._clock_msg)
         _fill_odometry(self._odom, stamp, sim.odom_pose[0], sim.odom_twist[0])
         self._pub_odom.publish(self._odom)
         _fill_odometry(self._truth, stamp, sim.true_pose[0], sim.true_twist[0])
@@ -272,6 +276,8 @@ class SimNode(Node):
         self._joints.position = [float(a) for a in sim.wheel_angles[0]]
         self._joints.velocity = [float(w) for w in sim.wheel_speeds[0]]
         self._pub_joints.publish(self._joints)
+        self._clock_msg.clock = stamp
+        self._pub_clock.publish(self._clock_msg)
 
 
 def _stamp(seconds: float) -> Time:
