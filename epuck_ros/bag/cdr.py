@@ -31,10 +31,6 @@ class CdrError(ValueError):
     """Message data or schema the decoder cannot handle; the message says what."""
 
 
-def _aligned(position: int, base: int, size: int) -> int:
-    return base + ((position - base + size - 1) & -size)
-
-
 _HEADER = struct.Struct('<iII')  # stamp sec, nanosec, frame_id length
 _LENGTH = struct.Struct('<I')
 _POSE = struct.Struct('<7d')  # position x y z, orientation x y z w
@@ -91,6 +87,11 @@ class TimeValue:
         sign = '-' if self.nanoseconds < 0 else ''
         seconds, nanoseconds = divmod(abs(self.nanoseconds), 1_000_000_000)
         return f'{sign}{seconds}.{nanoseconds:09d}'
+
+
+def _aligned(position: int, base: int, size: int) -> int:
+    """The next offset at a multiple of `size` counted from `base` (CDR alignment)."""
+    return base + ((position - base + size - 1) & -size)
 
 
 def _short_name(type_name: str) -> str:
