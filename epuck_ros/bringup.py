@@ -131,19 +131,26 @@ def start_child(role: str, name: str, params: list[str], namespace: str, args: t
     return child
 
 
+def interrupt(process: subprocess.Popen, timeout: float) -> bool:
+    """SIGINT, then SIGKILL after `timeout` seconds; False if it had to be killed."""
+    if process.poll() is None:
+        process.send_signal(signal.SIGINT)
+        try:
+            process.wait(timeout)
+        except subprocess.TimeoutExpired:
+            process.kill()
+            process.wait()
+            return False
+    return True
+
+
 def stop_children(children: list[Child]) -> list[str]:
-    """SIGINT in STOP_ORDER, a bounded wait each, SIGKILL if needed; returns what went wrong."""
+    """Interrupt in STOP_ORDER, a bounded wait each; returns what went wrong."""
     problems = []
     for child in sorted(children, key=lambda c: STOP_ORDER.index(c.role)):
-        if child.process.poll() is None:
-            child.process.send_signal(signal.SIGINT)
-            try:
-                child.process.wait(STOP_TIMEOUT)
-            except subprocess.TimeoutExpired:
-                child.process.kill()
-                child.process.wait()
-                problems.append(f'{child.name} did not stop within {STOP_TIMEOUT:.0f} s of SIGINT and was killed')
-                continue
+        if not interrupt(child.process, STOP_TIMEOUT):
+            problems.append(f'{child.name} did not stop within {STOP_TIMEOUT:.0f} s of SIGINT and was killed')
+            continue
         if child.process.returncode not in (0, -signal.SIGINT, 128 + signal.SIGINT):
             problems.append(f'{child.name} exited with code {child.process.returncode}')
     return problems
