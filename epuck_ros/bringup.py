@@ -24,7 +24,7 @@ from pathlib import Path
 
 BEHAVIOURS = ('forward', 'spin', 'circle', 'rectangle', 'avoid')
 SIM_PARAMETERS = ('time_step', 'real_time_factor', 'world', 'seed', 'noise', 'cmd_timeout', 'cmd_vel_stamped',
-                  'frame_prefix', 'paused', 'pause_at')
+                  'frame_prefix', 'paused', 'pause_at', 'lockstep', 'lockstep_timeout')
 STOP_ORDER = ('behaviour', 'record', 'sim')
 """The behaviour stops first so the robot is still simulated while the recorder closes its bag."""
 READY_TIMEOUT = 30.0
@@ -66,6 +66,9 @@ def parse_args(argv: list[str]) -> argparse.Namespace:
     parser.add_argument('--real-time-factor', type=float, default=1.0,
                         help='simulated seconds per wall second; 0 = as fast as possible (default 1)')
     parser.add_argument('--no-noise', action='store_true', help='turn the sensor noise off')
+    parser.add_argument('--lockstep', action='store_true',
+                        help='the simulator waits for the behaviour\'s command after every step: the same run '
+                             'whatever the load of the machine (pair it with --real-time-factor 0 for speed)')
     parser.add_argument('-p', '--param', action='append', default=[], metavar='[NODE.]NAME:=VALUE',
                         help='a parameter for the node that declares it (sim parameters go to sim, the rest to the '
                              'behaviour); repeatable')
@@ -90,7 +93,8 @@ def route_parameters(parser: argparse.ArgumentParser, args: argparse.Namespace) 
     # The simulator starts paused; `run` resumes it once the behaviour is up, so both start at t = 0.
     sim = ['paused:=true', f'pause_at:={float(args.duration)}', f'seed:={args.seed}',
            f'world:={Path(args.world).resolve()}' if args.world else None,
-           f'real_time_factor:={float(args.real_time_factor)}', 'noise:=false' if args.no_noise else None]
+           f'real_time_factor:={float(args.real_time_factor)}', 'noise:=false' if args.no_noise else None,
+           'lockstep:=true' if args.lockstep else None]
     sim = [p for p in sim if p]
     behaviour = []
     for assignment in args.param:
@@ -177,7 +181,7 @@ class RunMonitor:
         self.collisions = 0
         self._last_xy: tuple[float, float] | None = None
         self.node.create_subscription(Clock, '/clock', self._on_clock, 10)
-        self.node.create_subscription(Odometry, 'ground_truth', self._on_truth, 10)
+        self.node.create_subscription(Odometry, 'ground_truth', self._on_truth, 1000)  # every step counts
         latched = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
         self.node.create_subscription(UInt32, 'collisions', self._on_collisions, latched)
 
@@ -250,7 +254,10 @@ class Supervisor:
         if not failure and args.record is not None:
             record_args = ('--compression', args.record_compression, *(('-o', args.record) if args.record else ()))
             recorder = self.start('record', 'record', [], record_args, ready_text='Recording')
-            failure = self.watch(recorder.ready.is_set, READY_TIMEOUT, 'record did not start')
+            failure = self.watch(recorder.ready.is_set, READY_TIMEOUT, 'record did not start') or self.watch(
+                lambda: self.monitor.node.count_subscribers('joint_states') > 0, READY_TIMEOUT,
+                'record did not subscribe to joint_states')  # nobody else does: the recorder is matched
+
         if not failure:
             self.start('behaviour', args.behaviour, args.behaviour_params)
             failure = self.watch(lambda: self.monitor.node.count_publishers('wheel_cmd') > 0, READY_TIMEOUT,

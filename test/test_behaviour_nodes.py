@@ -1,6 +1,6 @@
-"""The behaviour executables over DDS: the real `sim` process (use_sim_time, real_time_factor 5) and a real
-behaviour process, judged on the `ground_truth` and `odom` topics a test node reads. Figures and tolerances
-are those of the pure closed-loop tests in test_behaviours.py."""
+"""The behaviour executables over DDS: the real `sim` process (lockstep, as fast as the behaviour answers) and a
+real behaviour process (use_sim_time), judged on the `ground_truth` and `odom` topics a test node reads. Figures
+and tolerances are those of the pure closed-loop tests in test_behaviours.py."""
 from __future__ import annotations
 
 import math
@@ -15,8 +15,10 @@ from conftest import ros_args
 from epuck_ros.nodes.behaviour_nodes import RangeAssembler
 from test_behaviours import fitted_circle
 
+SIM_PARAMS = {'real_time_factor': 0.0, 'lockstep': True}
+"""The sim waits for the behaviour's command after each step: the run is the same however busy the machine is."""
 REAL_TIME_FACTOR = 5.0
-"""Fast enough to keep the run short, slow enough that the behaviour node keeps up on a busy 2-core machine."""
+"""What lockstep runs reach here (3.5x to 10x real time); the waits below allow a third of it."""
 HISTORY = 2000
 """The test node keeps every ground_truth message of a run."""
 
@@ -67,7 +69,7 @@ class Run:
         self.odom: list[Odometry] = test_node.collect(Odometry, 'odom', HISTORY)
         latched = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
         self.collisions: list[UInt32] = test_node.collect(UInt32, 'collisions', latched)
-        self.sim = launch('sim', *ros_args({'real_time_factor': REAL_TIME_FACTOR, 'noise': noise}))
+        self.sim = launch('sim', *ros_args({**SIM_PARAMS, 'noise': noise}))
         self.wait_for(self.sim, 'sim ready')
         self.behaviour = launch(behaviour, *ros_args({'use_sim_time': True, **params}))
 

@@ -150,3 +150,22 @@ def test_malformed_world_file_names_the_field(launch, tmp_path: Path):
     sim = launch('sim', *ros_args({'world': str(world)}))
     assert sim.proc.wait(timeout=20) == 2
     assert 'boxes[0].size' in sim.output() and str(world) in sim.output()
+
+
+def test_lockstep_advances_one_step_per_command(launch, test_node):
+    start_sim(launch, lockstep=True, lockstep_timeout=30.0, real_time_factor=0.0)
+    clocks = test_node.collect(Clock, '/clock', 100)
+    pub = test_node.node.create_publisher(Float64MultiArray, 'wheel_cmd', 10)
+    test_node.spin_until(lambda: pub.get_subscription_count() > 0 and test_node.node.count_publishers('/clock'),
+                         what='the sim to be discovered')
+    test_node.spin_for(0.5)  # the first step was published before we listened; the sim now waits for a command
+    steps_per_command = []
+    for _ in range(5):
+        seen = len(clocks)
+        pub.publish(wheel_cmd(1.0, 1.0))
+        test_node.spin_until(lambda: len(clocks) > seen, what='the step answering the command')
+        test_node.spin_for(0.3)  # without another command, no further step comes
+        steps_per_command.append(len(clocks) - seen)
+    assert steps_per_command == [1] * 5
+    times = [c.clock.sec + c.clock.nanosec * 1e-9 for c in clocks]
+    assert [b - a for a, b in zip(times, times[1:])] == pytest.approx([STEP] * 4, abs=1e-9)

@@ -56,6 +56,10 @@ class RangeAssembler:
         return None if self._missing else tuple(self._values)
 
 
+def _nanoseconds(stamp: Any) -> int:
+    return stamp.sec * 1_000_000_000 + stamp.nanosec
+
+
 def yaw_from_quaternion(x: float, y: float, z: float, w: float) -> float:
     return math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
 
@@ -86,6 +90,9 @@ class BehaviourNode(Node):
         self.behaviour = spec.make(replace(spec.defaults, **settings))
         self._odom: tuple[float, float, float] | None = None
         self._ranges: tuple[float, ...] | None = None
+        self._odom_stamp: int | None = None  # nanoseconds of the data above
+        self._ranges_stamp: int | None = None
+        self._pending_tick: int | None = None
         self._assembler = RangeAssembler()
         if self.behaviour.needs_odom:
             self.create_subscription(Odometry, 'odom', self._on_odom, QOS)
@@ -102,6 +109,8 @@ class BehaviourNode(Node):
         pose = msg.pose.pose
         q = pose.orientation
         self._odom = (pose.position.x, pose.position.y, yaw_from_quaternion(q.x, q.y, q.z, q.w))
+        self._odom_stamp = _nanoseconds(msg.header.stamp)
+        self._act_when_ready()
 
     def _on_range(self, msg: Range) -> None:
         stamp = (msg.header.stamp.sec, msg.header.stamp.nanosec)
@@ -114,9 +123,30 @@ class BehaviourNode(Node):
             return
         if ranges is not None:
             self._ranges = ranges
+            self._ranges_stamp = _nanoseconds(msg.header.stamp)
+            self._act_when_ready()
 
     def _on_tick(self) -> None:
-        now = self.get_clock().now().nanoseconds * 1e-9
+        if self._pending_tick is not None:  # its data never came complete: act on what there is
+            self._act(self._pending_tick)
+        self._pending_tick = self.get_clock().now().nanoseconds
+        self._act_when_ready()
+
+    def _act_when_ready(self) -> None:
+        """Act on the pending tick once every input the behaviour needs carries that tick's stamp or a later one.
+
+        `/clock` and the sensor topics travel separately, so a tick can arrive before its own data; waiting for it
+        makes every command answer the same observation whatever the timing (and lockstep runs repeatable)."""
+        if self._pending_tick is None:
+            return
+        stamps = [self._odom_stamp] if self.behaviour.needs_odom else []
+        stamps += [self._ranges_stamp] if self.behaviour.needs_proximity else []
+        if all(stamp is not None and stamp >= self._pending_tick for stamp in stamps):
+            self._act(self._pending_tick)
+
+    def _act(self, tick: int) -> None:
+        self._pending_tick = None
+        now = tick * 1e-9
         command = self.behaviour.update(Observation(now, self._odom, self._ranges))
         if self.behaviour.status != self._logged_status:
             self._logged_status = self.behaviour.status

@@ -98,6 +98,9 @@ class SimNode(Node):
             world, RobotModel(), time_step=self._time_step, seed=self.get_parameter('seed').value,
             noise=self.get_parameter('noise').value, cmd_timeout=self.get_parameter('cmd_timeout').value)
         self._lock = threading.Lock()
+        self._commanded = threading.Event()
+        self._lockstep = self.get_parameter('lockstep').value
+        self._lockstep_timeout = self.get_parameter('lockstep_timeout').value
         self.failure = ''
         self._running = threading.Event()
         self._thread = threading.Thread(target=self._run, name='sim_loop', daemon=True)
@@ -121,6 +124,12 @@ class SimNode(Node):
             description='while true, simulated time stands still (nothing is stepped or published)'))
         self.declare_parameter('pause_at', 0.0, _float_param(
             'simulated time (s) at which the simulation pauses by itself, exactly; 0 = never', 0.0, 1e9))
+        self.declare_parameter('lockstep', False, ParameterDescriptor(
+            description='step only once a command has arrived since the last step (or after lockstep_timeout): '
+                        'runs with one controller are the same whatever the load of the machine', read_only=True))
+        self.declare_parameter('lockstep_timeout', 1.0, _float_param(
+            'wall seconds a lockstep simulation waits for a command before stepping anyway', 0.001, 60.0,
+            read_only=True))
         self.declare_parameter('world', '', ParameterDescriptor(
             description='path to a world YAML file; empty = the built-in 1 m x 1 m arena', read_only=True))
         self.declare_parameter('seed', 0, ParameterDescriptor(
@@ -212,6 +221,8 @@ class SimNode(Node):
                 apply(first, second)
         except CommandError as error:
             self.get_logger().warning(f'{topic} refused: {error}', throttle_duration_sec=WARN_PERIOD)
+            return
+        self._commanded.set()
 
     def _on_reset(self, request: Empty.Request, response: Empty.Response) -> Empty.Response:
         with self._lock:
@@ -258,6 +269,9 @@ class SimNode(Node):
             if 0.0 < self._pause_at <= now_sim + 1e-9:
                 self.set_parameters([Parameter('paused', value=True)])
                 self.get_logger().info(f'paused at t={now_sim:.3f} s (pause_at)')
+            if self._lockstep:  # the controller answers this step's data before the next step
+                self._commanded.wait(self._lockstep_timeout)
+                self._commanded.clear()
             pacer.wait(now_sim, rtf)
 
     def _publish(self) -> None:
