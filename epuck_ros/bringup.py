@@ -28,6 +28,11 @@ SIM_PARAMETERS = ('time_step', 'real_time_factor', 'world', 'seed', 'noise', 'cm
 STOP_ORDER = ('behaviour', 'record', 'sim')
 """The behaviour stops first so the robot is still simulated while the recorder closes its bag."""
 READY_TIMEOUT = 30.0
+SETTLE_TIME = 1.5
+"""Wall seconds between seeing the behaviour's subscriptions in the graph and resuming the simulation, for the
+simulator's publishers to match them too. The graph shows nothing of the matching itself; after earlier runs
+on the same domain it took more than 0.3 s here (rclpy's /clock subscription is best effort, so a tick sent
+before it matched is lost and a lockstep run starts one step late)."""
 STOP_TIMEOUT = 10.0
 ERROR_LINES = 15
 
@@ -246,6 +251,17 @@ class Supervisor:
         self.children.append(child)
         return child
 
+    def behaviour_connected(self, name: str) -> bool:
+        """The behaviour publishes wheel_cmd and every sim topic it subscribes to has a subscriber in the graph."""
+        node = self.monitor.node
+        if node.count_publishers('wheel_cmd') == 0:
+            return False
+        try:
+            wanted = node.get_subscriber_names_and_types_by_node(name, node.get_namespace())
+        except Exception:  # noqa: BLE001 - rclpy raises NodeNameNonExistentError until the node is discovered
+            return False
+        return all(node.count_subscribers(topic) > 0 for topic, _ in wanted)
+
     def run(self) -> str:
         """Start everything, resume the simulation, and watch until the end; returns what went wrong, if anything."""
         args = self.args
@@ -260,10 +276,11 @@ class Supervisor:
 
         if not failure:
             self.start('behaviour', args.behaviour, args.behaviour_params)
-            failure = self.watch(lambda: self.monitor.node.count_publishers('wheel_cmd') > 0, READY_TIMEOUT,
-                                 f'{args.behaviour} did not start publishing wheel_cmd')
+            failure = self.watch(lambda: self.behaviour_connected(args.behaviour), READY_TIMEOUT,
+                                 f'{args.behaviour} did not connect to the simulator')
         if failure or self.stop_requested.is_set():
             return failure
+        time.sleep(SETTLE_TIME)
         if not self.monitor.resume_sim(READY_TIMEOUT):
             return 'sim did not accept paused:=false'
         print(f'[bringup] running {args.behaviour}' + (f' for {args.duration:g} simulated s' if args.duration else

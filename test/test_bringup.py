@@ -84,13 +84,15 @@ def test_avoid_for_five_simulated_minutes_without_a_collision(launch):
 def test_lockstep_runs_are_identical(launch, tmp_path):
     """Noise on, seed fixed: with --lockstep the recorded trajectories of two runs are the same to the last bit
     (the messages themselves; the recorder's log times depend on when each message arrived)."""
-    trajectories = []
+    trajectories, logs = [], []
     for run_index in range(2):
         bag = tmp_path / f'run{run_index}'
         run = launch('bringup', 'avoid', '--duration', '12', '--real-time-factor', '0', '--lockstep', '--seed', '3',
                      '--record', str(bag))
         assert run.proc.wait(timeout=120) == 0, run.output()
+        logs.append('\n'.join(line for line in run.output().splitlines() if '[avoid]' in line or 'bringup]' in line))
         with BagReader(bag) as reader:
             trajectories.append([m.data for m in reader.messages(topics=['/ground_truth'])])
-    assert len(trajectories[0]) == round(12 / 0.032)
-    assert trajectories[0] == trajectories[1]
+    assert [len(t) for t in trajectories] == [round(12 / 0.032)] * 2, '\n----\n'.join(logs)
+    differ = [i for i, (a, b) in enumerate(zip(*trajectories)) if a != b]
+    assert not differ, f'{len(differ)} steps differ, the first at step {differ[0] + 1}:\n' + '\n----\n'.join(logs)

@@ -236,6 +236,7 @@ class SimNode(Node):
 
     def stop(self) -> None:
         self._running.clear()
+        self._commanded.set()  # a lockstep loop waiting for a command wakes up and sees it must end
         if self._thread.is_alive():
             self._thread.join(timeout=5.0)
 
