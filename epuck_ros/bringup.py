@@ -28,11 +28,10 @@ SIM_PARAMETERS = ('time_step', 'real_time_factor', 'world', 'seed', 'noise', 'cm
 STOP_ORDER = ('behaviour', 'record', 'sim')
 """The behaviour stops first so the robot is still simulated while the recorder closes its bag."""
 READY_TIMEOUT = 30.0
-SETTLE_TIME = 1.5
+SETTLE_TIME = 0.5
 """Wall seconds between seeing the behaviour's subscriptions in the graph and resuming the simulation, for the
-simulator's publishers to match them too. The graph shows nothing of the matching itself; after earlier runs
-on the same domain it took more than 0.3 s here (rclpy's /clock subscription is best effort, so a tick sent
-before it matched is lost and a lockstep run starts one step late)."""
+simulator's publishers to match them too (the graph shows nothing of the matching itself). In lockstep the
+simulator also re-sends its first step until the behaviour answers, so a late match costs no step there."""
 STOP_TIMEOUT = 10.0
 ERROR_LINES = 15
 

@@ -28,7 +28,7 @@ from std_srvs.srv import Empty
 
 from epuck_ros.model import SENSOR_NAMES, RobotModel
 from epuck_ros.nodes.spinning import spin_until_shutdown
-from epuck_ros.simulation import CommandError, Simulation
+from epuck_ros.simulation import CommandError, Simulation, StepEvents
 from epuck_ros.world import WorldError, default_world, load_world
 
 JOINT_NAMES = ['left_wheel_joint', 'right_wheel_joint']
@@ -40,6 +40,7 @@ _UNKNOWN = 1e6
 POSE_COVARIANCE = [1e-6, 1e-6, _UNKNOWN, _UNKNOWN, _UNKNOWN, 1e-5]
 TWIST_COVARIANCE = [1e-5, 1e-5, _UNKNOWN, _UNKNOWN, _UNKNOWN, 1e-4]
 PUBLISHER_HISTORY_STEPS = 300
+LOCKSTEP_START_RESENDS = 10
 WARN_PERIOD = 1.0
 """Seconds between two warnings about the same kind of refused command."""
 
@@ -101,6 +102,8 @@ class SimNode(Node):
         self._commanded = threading.Event()
         self._lockstep = self.get_parameter('lockstep').value
         self._lockstep_timeout = self.get_parameter('lockstep_timeout').value
+        self._answered_once = False
+        self._resends = 0
         self.failure = ''
         self._running = threading.Event()
         self._thread = threading.Thread(target=self._run, name='sim_loop', daemon=True)
@@ -253,27 +256,47 @@ class SimNode(Node):
     def _loop(self) -> None:
         """Step and publish until stopped, paced by the real-time factor; idle while paused."""
         pacer = Pacer()
+        resend = False
         while self._running.is_set() and self.context.ok():
             if self._paused:
                 pacer.restart()
                 time.sleep(0.01)
                 continue
             with self._lock:
-                events = self._sim.step()
+                events = None if resend else self._sim.step()
                 self._publish()
                 rtf, now_sim = self._rtf, self._sim.time
-            for robot in events.new_contacts:
-                count = int(self._sim.collisions[robot])
-                x, y, _ = self._sim.true_pose[robot]
-                self._pub_collisions.publish(UInt32(data=count))
-                self.get_logger().warning(f'collision #{count} at x={x:.3f} y={y:.3f} (t={now_sim:.2f} s)')
-            if 0.0 < self._pause_at <= now_sim + 1e-9:
-                self.set_parameters([Parameter('paused', value=True)])
-                self.get_logger().info(f'paused at t={now_sim:.3f} s (pause_at)')
-            if self._lockstep:  # the controller answers this step's data before the next step
-                self._commanded.wait(self._lockstep_timeout)
-                self._commanded.clear()
+            if events is not None:
+                self._after_step(events, now_sim)
+            resend = self._lockstep and not self._await_command()
             pacer.wait(now_sim, rtf)
+
+    def _after_step(self, events: StepEvents, now_sim: float) -> None:
+        for robot in events.new_contacts:
+            count = int(self._sim.collisions[robot])
+            x, y, _ = self._sim.true_pose[robot]
+            self._pub_collisions.publish(UInt32(data=count))
+            self.get_logger().warning(f'collision #{count} at x={x:.3f} y={y:.3f} (t={now_sim:.2f} s)')
+        if 0.0 < self._pause_at <= now_sim + 1e-9:
+            self.set_parameters([Parameter('paused', value=True)])
+            self.get_logger().info(f'paused at t={now_sim:.3f} s (pause_at)')
+
+    def _await_command(self) -> bool:
+        """Lockstep: wait for the controller to answer this step; False if the step should be sent again.
+
+        Until the controller has answered once, a step nobody answered is sent again rather than passed: a
+        controller still connecting may have missed it (DDS matching is not visible from outside), and
+        two runs would then start a step apart. A few resends at most, so a lost first answer cannot hang
+        the simulation."""
+        answered = self._commanded.wait(self._lockstep_timeout)
+        self._commanded.clear()
+        if answered:
+            self._answered_once = True
+        if answered or self._answered_once or self._resends >= LOCKSTEP_START_RESENDS:
+            return True
+        self._resends += 1
+        self.get_logger().info(f'lockstep: no answer to t={self._sim.time:.3f} s yet, sending it again')
+        return False
 
     def _publish(self) -> None:
         """One step's messages; `/clock` goes last, so a node whose timer fires on that tick has its data."""
