@@ -28,6 +28,8 @@ SIM_PARAMETERS = ('time_step', 'real_time_factor', 'world', 'seed', 'noise', 'cm
 STOP_ORDER = ('behaviour', 'record', 'sim')
 """The behaviour stops first so the robot is still simulated while the recorder closes its bag."""
 READY_TIMEOUT = 30.0
+RECORDER_TOPICS = ('odom', 'proximity', 'joint_states')
+"""Simulator topics nothing but the recorder subscribes to yet when it starts: their subscribers are its own."""
 SETTLE_TIME = 0.5
 """Wall seconds between seeing the behaviour's subscriptions in the graph and resuming the simulation, for the
 simulator's publishers to match them too (the graph shows nothing of the matching itself). In lockstep the
@@ -270,8 +272,8 @@ class Supervisor:
             record_args = ('--compression', args.record_compression, *(('-o', args.record) if args.record else ()))
             recorder = self.start('record', 'record', [], record_args, ready_text='Recording')
             failure = self.watch(recorder.ready.is_set, READY_TIMEOUT, 'record did not start') or self.watch(
-                lambda: self.monitor.node.count_subscribers('joint_states') > 0, READY_TIMEOUT,
-                'record did not subscribe to joint_states')  # nobody else does: the recorder is matched
+                lambda: all(self.monitor.node.count_subscribers(topic) > 0 for topic in RECORDER_TOPICS),
+                READY_TIMEOUT, 'record did not subscribe to the simulator\'s topics')
 
         if not failure:
             self.start('behaviour', args.behaviour, args.behaviour_params)
