@@ -29,7 +29,7 @@ from std_srvs.srv import Empty
 from epuck_ros.model import SENSOR_NAMES, RobotModel
 from epuck_ros.nodes.spinning import spin_until_shutdown
 from epuck_ros.simulation import CommandError, Simulation, StepEvents
-from epuck_ros.world import WorldError, default_world, load_world
+from epuck_ros.world import World, WorldError, default_world, load_world
 
 JOINT_NAMES = ['left_wheel_joint', 'right_wheel_joint']
 
@@ -161,7 +161,7 @@ class SimNode(Node):
                     self._sim.cmd_timeout = param.value
         return SetParametersResult(successful=True)
 
-    def _make_messages(self, world: object) -> None:
+    def _make_messages(self, world: World) -> None:
         """Messages are built once and refilled every step: it halves the cost of publishing."""
         self._odom = Odometry()
         self._odom.header.frame_id = self._frames['odom']
