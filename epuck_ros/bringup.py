@@ -22,9 +22,19 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import rclpy
+from nav_msgs.msg import Odometry
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+from rclpy.parameter_client import AsyncParameterClient
+from rclpy.qos import DurabilityPolicy, QoSProfile
+from rclpy.signals import SignalHandlerOptions
+from rosgraph_msgs.msg import Clock
+from std_msgs.msg import UInt32
+
+from epuck_ros.nodes.sim_node import PARAMETERS as SIM_PARAMETERS
+
 BEHAVIOURS = ('forward', 'spin', 'circle', 'rectangle', 'avoid')
-SIM_PARAMETERS = ('time_step', 'real_time_factor', 'world', 'seed', 'noise', 'cmd_timeout', 'cmd_vel_stamped',
-                  'frame_prefix', 'paused', 'pause_at', 'lockstep', 'lockstep_timeout')
 STOP_ORDER = ('behaviour', 'record', 'sim')
 """The behaviour stops first so the robot is still simulated while the recorder closes its bag."""
 READY_TIMEOUT = 30.0
@@ -170,17 +180,8 @@ class RunMonitor:
     """Follows simulated time, distance travelled and collisions over DDS, for `--duration` and the summary."""
 
     def __init__(self, namespace: str) -> None:
-        import rclpy
-        from nav_msgs.msg import Odometry
-        from rclpy.node import Node
-        from rclpy.qos import DurabilityPolicy, QoSProfile
-        from rclpy.signals import SignalHandlerOptions
-        from rosgraph_msgs.msg import Clock
-        from std_msgs.msg import UInt32
-
         rclpy.init(args=['--ros-args', *(['-r', f'__ns:=/{namespace.strip("/")}'] if namespace else [])],
                    signal_handler_options=SignalHandlerOptions.NO)
-        self._rclpy = rclpy
         self.node = Node('bringup')
         self.sim_time = 0.0
         self.distance = 0.0
@@ -191,35 +192,33 @@ class RunMonitor:
         latched = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
         self.node.create_subscription(UInt32, 'collisions', self._on_collisions, latched)
 
-    def _on_clock(self, msg: object) -> None:
+    def _on_clock(self, msg: Clock) -> None:
         self.sim_time = msg.clock.sec + msg.clock.nanosec * 1e-9
 
-    def _on_truth(self, msg: object) -> None:
+    def _on_truth(self, msg: Odometry) -> None:
         xy = (msg.pose.pose.position.x, msg.pose.pose.position.y)
         if self._last_xy is not None:
             self.distance += math.dist(xy, self._last_xy)
         self._last_xy = xy
 
-    def _on_collisions(self, msg: object) -> None:
+    def _on_collisions(self, msg: UInt32) -> None:
         self.collisions = msg.data
 
     def resume_sim(self, timeout: float) -> bool:
         """Set the simulator's `paused` parameter to false; True once it said yes."""
-        from rclpy.parameter import Parameter
-        from rclpy.parameter_client import AsyncParameterClient
         client = AsyncParameterClient(self.node, 'sim')
         if not client.wait_for_services(timeout):
             return False
         future = client.set_parameters([Parameter('paused', value=False)])
-        self._rclpy.spin_until_future_complete(self.node, future, timeout_sec=timeout)
+        rclpy.spin_until_future_complete(self.node, future, timeout_sec=timeout)
         return future.done() and all(r.successful for r in future.result().results)
 
     def spin_once(self, timeout: float) -> None:
-        self._rclpy.spin_once(self.node, timeout_sec=timeout)
+        rclpy.spin_once(self.node, timeout_sec=timeout)
 
     def close(self) -> None:
         self.node.destroy_node()
-        self._rclpy.try_shutdown()
+        rclpy.try_shutdown()
 
 
 class Supervisor:

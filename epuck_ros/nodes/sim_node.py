@@ -58,6 +58,36 @@ def _float_param(description: str, low: float, high: float, read_only: bool = Fa
         floating_point_range=[FloatingPointRange(from_value=low, to_value=high, step=0.0)])
 
 
+def _flag(description: str, read_only: bool = True) -> ParameterDescriptor:
+    return ParameterDescriptor(description=description, read_only=read_only)
+
+
+PARAMETERS: dict[str, tuple[object, ParameterDescriptor]] = {
+    'time_step': (0.032, _float_param(
+        'simulated seconds per step (Webots basicTimeStep is 32 ms)', 0.001, 1.0, read_only=True)),
+    'real_time_factor': (1.0, _float_param('simulated seconds per wall second; 0 = as fast as possible', 0.0, 1e4)),
+    'paused': (False, _flag('while true, simulated time stands still (nothing is stepped or published)', False)),
+    'pause_at': (0.0, _float_param(
+        'simulated time (s) at which the simulation pauses by itself, exactly; 0 = never', 0.0, 1e9)),
+    'lockstep': (False, _flag(
+        'step only once a command has arrived since the last step (or after lockstep_timeout): runs with one '
+        'controller are the same whatever the load of the machine')),
+    'lockstep_timeout': (1.0, _float_param(
+        'wall seconds a lockstep simulation waits for a command before stepping anyway', 0.001, 60.0,
+        read_only=True)),
+    'world': ('', _flag('path to a world YAML file; empty = the built-in 1 m x 1 m arena')),
+    'seed': (0, ParameterDescriptor(
+        description='seed of every random draw: same seed, same run', read_only=True,
+        integer_range=[IntegerRange(from_value=0, to_value=2**31 - 1, step=1)])),
+    'noise': (True, _flag('IR sensor noise (Webots lookup table, relative Gaussian) on or off')),
+    'cmd_timeout': (0.5, _float_param(
+        'simulated seconds without a command before the robot stops; 0 = never', 0.0, 3600.0)),
+    'cmd_vel_stamped': (False, _flag('subscribe cmd_vel as geometry_msgs/TwistStamped instead of Twist')),
+    'frame_prefix': ('', _flag('prefix of every frame_id (e.g. "robot1/") for several robots in one TF tree')),
+}
+"""The simulator's parameters: name -> (default, descriptor). `bringup` routes `-p` assignments with it."""
+
+
 class Pacer:
     """Sleeps so that simulated time runs `factor` times wall time (factor 0: no sleep at all)."""
 
@@ -119,34 +149,8 @@ class SimNode(Node):
             f'noise {"on" if self.get_parameter("noise").value else "off"}')
 
     def _declare_parameters(self) -> None:
-        self.declare_parameter('time_step', 0.032, _float_param(
-            'simulated seconds per step (Webots basicTimeStep is 32 ms)', 0.001, 1.0, read_only=True))
-        self.declare_parameter('real_time_factor', 1.0, _float_param(
-            'simulated seconds per wall second; 0 = as fast as possible', 0.0, 10000.0))
-        self.declare_parameter('paused', False, ParameterDescriptor(
-            description='while true, simulated time stands still (nothing is stepped or published)'))
-        self.declare_parameter('pause_at', 0.0, _float_param(
-            'simulated time (s) at which the simulation pauses by itself, exactly; 0 = never', 0.0, 1e9))
-        self.declare_parameter('lockstep', False, ParameterDescriptor(
-            description='step only once a command has arrived since the last step (or after lockstep_timeout): '
-                        'runs with one controller are the same whatever the load of the machine', read_only=True))
-        self.declare_parameter('lockstep_timeout', 1.0, _float_param(
-            'wall seconds a lockstep simulation waits for a command before stepping anyway', 0.001, 60.0,
-            read_only=True))
-        self.declare_parameter('world', '', ParameterDescriptor(
-            description='path to a world YAML file; empty = the built-in 1 m x 1 m arena', read_only=True))
-        self.declare_parameter('seed', 0, ParameterDescriptor(
-            description='seed of every random draw: same seed, same run', read_only=True,
-            integer_range=[IntegerRange(from_value=0, to_value=2**31 - 1, step=1)]))
-        self.declare_parameter('noise', True, ParameterDescriptor(
-            description='IR sensor noise (Webots lookup table, relative Gaussian) on or off', read_only=True))
-        self.declare_parameter('cmd_timeout', 0.5, _float_param(
-            'simulated seconds without a command before the robot stops; 0 = never', 0.0, 3600.0))
-        self.declare_parameter('cmd_vel_stamped', False, ParameterDescriptor(
-            description='subscribe cmd_vel as geometry_msgs/TwistStamped instead of Twist', read_only=True))
-        self.declare_parameter('frame_prefix', '', ParameterDescriptor(
-            description='prefix of every frame_id (e.g. "robot1/") for several robots in one TF tree',
-            read_only=True))
+        for name, (default, descriptor) in PARAMETERS.items():
+            self.declare_parameter(name, default, descriptor)
 
     def _on_set_parameters(self, params: list[Parameter]) -> SetParametersResult:
         with self._lock:
@@ -272,6 +276,8 @@ class SimNode(Node):
             pacer.wait(now_sim, rtf)
 
     def _after_step(self, events: StepEvents, now_sim: float) -> None:
+        if events.timed_out:
+            self.get_logger().info(f'no command for {self._sim.cmd_timeout:g} s: wheels stopped (t={now_sim:.2f} s)')
         for robot in events.new_contacts:
             count = int(self._sim.collisions[robot])
             x, y, _ = self._sim.true_pose[robot]
