@@ -38,7 +38,7 @@ def run_core(steps: int) -> tuple[float, Simulation]:
     begin = time.perf_counter()
     for i in range(steps):
         if i % COMMAND_PERIOD == 0:
-            sim.command_wheels(*commands[i // COMMAND_PERIOD])
+            sim.command_wheels(0, *commands[i // COMMAND_PERIOD])
         sim.step()
     return steps / (time.perf_counter() - begin), sim
 

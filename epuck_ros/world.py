@@ -5,18 +5,27 @@ so the free area is exactly `arena_size`. Geometry is 2-D (everything is taller 
 prepares its obstacles once: NumPy arrays for casting all rays in one batch, plain floats for the per-disc
 collision queries (see `_Geometry` for why).
 
-World file. Every section is optional (none at all: an empty 1 m x 1 m arena, the robot at the origin facing +x);
-a box needs position and size (yaw defaults to 0), a cylinder position and radius:
+World file. Every section is optional (none at all: an empty 1 m x 1 m arena, one robot `epuck` at the origin
+facing +x); a box needs position and size (yaw defaults to 0), a cylinder position and radius, a robot a start:
 
     arena: {size: [1.0, 1.0]}
     boxes: [{position: [x, y], size: [sx, sy], yaw: 0.0}]
     cylinders: [{position: [x, y], radius: r}]
-    robot: {start: [x, y, yaw]}
+    robots: [{name: epuck0, start: [x, y, yaw]}, {name: epuck1, start: [x, y, yaw]}]
+    robot: {start: [x, y, yaw]}      # the one-robot form (named `epuck`); not together with `robots`
+
+The file is untrusted input: it is read only if it is a regular file under MAX_FILE_BYTES, YAML aliases and deep
+nesting are refused before anything is built, and numbers must be finite and within MAX_MAGNITUDE, so a hostile
+file costs little and ends in one WorldError line naming the file and field.
 """
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Mapping
+import os
+import re
+import reprlib
+import stat
+from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -25,12 +34,22 @@ import numpy as np
 import yaml
 
 from epuck_ros.model import RobotModel
+from epuck_ros.spatial import close_pairs
 
 CONTACT_TOLERANCE = 1e-6
 """m; a disc this close to an obstacle touches it (a pushed-out disc sits at exactly its radius)."""
 
 _PUSH_ITERATIONS = 4
 """Push-out passes per step; two obstacles meeting at a corner need more than one."""
+
+MAX_FILE_BYTES = 8 * 2 ** 20
+"""A world file larger than this is refused unread (10,000 robots take about 0.6 MB)."""
+MAX_NESTING = 16
+"""Deepest YAML nesting accepted (the format needs 4); deeper input is refused before it is built."""
+MAX_MAGNITUDE = 1e4
+"""Largest absolute value (m or rad) of any number in a world: far beyond any arena, far below overflow."""
+ROBOT_GAP = 0.01
+"""m between the bodies of robots placed by `place_robots`, so none starts touching another."""
 
 
 class WorldError(ValueError):
@@ -57,22 +76,60 @@ class Cylinder:
     radius: float
 
 
+ROBOT_NAME = re.compile(r'[A-Za-z_][A-Za-z0-9_]*\Z')
+"""A robot's name is one ROS name token: its topics and frames live under it (`epuck3/odom`)."""
+
+
+@dataclass(frozen=True)
+class RobotStart:
+    """Where a robot starts and the name its ROS ports live under."""
+
+    name: str
+    x: float
+    y: float
+    yaw: float = 0.0
+
+    @property
+    def pose(self) -> tuple[float, float, float]:
+        return (self.x, self.y, self.yaw)
+
+
+ONE_ROBOT = (RobotStart('epuck', 0.0, 0.0, 0.0),)
+
+
 @dataclass(frozen=True)
 class World:
-    """Arena, obstacles and the robot's start pose; built once, then queried every step."""
+    """Arena, obstacles and the robots' start poses; built once, then queried every step."""
 
     arena_size: tuple[float, float] = (1.0, 1.0)
     boxes: tuple[Box, ...] = ()
     cylinders: tuple[Cylinder, ...] = ()
-    start_pose: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    robots: tuple[RobotStart, ...] = ONE_ROBOT
     _geometry: _Geometry = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         object.__setattr__(self, 'arena_size', tuple(float(v) for v in self.arena_size))
         object.__setattr__(self, 'boxes', tuple(self.boxes))
         object.__setattr__(self, 'cylinders', tuple(self.cylinders))
-        object.__setattr__(self, 'start_pose', tuple(float(v) for v in self.start_pose))
+        robots = tuple(RobotStart(str(r.name), float(r.x), float(r.y), float(r.yaw)) for r in self.robots)
+        object.__setattr__(self, 'robots', robots)
+        problem = _name_problem(robots)
+        if problem:
+            raise WorldError(f'robots: {problem}')
         object.__setattr__(self, '_geometry', _Geometry(self))
+
+    @property
+    def start_pose(self) -> tuple[float, float, float]:
+        """The first robot's start pose (the one-robot API)."""
+        return self.robots[0].pose
+
+    @property
+    def names(self) -> tuple[str, ...]:
+        return tuple(robot.name for robot in self.robots)
+
+    def with_robots(self, robots: Iterable[RobotStart]) -> World:
+        """The same arena and obstacles with other robots."""
+        return World(self.arena_size, self.boxes, self.cylinders, tuple(robots))
 
     def cast_rays(self, origins: np.ndarray, yaws: np.ndarray, max_range: float) -> np.ndarray:
         """Distance (K,) from each origin (K, 2) along its yaw (K,) to the first wall or obstacle; inf beyond max_range.
@@ -146,13 +203,18 @@ class World:
         return [names[index] for index, distance, _, _ in self._geometry.surfaces_within(x, y, radius)]
 
     def to_dict(self) -> dict[str, Any]:
-        """The world in the YAML file format, with plain floats (yaml.safe_dump writes it)."""
+        """The world in the YAML file format, with plain floats (yaml.safe_dump writes it; world_from_dict reads it)."""
         return {
             'arena': {'size': list(self.arena_size)},
             'boxes': [{'position': [b.x, b.y], 'size': [b.size_x, b.size_y], 'yaw': b.yaw} for b in self.boxes],
             'cylinders': [{'position': [c.x, c.y], 'radius': c.radius} for c in self.cylinders],
-            'robot': {'start': list(self.start_pose)},
-        }
+        } | self._robots_dict()
+
+    def _robots_dict(self) -> dict[str, Any]:
+        """`robot:` for the single default-named robot (what one-robot readers expect), else the `robots:` list."""
+        if self.robots[:1] == self.robots and self.robots[0].name == ONE_ROBOT[0].name:
+            return {'robot': {'start': list(self.start_pose)}}
+        return {'robots': [{'name': r.name, 'start': list(r.pose)} for r in self.robots]}
 
 
 class _Geometry:
@@ -230,37 +292,149 @@ def default_world() -> World:
     robot gaps of at least 0.1 m everywhere.
     """
     return World(arena_size=(1.0, 1.0),
-                 boxes=(Box(-0.3, 0.3, 0.1, 0.1), Box(-0.25, 0.0, 0.1, 0.1, 0.5), Box(-0.3, -0.3, 0.1, 0.1)),
-                 start_pose=(0.0, 0.0, 0.0))
+                 boxes=(Box(-0.3, 0.3, 0.1, 0.1), Box(-0.25, 0.0, 0.1, 0.1, 0.5), Box(-0.3, -0.3, 0.1, 0.1)))
 
 
-def load_world(path: str | Path) -> World:
-    """Read and check a world YAML file; any problem raises WorldError naming the file and the field."""
+def load_world(path: str | Path, robot_radius: float = RobotModel().body_radius) -> World:
+    """Read and check a world YAML file; any problem raises WorldError naming the file and the field.
+
+    The file is opened without blocking and must be a regular file (a named pipe would otherwise hang the
+    reader) no larger than MAX_FILE_BYTES.
+    """
     try:
-        text = Path(path).read_text()
+        fd = os.open(path, os.O_RDONLY | getattr(os, 'O_NONBLOCK', 0))
     except FileNotFoundError:
         raise WorldError(f'{path}: file not found') from None
-    except (OSError, UnicodeDecodeError) as error:
-        raise WorldError(f'{path}: cannot read the file: {error}') from None
+    except OSError as error:
+        raise WorldError(f'{path}: cannot read the file: {error.strerror}') from None
     try:
-        data = yaml.safe_load(text)
+        info = os.fstat(fd)
+        if not stat.S_ISREG(info.st_mode):
+            raise WorldError(f'{path}: cannot read the file: not a regular file (a directory, pipe or device)')
+        if info.st_size > MAX_FILE_BYTES:
+            raise WorldError(f'{path}: file too large ({info.st_size} bytes, at most {MAX_FILE_BYTES})')
+        with os.fdopen(os.dup(fd), 'rb') as file:
+            data = file.read(MAX_FILE_BYTES + 1)
+    except OSError as error:
+        raise WorldError(f'{path}: cannot read the file: {error.strerror}') from None
+    finally:
+        os.close(fd)
+    if len(data) > MAX_FILE_BYTES:
+        raise WorldError(f'{path}: file too large (more than {MAX_FILE_BYTES} bytes)')
+    try:
+        text = data.decode('utf-8')
+    except UnicodeDecodeError as error:
+        raise WorldError(f'{path}: not UTF-8 text (byte {error.start})') from None
+    return world_from_yaml(text, str(path), robot_radius)
+
+
+def world_from_yaml(text: str, source: str = '<yaml>', robot_radius: float = RobotModel().body_radius) -> World:
+    """A World from world-file text (also a bag's `world` topic): YAML checked for aliases and depth, then built."""
+    if len(text) > MAX_FILE_BYTES:
+        raise WorldError(f'{source}: too large ({len(text)} characters, at most {MAX_FILE_BYTES})')
+    try:
+        _check_yaml_shape(text, source)
+        data = yaml.load(text, Loader=_YAML_LOADER)
+    except WorldError:
+        raise
     except yaml.YAMLError as error:
-        raise WorldError(f'{path}: not valid YAML: {" ".join(str(error).split())}') from None
-    return world_from_dict({} if data is None else data, source=str(path))
+        raise WorldError(f'{source}: not valid YAML: {_cut(" ".join(str(error).split()), 200)}') from None
+    except (ValueError, RecursionError, OverflowError) as error:  # e.g. an integer beyond Python's digit limit
+        raise WorldError(f'{source}: not valid YAML: {_cut(str(error), 200)}') from None
+    return world_from_dict({} if data is None else data, source, robot_radius)
+
+
+_YAML_LOADER = getattr(yaml, 'CSafeLoader', yaml.SafeLoader)
+
+
+def _check_yaml_shape(text: str, source: str) -> None:
+    """Refuse aliases (a few hundred bytes of them expand to gigabytes) and deep nesting, from the event stream.
+
+    Events come from libyaml before any Python object is built, so the check costs little whatever the input.
+    The error names the field being read when the offending node appears.
+    """
+    path: list[list[Any]] = []   # one [is_mapping, key or index, expecting_a_key] per open collection
+
+    def where() -> str:
+        text = ''.join(f'.{key}' if is_map else f'[{key}]' for is_map, key, _ in path).lstrip('.')
+        return text or '<top level>'
+
+    def value_done() -> None:
+        if path:
+            if path[-1][0]:
+                path[-1][2] = True
+            else:
+                path[-1][1] += 1
+
+    for event in yaml.parse(text, Loader=_YAML_LOADER):
+        if isinstance(event, (yaml.StreamStartEvent, yaml.StreamEndEvent, yaml.DocumentStartEvent,
+                              yaml.DocumentEndEvent)):
+            continue
+        if path and path[-1][0] and path[-1][2] and not isinstance(event, yaml.CollectionEndEvent):
+            path[-1][2] = False   # this node is a key
+            path[-1][1] = _cut(str(event.value), 40) if isinstance(event, yaml.ScalarEvent) else '?'
+            if isinstance(event, yaml.ScalarEvent):
+                continue
+        if isinstance(event, yaml.AliasEvent):
+            raise WorldError(f'{source}: {where()}: YAML aliases (*{_cut(event.anchor, 40)}) are not allowed '
+                             f'in a world file')
+        if isinstance(event, yaml.CollectionStartEvent):
+            if len(path) >= MAX_NESTING:
+                raise WorldError(f'{source}: {where()}: nested deeper than {MAX_NESTING} levels')
+            is_map = isinstance(event, yaml.MappingStartEvent)
+            path.append([is_map, None if is_map else 0, is_map])
+        elif isinstance(event, yaml.CollectionEndEvent):
+            path.pop()
+            value_done()
+        else:
+            value_done()
 
 
 def world_from_dict(data: Any, source: str = '<dict>', robot_radius: float = RobotModel().body_radius) -> World:
-    """Build a World from the file format (see the module docstring), checking every field and the start pose."""
+    """Build a World from the file format (see the module docstring), checking every field and the start poses."""
     fields = _FieldReader(source)
-    top = fields.mapping(data, '<top level>', ('arena', 'boxes', 'cylinders', 'robot'))
+    top = fields.mapping(data, '<top level>', ('arena', 'boxes', 'cylinders', 'robot', 'robots'))
     arena = fields.section(top, 'arena', ('size',))
-    robot = fields.section(top, 'robot', ('start',))
+    if top.get('robot') is not None and top.get('robots') is not None:
+        raise fields.fail('robots', 'give either `robots` (a list) or `robot` (one robot), not both')
+    if top.get('robots') is not None:
+        robots = tuple(fields.each(top, 'robots', ('name', 'start'), _read_robot))
+        if not robots:
+            raise fields.fail('robots', 'the list is empty (leave it out for one robot at the origin)')
+    else:
+        robot = fields.section(top, 'robot', ('start',))
+        robots = (RobotStart(ONE_ROBOT[0].name, *fields.vector(robot.get('start', [0.0, 0.0, 0.0]), 'robot.start', 3)),)
+    problem = _name_problem(robots)
+    if problem:
+        raise fields.fail('robots', problem)
     world = World(arena_size=fields.vector(arena.get('size', [1.0, 1.0]), 'arena.size', 2, positive=True),
                   boxes=tuple(fields.each(top, 'boxes', ('position', 'size', 'yaw'), _read_box)),
                   cylinders=tuple(fields.each(top, 'cylinders', ('position', 'radius'), _read_cylinder)),
-                  start_pose=fields.vector(robot.get('start', [0.0, 0.0, 0.0]), 'robot.start', 3))
-    _check_start_is_clear(world, robot_radius, source)
+                  robots=robots)
+    _check_robots_are_clear(world, robot_radius, source, 'robots' if 'robots' in top else 'robot')
     return world
+
+
+def _read_robot(fields: _FieldReader, item: Mapping[str, Any], path: str) -> RobotStart:
+    name = item.get('name', f'epuck{path[path.index("[") + 1:-1]}')
+    if not isinstance(name, str) or not ROBOT_NAME.match(name) or '__' in name:
+        raise fields.fail(f'{path}.name', f'expected a ROS name ([A-Za-z_][A-Za-z0-9_]*, no "__"), got '
+                                          f'{_describe(name)}')
+    return RobotStart(name, *fields.vector(fields.required(item, 'start', path), f'{path}.start', 3))
+
+
+def _name_problem(robots: tuple[RobotStart, ...]) -> str | None:
+    """Why these robots' names cannot be used together (none, invalid, repeated), or None."""
+    if not robots:
+        return 'a world needs at least one robot'
+    seen: dict[str, int] = {}
+    for index, robot in enumerate(robots):
+        if not ROBOT_NAME.match(robot.name) or '__' in robot.name:
+            return f'robots[{index}].name {_cut(repr(robot.name), 40)} is not a ROS name'
+        if robot.name in seen:
+            return f'robots[{index}] and robots[{seen[robot.name]}] are both named {robot.name!r}'
+        seen[robot.name] = index
+    return None
 
 
 def _read_box(fields: _FieldReader, item: Mapping[str, Any], path: str) -> Box:
@@ -274,17 +448,61 @@ def _read_cylinder(fields: _FieldReader, item: Mapping[str, Any], path: str) -> 
     return Cylinder(x, y, fields.number(fields.required(item, 'radius', path), f'{path}.radius', positive=True))
 
 
-def _check_start_is_clear(world: World, robot_radius: float, source: str) -> None:
-    """The robot must start inside the arena and touching nothing, or the first step would teleport it."""
-    x, y, _ = world.start_pose
-    overlapping = world.overlapping(x, y, robot_radius)
-    where = f'the robot (radius {robot_radius} m) at ({x}, {y})'
-    if 'arena.size' in overlapping:
-        width, height = world.arena_size
-        raise WorldError(f'{source}: robot.start: {where} is not inside the {width} m x {height} m arena '
-                         f'(|x| <= {width / 2 - robot_radius:.4g}, |y| <= {height / 2 - robot_radius:.4g})')
-    if overlapping:
-        raise WorldError(f'{source}: robot.start: {where} overlaps {", ".join(overlapping)}')
+def _check_robots_are_clear(world: World, robot_radius: float, source: str, field_name: str) -> None:
+    """Each robot must start inside the arena touching nothing (not even another robot), or the first step would
+    teleport it; the error names the robot's field (`robots[2].start`, or `robot.start` in the one-robot form)."""
+    for index, robot in enumerate(world.robots):
+        path = f'{field_name}[{index}].start' if field_name == 'robots' else 'robot.start'
+        overlapping = world.overlapping(robot.x, robot.y, robot_radius + CONTACT_TOLERANCE)
+        where = f'the robot {robot.name!r} (radius {robot_radius} m) at ({robot.x}, {robot.y})'
+        if 'arena.size' in overlapping:
+            width, height = world.arena_size
+            raise WorldError(f'{source}: {path}: {where} is not inside the {width} m x {height} m arena '
+                             f'(|x| < {width / 2 - robot_radius:.4g}, |y| < {height / 2 - robot_radius:.4g})')
+        if overlapping:
+            raise WorldError(f'{source}: {path}: {where} overlaps {", ".join(overlapping)}')
+    starts = np.array([robot.pose[:2] for robot in world.robots])
+    for first, second in zip(*close_pairs(starts, 2.0 * robot_radius + CONTACT_TOLERANCE)):
+        first, second = sorted((int(first), int(second)))
+        a, b = world.robots[first], world.robots[second]
+        raise WorldError(f'{source}: {field_name}[{second}].start: the robot {b.name!r} at ({b.x}, {b.y}) overlaps '
+                         f'{field_name}[{first}] ({a.name!r} at ({a.x}, {a.y})): centres closer than '
+                         f'{2 * robot_radius:.4g} m')
+
+
+def place_robots(world: World, count: int, seed: int, model: RobotModel = RobotModel()) -> World:
+    """`world` with `count` robots named epuck0.. placed clear of walls, obstacles and each other; seeded.
+
+    Candidate spots are a hexagonal lattice (the densest packing of discs) with ROBOT_GAP between bodies, keeping
+    those clear of every wall and obstacle; a seeded draw picks `count` of them, jitters each by at most a
+    quarter gap and gives it a random heading. So placement never fails when there is room, the same seed always
+    gives the same world, and "more than fit" means more than the lattice holds.
+    """
+    if isinstance(count, bool) or not isinstance(count, int) or count < 1:
+        raise WorldError(f'robots: the number of robots must be a positive integer, got {_describe(count)}')
+    radius = model.body_radius
+    spacing = 2.0 * radius + ROBOT_GAP
+    jitter = ROBOT_GAP / 4.0
+    half_x, half_y = (size / 2.0 - radius - jitter - CONTACT_TOLERANCE for size in world.arena_size)
+    rows = np.arange(-half_y, half_y + 1e-12, spacing * math.sqrt(3.0) / 2.0) if half_y >= 0 else np.empty(0)
+    spots = []
+    for row, y in enumerate(rows):
+        xs = np.arange(-half_x + (spacing / 2.0 if row % 2 else 0.0), half_x + 1e-12, spacing)
+        spots.append(np.column_stack([xs, np.full(len(xs), y)]))
+    spots = np.concatenate(spots) if spots else np.empty((0, 2))
+    if len(spots):
+        spots = spots[world.clearance(spots) > radius + jitter + CONTACT_TOLERANCE]
+    if count > len(spots):
+        raise WorldError(f'robots: {count} robots do not fit in this world (room for {len(spots)} e-pucks of '
+                         f'radius {radius} m with {ROBOT_GAP} m between them)')
+    rng = np.random.default_rng(seed)
+    chosen = spots[np.sort(rng.choice(len(spots), size=count, replace=False))]
+    angle = rng.uniform(-math.pi, math.pi, size=count)
+    offset = jitter * np.sqrt(rng.uniform(0.0, 1.0, size=count))
+    chosen = chosen + offset[:, None] * np.column_stack([np.cos(angle), np.sin(angle)])
+    yaw = rng.uniform(-math.pi, math.pi, size=count)
+    return world.with_robots(RobotStart(f'epuck{i}', x, y, heading)
+                             for i, ((x, y), heading) in enumerate(zip(chosen.tolist(), yaw.tolist())))
 
 
 class _FieldReader:
@@ -325,10 +543,13 @@ class _FieldReader:
         return item[key]
 
     def number(self, value: Any, path: str, positive: bool = False) -> float:
+        """A finite float within +-MAX_MAGNITUDE (checked before converting: a 400-digit integer overflows float)."""
         if isinstance(value, bool) or not isinstance(value, (int, float)):
             raise self.fail(path, f'expected a number, got {_describe(value)}')
-        if not math.isfinite(value):
+        if isinstance(value, float) and not math.isfinite(value):
             raise self.fail(path, f'must be finite, got {value}')
+        if not -MAX_MAGNITUDE <= value <= MAX_MAGNITUDE:
+            raise self.fail(path, f'must be within +-{MAX_MAGNITUDE:g}, got {_cut(repr(value), 24)}')
         if positive and value <= 0.0:
             raise self.fail(path, f'must be positive, got {value}')
         return float(value)
@@ -339,6 +560,15 @@ class _FieldReader:
         return tuple(self.number(item, f'{path}[{i}]', positive) for i, item in enumerate(value))
 
 
+_SHORT_REPR = reprlib.Repr()   # keyword arguments only from Python 3.12
+_SHORT_REPR.maxlevel, _SHORT_REPR.maxlist, _SHORT_REPR.maxdict = 2, 4, 4
+_SHORT_REPR.maxstring = _SHORT_REPR.maxother = _SHORT_REPR.maxlong = 30
+
+
 def _describe(value: Any) -> str:
-    text = repr(value)
-    return f'{type(value).__name__} {text if len(text) <= 40 else text[:37] + "..."}'
+    """Type and a short repr; reprlib stops early, so a huge value is never formatted in full."""
+    return f'{type(value).__name__} {_cut(_SHORT_REPR.repr(value), 40)}'
+
+
+def _cut(text: str, limit: int) -> str:
+    return text if len(text) <= limit else text[:limit - 3] + '...'

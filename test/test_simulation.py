@@ -7,16 +7,21 @@ import pytest
 from epuck_ros.ir_sensor import raw_from_distance
 from epuck_ros.model import IR_LOOKUP_TABLE, MAX_WHEEL_SPEED, SENSOR_POSES, RobotModel
 from epuck_ros.simulation import CommandError, Simulation
-from epuck_ros.world import Box, Cylinder, World, default_world
+from epuck_ros.world import Box, Cylinder, RobotStart, World, default_world
 
 MODEL = RobotModel()
 RADIUS = MODEL.body_radius
 
 
+def at(pose) -> tuple[RobotStart, ...]:
+    """One robot, named as in a one-robot world file, starting at `pose`."""
+    return (RobotStart('epuck', *pose),)
+
+
 def open_floor(start=(0.0, 0.0, 0.0), **kwargs) -> Simulation:
     """A robot on a 4 m x 4 m floor: nothing in reach of the motions below."""
     options = dict(noise=False, cmd_timeout=0.0) | kwargs
-    return Simulation(World(arena_size=(4.0, 4.0), start_pose=start), **options)
+    return Simulation(World(arena_size=(4.0, 4.0), robots=at(start)), **options)
 
 
 def run(sim: Simulation, seconds: float) -> list[np.ndarray]:
@@ -32,7 +37,7 @@ def run(sim: Simulation, seconds: float) -> list[np.ndarray]:
 
 def test_forward_covers_v_times_t():
     sim = open_floor()
-    sim.command_wheels(0.5 * MAX_WHEEL_SPEED, 0.5 * MAX_WHEEL_SPEED)
+    sim.command_wheels(0, 0.5 * MAX_WHEEL_SPEED, 0.5 * MAX_WHEEL_SPEED)
     run(sim, 3.2)
     v = 0.5 * MAX_WHEEL_SPEED * MODEL.wheel_radius
     assert sim.true_pose[0] == pytest.approx([v * 3.2, 0.0, 0.0], abs=1e-12)
@@ -42,7 +47,7 @@ def test_forward_covers_v_times_t():
 
 def test_spin_in_place_has_no_drift_and_turns_at_r_over_l_times_the_difference():
     sim = open_floor(start=(0.5, -0.3, 0.2))
-    sim.command_wheels(0.5 * MAX_WHEEL_SPEED, -0.5 * MAX_WHEEL_SPEED)
+    sim.command_wheels(0, 0.5 * MAX_WHEEL_SPEED, -0.5 * MAX_WHEEL_SPEED)
     poses = np.array(run(sim, 2.0))
     w = MODEL.wheel_radius / MODEL.wheel_separation * (-0.5 - 0.5) * MAX_WHEEL_SPEED
     np.testing.assert_allclose(poses[:, :2], np.tile([0.5, -0.3], (len(poses), 1)), atol=1e-12)
@@ -53,7 +58,7 @@ def test_spin_in_place_has_no_drift_and_turns_at_r_over_l_times_the_difference()
 
 def test_circle_has_the_course_radius():
     sim = open_floor()
-    sim.command_wheels(0.3 * MAX_WHEEL_SPEED, 0.6 * MAX_WHEEL_SPEED)
+    sim.command_wheels(0, 0.3 * MAX_WHEEL_SPEED, 0.6 * MAX_WHEEL_SPEED)
     xy = np.array(run(sim, 10.0))[:, :2]
     # algebraic circle fit: x^2 + y^2 = 2 a x + 2 b y + c
     a, b, c = np.linalg.lstsq(np.column_stack([2 * xy, np.ones(len(xy))]), (xy ** 2).sum(axis=1), rcond=None)[0]
@@ -64,20 +69,20 @@ def test_circle_has_the_course_radius():
 
 def test_each_wheel_is_clamped_on_its_own():
     sim = open_floor()
-    sim.command_wheels(10.0, 3.0)
+    sim.command_wheels(0, 10.0, 3.0)
     sim.step()
     assert sim.wheel_speeds[0] == pytest.approx([MAX_WHEEL_SPEED, 3.0])
-    sim.command_twist(1.0, 0.0)   # 50 rad/s asked of both wheels
+    sim.command_twist(0, 1.0, 0.0)   # 50 rad/s asked of both wheels
     sim.step()
     assert sim.wheel_speeds[0] == pytest.approx([MAX_WHEEL_SPEED, MAX_WHEEL_SPEED])
-    sim.command_twist(0.1, 10.0)   # curvature changes under saturation, as in Webots
+    sim.command_twist(0, 0.1, 10.0)   # curvature changes under saturation, as in Webots
     sim.step()
     assert sim.wheel_speeds[0] == pytest.approx([-MAX_WHEEL_SPEED, MAX_WHEEL_SPEED])
 
 
 def test_twist_command_turns_into_wheel_speeds():
     sim = open_floor()
-    sim.command_twist(0.05, 0.5)
+    sim.command_twist(0, 0.05, 0.5)
     sim.step()
     assert sim.wheel_speeds[0] == pytest.approx([(0.05 - 0.013) / 0.02, (0.05 + 0.013) / 0.02])
     assert sim.true_twist[0] == pytest.approx([0.05, 0.5])
@@ -91,16 +96,16 @@ def test_twist_command_turns_into_wheel_speeds():
 ])
 def test_non_finite_commands_are_refused_and_change_nothing(command, args):
     sim = open_floor()
-    sim.command_wheels(1.0, 2.0)
+    sim.command_wheels(0, 1.0, 2.0)
     with pytest.raises(CommandError, match='command rejected'):
-        getattr(sim, command)(*args)
+        getattr(sim, command)(0, *args)
     sim.step()
     assert sim.wheel_speeds[0] == pytest.approx([1.0, 2.0])
 
 
 def test_wheels_stop_when_commands_stop_arriving():
     sim = open_floor(cmd_timeout=0.5)
-    sim.command_wheels(2.0, 2.0)
+    sim.command_wheels(0, 2.0, 2.0)
     timed_out, moving = [], []
     for _ in range(40):
         events = sim.step()
@@ -108,21 +113,21 @@ def test_wheels_stop_when_commands_stop_arriving():
         moving.append(sim.wheel_speeds[0, 0] != 0.0)
     assert timed_out == [pytest.approx(0.544)]   # the first step that starts more than 0.5 s after the command
     assert moving == [True] * 16 + [False] * 24
-    sim.command_wheels(1.0, 1.0)
+    sim.command_wheels(0, 1.0, 1.0)
     sim.step()
     assert sim.wheel_speeds[0] == pytest.approx([1.0, 1.0])
 
 
 def test_zero_timeout_never_stops():
     sim = open_floor(cmd_timeout=0.0)
-    sim.command_wheels(1.0, 1.0)
+    sim.command_wheels(0, 1.0, 1.0)
     run(sim, 5.0)
     assert sim.wheel_speeds[0] == pytest.approx([1.0, 1.0])
 
 
 def test_reset_returns_to_start_and_zeroes_odometry_but_time_goes_on():
     sim = open_floor(start=(0.2, 0.1, 1.0))
-    sim.command_wheels(3.0, 2.0)
+    sim.command_wheels(0, 3.0, 2.0)
     run(sim, 1.0)
     time_before = sim.time
     sim.reset()
@@ -139,7 +144,7 @@ def test_reset_returns_to_start_and_zeroes_odometry_but_time_goes_on():
 
 def test_wheel_angles_are_encoder_quantised_and_odometry_follows_them():
     sim = open_floor()
-    sim.command_wheels(1.2345, -0.987)
+    sim.command_wheels(0, 1.2345, -0.987)
     run(sim, 1.0)
     steps = sim.wheel_angles[0] / MODEL.encoder_resolution
     np.testing.assert_allclose(steps, np.round(steps), atol=1e-9)
@@ -157,7 +162,7 @@ def facing_wall(gap: float) -> Simulation:
     yaw = -SENSOR_POSES[0, 2]
     sensor_x = math.cos(yaw) * SENSOR_POSES[0, 0] - math.sin(yaw) * SENSOR_POSES[0, 1]
     sensor_y = math.sin(yaw) * SENSOR_POSES[0, 0] + math.cos(yaw) * SENSOR_POSES[0, 1]
-    return Simulation(World(start_pose=(0.5 - gap - sensor_x, -sensor_y, yaw)), noise=False)
+    return Simulation(World(robots=at((0.5 - gap - sensor_x, -sensor_y, yaw))), noise=False)
 
 
 @pytest.mark.parametrize('gap', [0.01, 0.015, 0.02, 0.03, 0.045, 0.06, 0.0699])
@@ -175,7 +180,7 @@ def test_a_sensor_with_nothing_within_7_cm_reads_inf(gap):
 
 
 def test_the_sensors_see_what_is_around_the_robot():
-    sim = Simulation(World(boxes=[Box(0.0, 0.1, 0.3, 0.1)], start_pose=(0.0, 0.0, 0.0)), noise=False)
+    sim = Simulation(World(boxes=[Box(0.0, 0.1, 0.3, 0.1)], robots=at((0.0, 0.0, 0.0))), noise=False)
     seen = np.isfinite(sim.ir_range[0])
     assert seen.tolist() == [False, False, False, False, False, True, True, False]   # the box is on the left
     assert sim.ir_range[0, 5] == pytest.approx(0.05 - 0.031)
@@ -217,7 +222,7 @@ OBSTACLES = {   # the robot starts at the origin heading +x; the last two push i
 def test_driving_into_an_obstacle_never_penetrates_and_counts_one_collision(name):
     world = OBSTACLES[name]
     sim = Simulation(world, noise=False, cmd_timeout=0.0)
-    sim.command_wheels(MAX_WHEEL_SPEED, MAX_WHEEL_SPEED)
+    sim.command_wheels(0, MAX_WHEEL_SPEED, MAX_WHEEL_SPEED)
     clearances, contacts = [], 0
     for _ in range(300):
         contacts += len(sim.step().new_contacts)
@@ -228,8 +233,8 @@ def test_driving_into_an_obstacle_never_penetrates_and_counts_one_collision(name
 
 
 def test_a_blocked_robot_stays_put_while_its_wheels_and_odometry_keep_going():
-    sim = Simulation(World(start_pose=(0.4, 0.0, 0.0)), noise=False, cmd_timeout=0.0)
-    sim.command_wheels(MAX_WHEEL_SPEED, MAX_WHEEL_SPEED)
+    sim = Simulation(World(robots=at((0.4, 0.0, 0.0))), noise=False, cmd_timeout=0.0)
+    sim.command_wheels(0, MAX_WHEEL_SPEED, MAX_WHEEL_SPEED)
     run(sim, 5.0)
     assert sim.true_pose[0] == pytest.approx([0.5 - RADIUS, 0.0, 0.0])
     assert sim.in_contact[0]
@@ -241,8 +246,8 @@ def test_a_blocked_robot_stays_put_while_its_wheels_and_odometry_keep_going():
 
 
 def test_a_robot_hitting_a_wall_at_an_angle_slides_along_it():
-    sim = Simulation(World(start_pose=(0.4, 0.0, math.pi / 4)), noise=False, cmd_timeout=0.0)
-    sim.command_wheels(MAX_WHEEL_SPEED, MAX_WHEEL_SPEED)
+    sim = Simulation(World(robots=at((0.4, 0.0, math.pi / 4))), noise=False, cmd_timeout=0.0)
+    sim.command_wheels(0, MAX_WHEEL_SPEED, MAX_WHEEL_SPEED)
     run(sim, 3.0)
     x, y, _ = sim.true_pose[0]
     assert x == pytest.approx(0.5 - RADIUS)
@@ -251,11 +256,11 @@ def test_a_robot_hitting_a_wall_at_an_angle_slides_along_it():
 
 
 def test_each_contact_is_counted_once_when_it_begins():
-    sim = Simulation(World(start_pose=(0.3, 0.0, 0.0)), noise=False, cmd_timeout=0.0)
+    sim = Simulation(World(robots=at((0.3, 0.0, 0.0))), noise=False, cmd_timeout=0.0)
     new_contacts = []
     for forward in (True, False, True, False, True):
         speed = MAX_WHEEL_SPEED if forward else -MAX_WHEEL_SPEED
-        sim.command_wheels(speed, speed)
+        sim.command_wheels(0, speed, speed)
         for _ in range(100):
             new_contacts += sim.step().new_contacts
         assert sim.in_contact[0] == forward
@@ -264,8 +269,8 @@ def test_each_contact_is_counted_once_when_it_begins():
 
 
 def test_driving_into_an_arena_corner_stays_inside():
-    sim = Simulation(World(start_pose=(0.3, 0.3, math.pi / 4 + 0.1)), noise=False, cmd_timeout=0.0)
-    sim.command_wheels(MAX_WHEEL_SPEED, MAX_WHEEL_SPEED)
+    sim = Simulation(World(robots=at((0.3, 0.3, math.pi / 4 + 0.1))), noise=False, cmd_timeout=0.0)
+    sim.command_wheels(0, MAX_WHEEL_SPEED, MAX_WHEEL_SPEED)
     run(sim, 5.0)
     assert sim.true_pose[0, :2] == pytest.approx([0.5 - RADIUS, 0.5 - RADIUS])
     assert sim.collisions[0] == 1
@@ -274,6 +279,6 @@ def test_driving_into_an_arena_corner_stays_inside():
 def test_a_long_time_step_does_not_tunnel_through_a_thin_obstacle():
     world = World(arena_size=(4.0, 4.0), boxes=[Box(0.5, 0.0, 0.01, 0.5)])
     sim = Simulation(world, time_step=1.0, noise=False, cmd_timeout=0.0)
-    sim.command_wheels(MAX_WHEEL_SPEED, MAX_WHEEL_SPEED)   # 12.6 cm per step
+    sim.command_wheels(0, MAX_WHEEL_SPEED, MAX_WHEEL_SPEED)   # 12.6 cm per step
     run(sim, 10.0)
     assert sim.true_pose[0, 0] == pytest.approx(0.495 - RADIUS)
