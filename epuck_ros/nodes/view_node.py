@@ -1,0 +1,333 @@
+"""`view`: the live view of a run in the browser — the node between the simulator's topics and the page.
+
+It follows the latched `world` topic (arena, obstacles, robot names: one robot uses the unprefixed topics,
+several use `<name>/...`), keeps the newest ground truth, odometry, IR readings, wheel speeds and collision count
+of every robot and the simulated time, and serves them to the page (`epuck_ros.view.server`). The page's controls
+reach the simulator only through its own interfaces: its `paused` and `real_time_factor` parameters, its `step`
+and `reset` services and each robot's `cmd_vel`.
+
+The view must never slow the simulator down, which may step thousands of times a second. Every subscription is
+best-effort with a history of one, and the node takes its messages `SPIN_RATE` times a second rather than as they
+come: in between, each topic keeps only its newest sample, so the view handles a fixed number of messages a
+second whatever the simulator's rate, and the simulator never waits for it.
+"""
+from __future__ import annotations
+
+import math
+import queue
+import threading
+import time
+from concurrent.futures import Future as ResultFuture
+from concurrent.futures import TimeoutError as ResultTimeout
+from functools import partial
+
+import rclpy
+import yaml
+from builtin_interfaces.msg import Time
+from geometry_msgs.msg import Twist
+from nav_msgs.msg import Odometry
+from rcl_interfaces.msg import ParameterEvent, ParameterValue
+from rclpy.exceptions import ParameterException
+from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.node import Node
+from rclpy.parameter import Parameter, parameter_value_to_python
+from rclpy.parameter_client import AsyncParameterClient
+from rclpy.publisher import Publisher
+from rclpy.qos import DurabilityPolicy, QoSProfile, qos_profile_sensor_data
+from rclpy.subscription import Subscription
+from rclpy.task import Future
+from rosgraph_msgs.msg import Clock
+from sensor_msgs.msg import JointState, Range
+from std_msgs.msg import Float64MultiArray, String, UInt32
+from std_srvs.srv import Empty, Trigger
+
+from epuck_ros.model import SENSOR_NAMES
+from epuck_ros.nodes.params import ParamSpec, Usage, declare_parameters, prepare_arguments
+from epuck_ros.nodes.sim_node import JOINT_NAMES
+from epuck_ros.view.server import Action, ActionError, ViewServer, is_loopback
+from epuck_ros.view.state import ViewState, pose_from_odometry, robot_topic
+from epuck_ros.world import WorldError, world_from_dict
+
+SPIN_RATE = 60.0
+"""Times a second the node takes its newest messages: twice the page's frame rate, a fixed cost per second."""
+ACTION_TIMEOUT = 5.0
+"""Wall seconds the page waits for the simulator to answer an action."""
+DRIVE_IDLE = 2.0
+"""Wall seconds after the page's last drive command before its cmd_vel publisher is removed (so a lockstep
+simulator does not wait for a driver that has gone)."""
+
+PARAMETERS = (
+    ParamSpec('host', '127.0.0.1', 'address to serve the page on; anything but loopback lets other machines '
+              'pause, reset and drive the simulation', read_only=True),
+    ParamSpec('port', 8765, 'TCP port of the page; 0 = any free port (the printed URL says which)', (0, 65535),
+              read_only=True),
+    ParamSpec('sim_node', 'sim', 'name of the simulator node whose parameters the page shows and sets',
+              read_only=True),
+)
+USAGE = Usage(
+    program='view',
+    summary='Serves a live view of the simulation in the browser (no internet needed): arena, obstacles, every '
+            'robot with its IR rays and trail, simulated time, the real-time factor reached, collisions, and for '
+            'the selected robot its wheel speeds and odometry error. Buttons pause, step, reset and set the '
+            'real-time factor; arrows/WASD drive the selected robot. Prints "view: URL" once serving.',
+    example='view --ros-args -p port:=8080     # then open http://127.0.0.1:8080/')
+
+SETTINGS = ('paused', 'real_time_factor')
+"""The simulator's parameters the page shows (and sets)."""
+LATCHED = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+NEWEST_ONLY = QoSProfile(depth=1, reliability=qos_profile_sensor_data.reliability)
+"""Best-effort, depth 1: the simulator never waits for the view, which sees each topic's newest sample."""
+
+
+class CannotServe(Exception):
+    """The page cannot be served (address in use, unknown host)."""
+
+
+class ViewNode(Node):
+    """Subscribes to the simulator's topics for every robot of the world and serves the page."""
+
+    def __init__(self) -> None:
+        super().__init__('view')
+        values = declare_parameters(self, PARAMETERS)
+        self.state = ViewState()
+        self._requests: queue.SimpleQueue[tuple[Action, ResultFuture]] = queue.SimpleQueue()
+        self._robot_subscriptions: list[Subscription] = []
+        self._proximity: dict[str, Subscription] = {}
+        self._drivers: dict[str, tuple[Publisher, float]] = {}
+        self._robot_names: tuple[str, ...] = ()
+
+        sim_node = values['sim_node']
+        namespace = self.get_namespace().rstrip('/')
+        self._sim_full_name = sim_node if sim_node.startswith('/') else f'{namespace}/{sim_node}'
+        self._sim_parameters = AsyncParameterClient(self, sim_node)
+        self._sim_parameters.on_parameter_event(self._on_parameter_event)
+        self._settings_read = False
+        self._step = self.create_client(Trigger, 'step')
+        self._reset = self.create_client(Empty, 'reset')
+        self.create_subscription(String, 'world', self._on_world, LATCHED)
+        self.create_subscription(Clock, '/clock', self._on_clock, NEWEST_ONLY)
+
+        host, port = values['host'], values['port']
+        try:
+            self.server = ViewServer(host, port, self.state, self.act)
+        except OSError as error:
+            raise CannotServe(f'cannot serve on {host}:{port}: {error.strerror or error}') from None
+        self._server_thread = threading.Thread(target=self.server.serve_forever, name='view_http', daemon=True)
+        self._server_thread.start()
+        if not is_loopback(host):
+            self.get_logger().warning(
+                f'serving on {host}: anyone who can reach this machine can pause, reset and drive the simulation')
+        print(f'view: {self.server.url}', flush=True)
+
+    # --- from the simulator ------------------------------------------------------------------------------------
+
+    def _on_world(self, msg: String) -> None:
+        try:
+            world = world_from_dict(yaml.safe_load(msg.data) or {}, source='world topic')
+        except (WorldError, yaml.YAMLError) as error:
+            self.get_logger().error(f'cannot draw the world: {" ".join(str(error).split())}')
+            return
+        self.state.set_world(world)
+        self._follow_robots(tuple(robot.name for robot in world.robots))
+        self.get_logger().info(f'world: {world.arena_size[0]:g} m x {world.arena_size[1]:g} m, '
+                               f'robots {", ".join(self._robot_names)}')
+
+    def _follow_robots(self, names: tuple[str, ...]) -> None:
+        """Subscribe to each robot's topics (dropping the previous world's robots)."""
+        for subscription in self._robot_subscriptions + list(self._proximity.values()):
+            self.destroy_subscription(subscription)
+        for publisher, _ in self._drivers.values():
+            self.destroy_publisher(publisher)
+        self._robot_subscriptions, self._proximity, self._drivers = [], {}, {}
+        self._robot_names = names
+        for robot in names:
+            topic = partial(robot_topic, names, robot)
+            self._robot_subscriptions += [
+                self.create_subscription(Odometry, topic('ground_truth'), partial(self._on_truth, robot), NEWEST_ONLY),
+                self.create_subscription(Odometry, topic('odom'), partial(self._on_odom, robot), NEWEST_ONLY),
+                self.create_subscription(JointState, topic('joint_states'), partial(self._on_joints, robot),
+                                         NEWEST_ONLY),
+                self.create_subscription(Float64MultiArray, topic('ir_raw'), partial(self._on_ir_raw, robot),
+                                         NEWEST_ONLY),
+                self.create_subscription(UInt32, topic('collisions'), partial(self._on_collisions, robot), LATCHED),
+            ]
+            # Bags recorded before `ir_raw` existed have only the 8 Range messages; dropped once ir_raw arrives.
+            # Its depth holds one step's 8 sensors.
+            self._proximity[robot] = self.create_subscription(
+                Range, topic('proximity'), partial(self._on_range, robot),
+                QoSProfile(depth=len(SENSOR_NAMES), reliability=NEWEST_ONLY.reliability))
+
+    def _on_clock(self, msg: Clock) -> None:
+        self.state.set_clock(_seconds(msg.clock), time.monotonic())
+
+    def _on_truth(self, robot: str, msg: Odometry) -> None:
+        pose = msg.pose.pose
+        self.state.update(robot, pose=pose_from_odometry(pose.position.x, pose.position.y,
+                                                         pose.orientation.z, pose.orientation.w),
+                          stamp=_seconds(msg.header.stamp))
+
+    def _on_odom(self, robot: str, msg: Odometry) -> None:
+        pose = msg.pose.pose
+        self.state.update(robot, odom=pose_from_odometry(pose.position.x, pose.position.y,
+                                                         pose.orientation.z, pose.orientation.w))
+
+    def _on_joints(self, robot: str, msg: JointState) -> None:
+        try:
+            speeds = tuple(msg.velocity[list(msg.name).index(joint)] for joint in JOINT_NAMES)
+        except (ValueError, IndexError):
+            return
+        self.state.update(robot, wheel_speeds=speeds)
+
+    def _on_ir_raw(self, robot: str, msg: Float64MultiArray) -> None:
+        if len(msg.data) != len(SENSOR_NAMES) or not all(math.isfinite(v) for v in msg.data):
+            return
+        proximity = self._proximity.pop(robot, None)
+        if proximity is not None:
+            self.destroy_subscription(proximity)
+        self.state.set_ir_raw(robot, list(msg.data))
+
+    def _on_range(self, robot: str, msg: Range) -> None:
+        sensor = msg.header.frame_id.rsplit('/', 1)[-1]
+        if robot in self._proximity and sensor in SENSOR_NAMES:
+            self.state.set_ir_range(robot, SENSOR_NAMES.index(sensor), msg.range)
+
+    def _on_collisions(self, robot: str, msg: UInt32) -> None:
+        self.state.update(robot, collisions=msg.data)
+
+    def _on_parameter_event(self, msg: ParameterEvent) -> None:
+        if msg.node == self._sim_full_name:
+            self._apply_settings({p.name: p.value for p in msg.changed_parameters})
+
+    def _apply_settings(self, values: dict[str, ParameterValue]) -> None:
+        settings = {name: parameter_value_to_python(value) for name, value in values.items() if name in SETTINGS}
+        if settings:
+            self.state.set_settings(**settings)
+
+    def _read_settings_once(self) -> None:
+        """The simulator's `paused` and `real_time_factor` as they are now; later changes come as parameter events."""
+        if self._settings_read or not self._sim_parameters.services_are_ready():
+            return
+        self._settings_read = True
+
+        def done(future: Future) -> None:
+            if future.result() is not None:
+                self._apply_settings(dict(zip(SETTINGS, future.result().values)))
+        self._sim_parameters.get_parameters(list(SETTINGS)).add_done_callback(done)
+
+    # --- from the page ----------------------------------------------------------------------------------------
+
+    def act(self, action: Action) -> dict:
+        """Called by the server's threads: the action is carried out on the node's thread; its answer is waited for."""
+        result: ResultFuture = ResultFuture()
+        self._requests.put((action, result))
+        try:
+            return result.result(timeout=ACTION_TIMEOUT)
+        except ResultTimeout:
+            raise ActionError(f'{action.name}: the simulator did not answer within {ACTION_TIMEOUT:g} s') from None
+
+    def run_requests(self) -> None:
+        """Carry out the page's queued actions (on the node's thread, as rclpy wants)."""
+        self._read_settings_once()
+        while not self._requests.empty():
+            action, result = self._requests.get()
+            try:
+                self._start_action(action, result)
+            except ActionError as error:
+                result.set_exception(error)
+        now = time.monotonic()
+        for robot, (publisher, last) in list(self._drivers.items()):
+            if now - last > DRIVE_IDLE:
+                self.destroy_publisher(publisher)
+                del self._drivers[robot]
+
+    def _start_action(self, action: Action, result: ResultFuture) -> None:
+        args = action.args
+        if action.name == 'drive':
+            self._drive(args['robot'], args['linear'], args['angular'])
+            result.set_result(args)
+        elif action.name in ('pause', 'real_time_factor'):
+            if not self._sim_parameters.services_are_ready():
+                raise ActionError(f'no simulator node {self._sim_full_name!r} to set parameters on')
+            param = (Parameter('paused', value=args['paused']) if action.name == 'pause'
+                     else Parameter('real_time_factor', value=args['value']))
+            self._sim_parameters.set_parameters([param]).add_done_callback(partial(_parameter_set, param, result))
+        else:
+            client, request = (self._step, Trigger.Request()) if action.name == 'step' else (self._reset, Empty.Request())
+            if not client.service_is_ready():
+                raise ActionError(f'the simulator offers no {client.srv_name} service')
+            client.call_async(request).add_done_callback(partial(_service_answered, action.name, result))
+
+    def _drive(self, robot: str, linear: float, angular: float) -> None:
+        if robot not in self._robot_names:
+            raise ActionError(f'no robot {robot!r} (robots: {", ".join(self._robot_names) or "none yet"})')
+        publisher = self._drivers[robot][0] if robot in self._drivers else self.create_publisher(
+            Twist, robot_topic(self._robot_names, robot, 'cmd_vel'), 10)
+        self._drivers[robot] = (publisher, time.monotonic())
+        twist = Twist()
+        twist.linear.x, twist.angular.z = linear, angular
+        publisher.publish(twist)
+
+    def close(self) -> None:
+        self.server.close()
+
+
+def _seconds(stamp: Time) -> float:
+    return stamp.sec + stamp.nanosec * 1e-9
+
+
+def _parameter_set(param: Parameter, result: ResultFuture, future: Future) -> None:
+    answer = future.result()
+    if answer is None or not answer.results:
+        result.set_exception(ActionError(f'setting {param.name} failed: no answer'))
+    elif not answer.results[0].successful:
+        result.set_exception(ActionError(f'{param.name} refused: {answer.results[0].reason}'))
+    else:
+        result.set_result({param.name: param.value})
+
+
+def _service_answered(name: str, result: ResultFuture, future: Future) -> None:
+    answer = future.result()
+    if answer is None:
+        result.set_exception(ActionError(f'{name}: no answer'))
+    elif isinstance(answer, Trigger.Response) and not answer.success:
+        result.set_exception(ActionError(f'{name} refused: {answer.message}'))
+    else:
+        result.set_result({name: True, 'message': getattr(answer, 'message', '')})
+
+
+def spin_thinned(node: ViewNode) -> None:
+    """Take the newest message of each topic SPIN_RATE times a second (see the module docstring), and the page's
+    actions; ends when the context is shut down (Ctrl-C, SIGTERM)."""
+    executor = SingleThreadedExecutor(context=node.context)
+    executor.add_node(node)
+    period = 1.0 / SPIN_RATE
+    while node.context.ok():
+        started = time.monotonic()
+        handles = (len(list(node.subscriptions)) + len(list(node.clients)) + len(list(node.services))
+                   + len(list(node.timers)) + len(list(node.waitables)))
+        for _ in range(handles):
+            executor.spin_once(timeout_sec=0.0)
+        node.run_requests()
+        time.sleep(max(0.0, period - (time.monotonic() - started)))
+
+
+def main(args: list[str] | None = None) -> None:
+    rclpy.init(args=prepare_arguments(args, PARAMETERS, USAGE))
+    node = None
+    try:
+        node = ViewNode()
+        spin_thinned(node)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    except (CannotServe, ParameterException) as error:
+        rclpy.logging.get_logger('view').fatal(f'cannot start: {error}')
+        raise SystemExit(2) from None
+    finally:
+        if node is not None:
+            node.close()
+            node.destroy_node()
+        rclpy.try_shutdown()
+
+
+if __name__ == '__main__':
+    main()

@@ -1,0 +1,263 @@
+"""The view's web server, without ROS: the page and its assets, a live event stream, and a few fixed actions.
+
+Standard library only (`http.server.ThreadingHTTPServer`): the page needs one stream from the server (Server-Sent
+Events, which every browser's `EventSource` reads) and a handful of small POSTs, so a web framework or a
+websocket library would add a dependency and nothing the page uses.
+
+- `GET /` the page, `GET /static/<file>` its assets (only the files shipped in `view/static`).
+- `GET /events` Server-Sent Events: `world` on connect and whenever the world changes, `state` at most
+  `MAX_FRAME_RATE` times a second and only when something changed.
+- `GET /state`, `GET /world` the same JSON once (for scripts and benchmarks).
+- `POST /api/<action>` with a JSON body: one of ACTIONS, checked by `parse_action` before anything reaches ROS.
+
+A POST must be `application/json` and, if the browser says where it comes from (`Origin`), come from this very
+page: another web site open in the same browser cannot drive the robot. Served on loopback, the `Host` must be a
+loopback name too (a DNS-rebinding page cannot either).
+"""
+from __future__ import annotations
+
+import json
+import math
+import socket
+import threading
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from http import HTTPStatus
+from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
+from importlib import resources
+from ipaddress import ip_address
+from urllib.parse import urlsplit
+
+from epuck_ros.view.state import ViewState
+
+MAX_FRAME_RATE = 30.0
+"""State events per second at most, whatever the simulator's rate: more than a screen shows is wasted."""
+MAX_BODY = 4096
+"""Bytes; every action fits in far less."""
+MAX_LINEAR_SPEED = 0.5
+"""m/s accepted from the page (the e-puck's wheels clamp at 6.28 rad/s x 0.02 m = 0.126 m/s anyway)."""
+MAX_ANGULAR_SPEED = 10.0
+"""rad/s accepted from the page (the e-puck clamps at 2 x 0.126 / 0.052 = 4.8 rad/s)."""
+MAX_REAL_TIME_FACTOR = 1e4
+"""The simulator's own upper bound for `real_time_factor`."""
+
+CONTENT_TYPES = {'.html': 'text/html; charset=utf-8', '.js': 'text/javascript; charset=utf-8',
+                 '.css': 'text/css; charset=utf-8', '.png': 'image/png', '.svg': 'image/svg+xml'}
+LOOPBACK_NAMES = {'localhost', '127.0.0.1', '::1'}
+
+
+class ActionError(ValueError):
+    """A request the view refuses; the message says why (sent back with status 400)."""
+
+
+@dataclass(frozen=True)
+class Action:
+    """A validated request from the page: `name` is one of ACTIONS, `args` its checked arguments."""
+
+    name: str
+    args: dict
+
+
+def _number(body: dict, key: str, low: float, high: float) -> float:
+    value = body.get(key)
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+        raise ActionError(f'{key}: expected a finite number, got {value!r}')
+    if not low <= value <= high:
+        raise ActionError(f'{key}: {value} is outside [{low:g}, {high:g}]')
+    return float(value)
+
+
+def _no_arguments(body: dict) -> dict:
+    if body:
+        raise ActionError(f'unexpected arguments {sorted(body)}')
+    return {}
+
+
+def _pause(body: dict) -> dict:
+    if set(body) != {'paused'} or not isinstance(body['paused'], bool):
+        raise ActionError('expected {"paused": true|false}')
+    return {'paused': body['paused']}
+
+
+def _real_time_factor(body: dict) -> dict:
+    if set(body) != {'value'}:
+        raise ActionError('expected {"value": real-time factor}')
+    return {'value': _number(body, 'value', 0.0, MAX_REAL_TIME_FACTOR)}
+
+
+def _drive(body: dict) -> dict:
+    if set(body) != {'robot', 'linear', 'angular'} or not isinstance(body['robot'], str):
+        raise ActionError('expected {"robot": name, "linear": m/s, "angular": rad/s}')
+    return {'robot': body['robot'], 'linear': _number(body, 'linear', -MAX_LINEAR_SPEED, MAX_LINEAR_SPEED),
+            'angular': _number(body, 'angular', -MAX_ANGULAR_SPEED, MAX_ANGULAR_SPEED)}
+
+
+ACTIONS: dict[str, Callable[[dict], dict]] = {
+    'pause': _pause,            # set the simulator's `paused` parameter
+    'step': _no_arguments,      # call its `step` service (one step while paused)
+    'reset': _no_arguments,     # call its `reset` service
+    'real_time_factor': _real_time_factor,  # set its `real_time_factor` parameter
+    'drive': _drive,            # publish a Twist on the robot's cmd_vel
+}
+"""The only things the page can ask for, each with the function that checks its arguments."""
+
+
+def parse_action(path: str, body: bytes) -> Action:
+    """The Action a POST asks for, or ActionError: unknown path, not a JSON object, or arguments out of range."""
+    prefix = '/api/'
+    name = path[len(prefix):] if path.startswith(prefix) else ''
+    if name not in ACTIONS:
+        raise ActionError(f'unknown action {path!r} (known: {", ".join(prefix + a for a in ACTIONS)})')
+    try:
+        decoded = json.loads(body.decode('utf-8')) if body.strip() else {}
+    except (UnicodeDecodeError, json.JSONDecodeError) as error:
+        raise ActionError(f'body is not JSON: {error}') from None
+    if not isinstance(decoded, dict):
+        raise ActionError('body must be a JSON object')
+    return Action(name, ACTIONS[name](decoded))
+
+
+ActionHandler = Callable[[Action], dict]
+"""Carries out an Action (the view node); returns what the page is told; raises ActionError to refuse."""
+
+
+def is_loopback(host: str) -> bool:
+    try:
+        return ip_address(host).is_loopback
+    except ValueError:
+        return host == 'localhost'
+
+
+def static_file(name: str) -> bytes | None:
+    """The content of a shipped asset, or None: only the names in the package's static folder are served."""
+    folder = resources.files('epuck_ros.view') / 'static'
+    if '/' in name or name.startswith('.') or not (folder / name).is_file():
+        return None
+    return (folder / name).read_bytes()
+
+
+class ViewServer(ThreadingHTTPServer):
+    """The HTTP server: `serve_forever()` in a thread, `close()` to stop it and every open event stream."""
+
+    daemon_threads = True
+
+    def __init__(self, host: str, port: int, state: ViewState, act: ActionHandler) -> None:
+        self.state, self.act = state, act
+        self.stopping = threading.Event()
+        self.loopback_only = is_loopback(host)
+        if ':' in host:
+            self.address_family = socket.AF_INET6
+        super().__init__((host, port), _Handler)
+
+    @property
+    def url(self) -> str:
+        host, port = self.server_address[:2]
+        return f'http://[{host}]:{port}/' if ':' in host else f'http://{host}:{port}/'
+
+    def close(self) -> None:
+        self.stopping.set()
+        self.shutdown()
+        self.server_close()
+
+
+class _Handler(BaseHTTPRequestHandler):
+    server: ViewServer
+    protocol_version = 'HTTP/1.1'
+
+    def log_message(self, format: str, *args: object) -> None:  # noqa: A002 - the base class's name
+        """Quiet: a page polling or streaming would fill the terminal."""
+
+    def do_GET(self) -> None:  # noqa: N802 - http.server's name
+        path = urlsplit(self.path).path
+        if path in ('/', '/index.html'):
+            self._send_static('index.html')
+        elif path.startswith('/static/'):
+            self._send_static(path[len('/static/'):])
+        elif path == '/events':
+            self._stream_events()
+        elif path == '/state':
+            self._send(HTTPStatus.OK, self.server.state.frame_json(time.monotonic()).encode(), 'application/json')
+        elif path == '/world':
+            self._send(HTTPStatus.OK, self.server.state.world_json().encode(), 'application/json')
+        else:
+            self._send_error(HTTPStatus.NOT_FOUND, f'no such page: {path}')
+
+    def do_POST(self) -> None:  # noqa: N802
+        refusal = self._refuse_post()
+        if refusal:
+            self._send_error(HTTPStatus.FORBIDDEN, refusal)
+            return
+        length = self.headers.get('Content-Length', '')
+        if not length.isdigit() or int(length) > MAX_BODY:
+            self._send_error(HTTPStatus.BAD_REQUEST, f'a body of at most {MAX_BODY} bytes with Content-Length')
+            return
+        try:
+            action = parse_action(urlsplit(self.path).path, self.rfile.read(int(length)))
+            result = self.server.act(action)
+        except ActionError as error:
+            self._send_error(HTTPStatus.BAD_REQUEST, str(error))
+            return
+        self._send(HTTPStatus.OK, json.dumps(result).encode(), 'application/json')
+
+    def _refuse_post(self) -> str:
+        """Why this POST may not act, or '' (see the module docstring)."""
+        if self.headers.get('Content-Type', '').split(';')[0].strip() != 'application/json':
+            return 'actions must be sent as application/json'
+        host = self.headers.get('Host', '')
+        if self.server.loopback_only and urlsplit(f'//{host}').hostname not in LOOPBACK_NAMES:
+            return f'Host {host!r} is not this machine'
+        origin = self.headers.get('Origin')
+        if origin is not None and urlsplit(origin).netloc != host:
+            return f'Origin {origin!r} is not this page'
+        return ''
+
+    def _send(self, status: HTTPStatus, body: bytes, content_type: str) -> None:
+        self.send_response(status)
+        self.send_header('Content-Type', content_type)
+        self.send_header('Content-Length', str(len(body)))
+        self.send_header('Cache-Control', 'no-store')
+        self.end_headers()
+        self.wfile.write(body)
+
+    def _send_error(self, status: HTTPStatus, message: str) -> None:
+        self._send(status, json.dumps({'error': message}).encode(), 'application/json')
+
+    def _send_static(self, name: str) -> None:
+        content = static_file(name)
+        if content is None:
+            self._send_error(HTTPStatus.NOT_FOUND, f'no such file: {name}')
+            return
+        suffix = name[name.rfind('.'):]
+        self._send(HTTPStatus.OK, content, CONTENT_TYPES.get(suffix, 'application/octet-stream'))
+
+    def _stream_events(self) -> None:
+        """Send `world` and `state` events until the client goes away or the server stops."""
+        state, stopping = self.server.state, self.server.stopping
+        self.send_response(HTTPStatus.OK)
+        self.send_header('Content-Type', 'text/event-stream')
+        self.send_header('Cache-Control', 'no-store')
+        self.end_headers()
+        self.close_connection = True
+        sent_world, sent_version, last_write = -1, -1, time.monotonic()
+        try:
+            while not stopping.is_set():
+                version = state.wait_for_change(sent_version, timeout=1.0)
+                now = time.monotonic()
+                if state.world_version != sent_world:
+                    sent_world = state.world_version
+                    self._event('world', state.world_json())
+                    last_write = now
+                # The real-time factor reached decays while time stands still, so a frame is also due each second
+                # (which keeps an idle stream open, too).
+                if version != sent_version or now - last_write >= 1.0:
+                    sent_version = version
+                    self._event('state', state.frame_json(now))
+                    last_write = now
+                stopping.wait(1.0 / MAX_FRAME_RATE)
+        except (BrokenPipeError, ConnectionResetError):
+            pass  # the page was closed
+
+    def _event(self, kind: str, data: str) -> None:
+        self.wfile.write(f'event: {kind}\ndata: {data}\n\n'.encode())
+        self.wfile.flush()
