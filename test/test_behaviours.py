@@ -10,8 +10,9 @@ import pytest
 from epuck_ros.behaviours import BEHAVIOURS, STOP, Avoid, AvoidConfig, Behaviour, ConfigError, Forward, \
     ForwardConfig, Observation, Rectangle, RectangleConfig, WheelCommand
 from epuck_ros.behaviours.avoid import COURSE_THRESHOLD, braitenberg
-from epuck_ros.behaviours.base import describe
-from epuck_ros.model import MAX_WHEEL_SPEED
+from epuck_ros.behaviours.base import FREE_READING_SIGMAS, describe, ranges_from_raw
+from epuck_ros.ir_sensor import raw_from_distance
+from epuck_ros.model import IR_LOOKUP_TABLE, MAX_WHEEL_SPEED
 from epuck_ros.simulation import Simulation
 from epuck_ros.world import World, default_world
 
@@ -163,6 +164,26 @@ def test_avoid_threshold_is_the_course_raw_value_80() -> None:
     assert COURSE_THRESHOLD == pytest.approx(0.06653, abs=1e-5)
 
 
+def test_ranges_from_raw_readings_are_the_simulators_ranges_and_a_free_sensor_reads_inf() -> None:
+    """What a node reading `ir_raw` sees: the inverse table where something is seen, inf for a free sensor even
+    with its noise (the table's last row: raw 67.19, 4.897 % standard deviation), the course's raw 80 threshold."""
+    far_raw, far_noise = IR_LOOKUP_TABLE[-1, 1:]
+    free = far_raw * (1.0 + np.array([-3.0, -1.0, 0.0, 1.0, 2.0, 2.9, FREE_READING_SIGMAS - 1e-9, 0.0]) * far_noise)
+    assert ranges_from_raw(free) == (math.inf,) * 8
+    assert ranges_from_raw([80.0] * 8)[0] == pytest.approx(COURSE_THRESHOLD, abs=1e-12)
+    distances = np.array([0.0, 0.005, 0.012, 0.02, 0.033, 0.05, 0.06, 0.065])
+    assert ranges_from_raw(raw_from_distance(distances, IR_LOOKUP_TABLE)) == pytest.approx(distances, abs=1e-12)
+    sim = Simulation(default_world(), seed=3, noise=True)  # straight into the wall ahead, 0.46 m away
+    seen_count = 0
+    while not sim.in_contact[0]:
+        sim.command_wheels(0, 1.0, 1.0)
+        sim.step()
+        seen = sim.ir_range[0] < 0.0673  # closer than the free sensor's noise band: both must agree
+        seen_count += int(seen.sum())
+        assert np.array(ranges_from_raw(sim.ir_raw[0]))[seen] == pytest.approx(sim.ir_range[0][seen], abs=1e-12)
+    assert seen_count > 20
+
+
 def test_braitenberg_is_webots_e_puck_avoid_obstacles() -> None:
     # nothing in range: every sensor reads raw 67.19, the weights bend the path slightly left (Webots does too)
     free = braitenberg(np.array(FREE), 0.5)
@@ -211,14 +232,16 @@ OPEN_FLOOR = World(arena_size=(4.0, 4.0))
 """Nothing to bump into: the kinematic behaviours are judged on kinematics alone."""
 
 
-def drive(behaviour: Behaviour, sim: Simulation, seconds: float) -> tuple[np.ndarray, list[str]]:
+def drive(behaviour: Behaviour, sim: Simulation, seconds: float, from_raw: bool = False) -> tuple[np.ndarray, list[str]]:
     """Run the behaviour on the simulator as a node would; the true pose before and after every step (unwrapped
-    yaw), and the behaviour's state during each step."""
+    yaw), and the behaviour's state during each step. `from_raw`: ranges from the raw readings, as a node reading
+    `ir_raw` gets them, instead of the simulator's ranges (its `proximity` topic)."""
     poses, states = [sim.true_pose[0].copy()], []
     for _ in range(round(seconds / sim.time_step)):
-        command = behaviour.update(Observation(sim.time, tuple(sim.odom_pose[0]), tuple(sim.ir_range[0])))
+        ranges = ranges_from_raw(sim.ir_raw[0]) if from_raw else tuple(sim.ir_range[0])
+        command = behaviour.update(Observation(sim.time, tuple(sim.odom_pose[0]), ranges))
         states.append(behaviour.state)
-        sim.command_wheels(command.left, command.right)
+        sim.command_wheels(0, command.left, command.right)
         sim.step()
         poses.append(sim.true_pose[0].copy())
     poses = np.array(poses)
@@ -325,16 +348,18 @@ def test_closed_loop_timed_rectangle_turns_the_courses_83_degrees() -> None:
     assert np.allclose(angles, 83.0, atol=1.5)
 
 
+@pytest.mark.parametrize('from_raw', [False, True], ids=['ranges', 'raw'])
 @pytest.mark.parametrize('mode', ['rules', 'braitenberg'])
-def test_closed_loop_avoid_explores_the_default_world_for_5_minutes_without_a_collision(mode: str) -> None:
+def test_closed_loop_avoid_explores_the_default_world_for_5_minutes_without_a_collision(mode: str,
+                                                                                     from_raw: bool) -> None:
     """Bounds: cruising the whole time would drive 0.0628 m/s * 300 s = 18.8 m; at least half of that says the
     robot is not stuck turning. The 1 m arena has 100 cells of 10 cm and a wall-follower would visit only the
     36 along the walls; 40 says it crosses the room. Seeds 0 to 19 drove 12.0 to 17.1 m over 45 to 84 cells."""
     sim = Simulation(default_world(), seed=0, noise=True)
-    poses, _ = drive(Avoid(AvoidConfig(mode=mode)), sim, 300.0)
+    poses, _ = drive(Avoid(AvoidConfig(mode=mode)), sim, 300.0, from_raw)
     distance = path_length(poses)
     cells = len(set(map(tuple, np.floor((poses[:, :2] + 0.5) / 0.1).astype(int))))
-    print(f'avoid {mode}: {sim.collisions[0]} collisions, {distance:.2f} m driven, {cells} of 100 cells visited')
+    print(f'avoid {mode} on {"raw readings" if from_raw else "ranges"}: {sim.collisions[0]} collisions, {distance:.2f} m driven, {cells} of 100 cells visited')
     assert sim.collisions[0] == 0
     assert distance > 0.5 * 0.0628 * 300.0
     assert cells >= 40

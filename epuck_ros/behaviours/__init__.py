@@ -22,14 +22,19 @@ class BehaviourSpec:
     make: Callable[[Config], Behaviour]
     defaults: Config
     summary: str
+    example: str = ''
+    """Typical `-p NAME:=VALUE` settings for the executable's --help."""
 
 
 BEHAVIOURS: dict[str, BehaviourSpec] = {
-    'forward': BehaviourSpec(Forward, ForwardConfig(), 'controller_1: straight ahead, optionally to a goal'),
-    'spin': BehaviourSpec(OpenLoop, SPIN, 'controller_2: rotation in place'),
-    'circle': BehaviourSpec(OpenLoop, CIRCLE, 'controller_3: circle of radius 0.078 m'),
-    'rectangle': BehaviourSpec(Rectangle, RectangleConfig(), 'controller_4: sides and in-place corners'),
-    'avoid': BehaviourSpec(Avoid, AvoidConfig(), 'obstacle avoidance on the IR ranges'),
+    'forward': BehaviourSpec(Forward, ForwardConfig(), 'controller_1: straight ahead, optionally to a goal',
+                             '-p goal_distance:=0.3'),
+    'spin': BehaviourSpec(OpenLoop, SPIN, 'controller_2: rotation in place', '-p left:=0.3 -p right:=-0.3'),
+    'circle': BehaviourSpec(OpenLoop, CIRCLE, 'controller_3: circle of radius 0.078 m', '-p left:=0.2 -p right:=0.4'),
+    'rectangle': BehaviourSpec(Rectangle, RectangleConfig(), 'controller_4: sides and in-place corners',
+                               '-p side_a:=0.2 -p laps:=1'),
+    'avoid': BehaviourSpec(Avoid, AvoidConfig(), 'obstacle avoidance on the IR ranges',
+                           '-p mode:=braitenberg -p cruise_speed:=0.4'),
 }
 
 __all__ = ['BEHAVIOURS', 'STOP', 'Avoid', 'AvoidConfig', 'Behaviour', 'BehaviourSpec', 'Config', 'ConfigError',

@@ -12,7 +12,11 @@ from abc import ABC, abstractmethod
 from dataclasses import dataclass, field, fields
 from typing import Any
 
-from epuck_ros.model import MAX_WHEEL_SPEED
+import numpy as np
+from numpy.typing import ArrayLike
+
+from epuck_ros.ir_sensor import range_from_raw
+from epuck_ros.model import IR_LOOKUP_TABLE, MAX_WHEEL_SPEED
 
 
 @dataclass(frozen=True)
@@ -24,6 +28,22 @@ class Observation:
     """x (m), y (m), yaw (rad) in the odometry frame."""
     ranges: tuple[float, ...] | None = None
     """ps0..ps7 in metres, inf when nothing is within range (REP 117)."""
+
+
+FREE_READING_SIGMAS = 3.0
+"""A raw reading within this many noise standard deviations of the far end of the lookup table is "nothing seen"."""
+
+
+def ranges_from_raw(raw: ArrayLike, table: np.ndarray = IR_LOOKUP_TABLE) -> tuple[float, ...]:
+    """The ranges a behaviour reads (m, inf = nothing seen, REP 117) from raw sensor values (Webots' getValue()).
+
+    A raw value does not say whether the ray hit anything: a free sensor reads the table's far value (67.19) times
+    (1 + 4.9 % noise). A reading up to FREE_READING_SIGMAS standard deviations above that (raw 77.1, 0.0673 m)
+    counts as nothing seen, so a free sensor reads inf as on the simulator's `proximity` topic, and the course's
+    threshold (raw 80, 0.0665 m) keeps its meaning; beyond it the inverse table as the simulator's own ranges."""
+    raw = np.asarray(raw, dtype=float)
+    _, far_raw, far_noise = table[-1]
+    return tuple(range_from_raw(raw, raw > far_raw * (1.0 + FREE_READING_SIGMAS * far_noise), table).tolist())
 
 
 @dataclass(frozen=True)

@@ -1,12 +1,18 @@
 """`forward`, `spin`, `circle`, `rectangle`, `avoid`: one node class around the pure behaviours.
 
 Each executable is a row of `epuck_ros.behaviours.BEHAVIOURS`: the node declares that behaviour's settings
-as read-only parameters, turns `odom` and the eight `proximity` Range messages of a sensing cycle into an
-`Observation`, and on a ROS-clock timer (so it follows `use_sim_time`) publishes the behaviour's wheel
-speeds on `wheel_cmd` as the course's `setVelocity` pair [left, right] in rad/s.
+as read-only parameters, turns `odom` and the IR readings into an `Observation`, and on a ROS-clock timer
+(so it follows `use_sim_time`) publishes the behaviour's wheel speeds on `wheel_cmd` as the course's
+`setVelocity` pair [left, right] in rad/s. When it ends (Ctrl-C, SIGTERM) it commands a stop first.
+
+One robot: the node's namespace is the robot's (`avoid --ros-args -r __ns:=/epuck3`). Several robots in one
+process: `avoid --robots epuck0 epuck1` (or `--robots all`, every robot of the simulator's world) makes one
+node per robot, named like the executable, in the namespace `<namespace>/<robot>`, all on one executor;
+`-p` parameters apply to every one of them.
 """
 from __future__ import annotations
 
+import argparse
 import math
 from collections.abc import Sequence
 from dataclasses import replace
@@ -14,22 +20,34 @@ from functools import partial
 from typing import Any
 
 import rclpy
+import yaml
 from nav_msgs.msg import Odometry
-from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
-from rclpy.exceptions import ParameterException
+from rclpy.clock import Clock, ClockType
+from rclpy.duration import Duration
+from rclpy.exceptions import InvalidNamespaceException, ParameterException
 from rclpy.node import Node
-from rclpy.qos import QoSProfile, ReliabilityPolicy
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.signals import SignalHandlerOptions
+from rclpy.validate_namespace import validate_namespace
 from sensor_msgs.msg import Range
-from std_msgs.msg import Float64MultiArray
+from std_msgs.msg import Float64MultiArray, String
 
 from epuck_ros.behaviours import BEHAVIOURS, BehaviourSpec, ConfigError, Observation
-from epuck_ros.behaviours.base import describe
+from epuck_ros.behaviours.base import describe, ranges_from_raw
 from epuck_ros.model import SENSOR_NAMES
-from epuck_ros.nodes.spinning import spin_until_shutdown
+from epuck_ros.nodes.params import ParamSpec, Usage, declare_parameters, prepare_arguments, user_arguments
+from epuck_ros.nodes.spinning import handle_shutdown_signals, shutdown_requested, spin_until_shutdown
+from epuck_ros.world import WorldError, world_from_dict
 
 CONTROL_PERIOD = 0.032
 """Seconds between two commands: the course's controllers run once per Webots basicTimeStep (32 ms)."""
 QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
+LATCHED = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+GRAPH_POLL_PERIOD = 0.1
+"""Wall seconds between two looks at the graph for an `ir_raw` publisher (until there is one)."""
+STOP_ACK_TIMEOUT = 2.0
+"""Wall seconds an ending node waits for its last (zero) wheel command to be acknowledged."""
+ALL_ROBOTS = 'all'
 
 
 class RangeAssembler:
@@ -64,52 +82,100 @@ def yaw_from_quaternion(x: float, y: float, z: float, w: float) -> float:
     return math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
 
 
-def _descriptor(description: str, value: Any, low: Any, high: Any) -> ParameterDescriptor:
-    """Read-only: a behaviour is built once from its settings."""
-    descriptor = ParameterDescriptor(description=description, read_only=True)
-    if low is None:
-        return descriptor
-    if isinstance(value, int):
-        descriptor.integer_range = [IntegerRange(from_value=low, to_value=high, step=1)]
-    else:
-        descriptor.floating_point_range = [FloatingPointRange(from_value=float(low), to_value=float(high), step=0.0)]
-    return descriptor
+def parameter_specs(spec: BehaviourSpec) -> list[ParamSpec]:
+    """The behaviour's settings as read-only parameters (a behaviour is built once from them), and the period."""
+    settings = [ParamSpec(name, value, description, None if low is None else (low, high), read_only=True)
+                for name, value, description, (low, high) in describe(spec.defaults)]
+    return settings + [ParamSpec('control_period', CONTROL_PERIOD, 'seconds (ROS clock) between two wheel commands; '
+                                 'the course: one Webots step, 0.032', (0.001, 1.0), read_only=True)]
+
+
+ROBOTS_HELP = '''  --robots NAME [NAME ...] | all
+        drive several robots of the simulator from this one process: one node per robot, in the namespace
+        <namespace>/<NAME> (the simulator's topics of that robot); all = every robot of the simulator's world
+        (waits for the simulator). Without it, one node drives the robot of its namespace (-r __ns:=/epuck3).'''
+
+
+def usage(name: str, spec: BehaviourSpec) -> Usage:
+    return Usage(
+        program=name,
+        summary=f'{spec.summary}. Publishes wheel_cmd [left, right] rad/s every control_period (ROS clock: '
+                f'use_sim_time:=true follows the simulator), from odom and the IR readings (ir_raw, or the eight '
+                f'proximity Range messages where nobody publishes ir_raw); commands a stop when it ends.',
+        example=f'{name} --robots all --ros-args -p use_sim_time:=true {spec.example}'.rstrip(),
+        options=ROBOTS_HELP)
 
 
 class BehaviourNode(Node):
-    """Subscribes what the behaviour needs (`odom`, `proximity`), publishes `wheel_cmd` every control period."""
+    """One robot's controller: subscribes what the behaviour needs, publishes `wheel_cmd` every control period.
 
-    def __init__(self, name: str, spec: BehaviourSpec) -> None:
-        super().__init__(name)
-        settings = {
-            setting: self.declare_parameter(setting, value, _descriptor(description, value, low, high)).value
-            for setting, value, description, (low, high) in describe(spec.defaults)}
-        period = self.declare_parameter('control_period', CONTROL_PERIOD, _descriptor(
-            'seconds (ROS clock) between two wheel commands; the course: one Webots step, 0.032',
-            CONTROL_PERIOD, 0.001, 1.0)).value
+    Each command answers exactly one step. `/clock` (the tick) and the sensor topics travel separately, so a
+    tick can arrive before or after its data; the node acts on a tick once every input it needs is there for
+    it (`_act_when_ready`), which makes lockstep runs repeat to the bit:
+    - stamped inputs (`odom`, the `proximity` Ranges) are there once their stamp reaches the tick;
+    - `ir_raw` has no header: it counts as there when one arrived since the last command. In lockstep that is
+      exactly this step's: the simulator publishes the next step only once this command answered the current
+      one, so the only unanswered `ir_raw` is the current step's, whichever of it and the tick comes first.
+    One `ir_raw` message carries all eight readings (the `proximity` path takes eight callbacks per step), so
+    the node reads `proximity` only while the graph shows no `ir_raw` publisher (a real robot's driver).
+    """
+
+    def __init__(self, name: str, spec: BehaviourSpec, namespace: str | None = None) -> None:
+        super().__init__(name, cli_args=None if namespace is None else ['--ros-args', '-r', f'__ns:={namespace}'])
+        settings = declare_parameters(self, parameter_specs(spec))
+        period = settings.pop('control_period')
         self.behaviour = spec.make(replace(spec.defaults, **settings))
         self._odom: tuple[float, float, float] | None = None
         self._ranges: tuple[float, ...] | None = None
         self._odom_stamp: int | None = None  # nanoseconds of the data above
         self._ranges_stamp: int | None = None
+        self._fresh_raw = False
+        """An ir_raw message arrived since the last command."""
         self._pending_tick: int | None = None
+        self._late_ticks = 0
         self._assembler = RangeAssembler()
+        self._range_subscription = None
+        self._raw_subscription = None
+        self._graph_timer = None
+        self._publisher = self.create_publisher(Float64MultiArray, 'wheel_cmd', QOS)
+        self._command = Float64MultiArray()
         if self.behaviour.needs_odom:
             self.create_subscription(Odometry, 'odom', self._on_odom, QOS)
         if self.behaviour.needs_proximity:
-            self.create_subscription(Range, 'proximity', self._on_range, QOS)
-        self._publisher = self.create_publisher(Float64MultiArray, 'wheel_cmd', QOS)
-        self._command = Float64MultiArray()
+            self._raw_subscription = self.create_subscription(Float64MultiArray, 'ir_raw', self._on_ir_raw, QOS)
+            self._graph_timer = self.create_timer(GRAPH_POLL_PERIOD, self._choose_ir_topic,
+                                                  clock=Clock(clock_type=ClockType.STEADY_TIME))
         self._logged_status = ''
         self.create_timer(period, self._on_tick)
         summary = ', '.join(f'{setting}={value}' for setting, value in settings.items())
         self.get_logger().info(f'{spec.summary}; {summary}, control_period={period}')
+
+    def _choose_ir_topic(self) -> None:
+        """`ir_raw` once it has a publisher; until then `proximity` if that has one (a real robot's driver)."""
+        if self.count_publishers(self.resolve_topic_name('ir_raw')) > 0:
+            self.destroy_timer(self._graph_timer)
+            if self._range_subscription is not None:
+                self.destroy_subscription(self._range_subscription)
+                self._range_subscription = None
+                self.get_logger().info('ir_raw has a publisher now: reading it instead of proximity')
+        elif self._range_subscription is None and self.count_publishers(self.resolve_topic_name('proximity')) > 0:
+            self._range_subscription = self.create_subscription(Range, 'proximity', self._on_range, QOS)
+            self.get_logger().info('nobody publishes ir_raw: reading the eight proximity Range messages of each step')
 
     def _on_odom(self, msg: Odometry) -> None:
         pose = msg.pose.pose
         q = pose.orientation
         self._odom = (pose.position.x, pose.position.y, yaw_from_quaternion(q.x, q.y, q.z, q.w))
         self._odom_stamp = _nanoseconds(msg.header.stamp)
+        self._act_when_ready()
+
+    def _on_ir_raw(self, msg: Float64MultiArray) -> None:
+        if len(msg.data) != len(SENSOR_NAMES):
+            self.get_logger().warning(f'ir_raw: ignoring messages of {len(msg.data)} values, expected '
+                                      f'{len(SENSOR_NAMES)} (ps0..ps7)', once=True)
+            return
+        self._ranges = ranges_from_raw(msg.data)
+        self._fresh_raw = True
         self._act_when_ready()
 
     def _on_range(self, msg: Range) -> None:
@@ -128,24 +194,33 @@ class BehaviourNode(Node):
 
     def _on_tick(self) -> None:
         if self._pending_tick is not None:  # its data never came complete: act on what there is
+            if self._odom is not None or self._ranges is not None:
+                self._late_ticks += 1
+                self.get_logger().warning(
+                    f'acting on t={self._pending_tick * 1e-9:.3f} s without that step\'s data: it came late (a '
+                    'busy machine, or a simulator faster than this node: use lockstep); said once, counted',
+                    once=True)
             self._act(self._pending_tick)
         self._pending_tick = self.get_clock().now().nanoseconds
         self._act_when_ready()
 
-    def _act_when_ready(self) -> None:
-        """Act on the pending tick once every input the behaviour needs carries that tick's stamp or a later one.
+    def _has_data_for(self, tick: int) -> bool:
+        if self.behaviour.needs_odom and (self._odom_stamp is None or self._odom_stamp < tick):
+            return False
+        if self.behaviour.needs_proximity and self._range_subscription is None:
+            return self._fresh_raw
+        if self.behaviour.needs_proximity:
+            return self._ranges_stamp is not None and self._ranges_stamp >= tick
+        return True
 
-        `/clock` and the sensor topics travel separately, so a tick can arrive before its own data; waiting for it
-        makes every command answer the same observation whatever the timing (and lockstep runs repeatable)."""
-        if self._pending_tick is None:
-            return
-        stamps = [self._odom_stamp] if self.behaviour.needs_odom else []
-        stamps += [self._ranges_stamp] if self.behaviour.needs_proximity else []
-        if all(stamp is not None and stamp >= self._pending_tick for stamp in stamps):
+    def _act_when_ready(self) -> None:
+        """Act on the pending tick once every input the behaviour needs is there for it (see the class)."""
+        if self._pending_tick is not None and self._has_data_for(self._pending_tick):
             self._act(self._pending_tick)
 
     def _act(self, tick: int) -> None:
         self._pending_tick = None
+        self._fresh_raw = False
         now = tick * 1e-9
         command = self.behaviour.update(Observation(now, self._odom, self._ranges))
         if self.behaviour.status != self._logged_status:
@@ -154,18 +229,88 @@ class BehaviourNode(Node):
         self._command.data = [command.left, command.right]
         self._publisher.publish(self._command)
 
+    def stop_robot(self) -> None:
+        """The last word, as teleop_twist_keyboard's: a zero wheel command, acknowledged by the simulator (bounded
+        wait), so that a robot without a command timeout does not drive on after its controller is gone."""
+        if self._late_ticks:
+            self.get_logger().warning(f'{self._late_ticks} tick(s) acted on without their step\'s data')
+        self._command.data = [0.0, 0.0]
+        self._publisher.publish(self._command)
+        if not self._publisher.wait_for_all_acked(Duration(seconds=STOP_ACK_TIMEOUT)):
+            self.get_logger().warning('the last (zero) wheel command was not acknowledged')
+
+
+def parse_robots(name: str, user_args: list[str]) -> list[str] | None:
+    """The `--robots` names (or ['all']), None without the option; exits 2 on anything else."""
+    parser = argparse.ArgumentParser(prog=name, add_help=False, usage=f'{name} [--robots NAME [NAME ...] | all] '
+                                                                     '[--ros-args ...]')
+    parser.add_argument('--robots', nargs='+', metavar='NAME')
+    robots = parser.parse_args(user_args).robots
+    if robots and ALL_ROBOTS in robots and len(robots) > 1:
+        parser.error(f'--robots: {ALL_ROBOTS} stands alone')
+    if robots and len(set(robots)) != len(robots):
+        parser.error(f'--robots: a name is given twice: {" ".join(robots)}')
+    return robots
+
+
+def robot_namespaces(name: str, robots: list[str] | None) -> list[str | None]:
+    """One namespace per node to make: [None] = one node where the command line puts it; [] = shut down meanwhile.
+
+    The robots' namespaces are relative to the one the command line gives (`-r __ns:=/lab`), as the simulator's
+    robot topics are relative to its own. `all` reads the robot names from the simulator's latched `world`
+    topic; a world of one robot has its topics in the simulator's namespace itself."""
+    if robots is None:
+        return [None]
+    probe = Node(f'{name}_robots', enable_rosout=False, start_parameter_services=False)
+    try:
+        base = probe.get_namespace().rstrip('/')
+        if robots == [ALL_ROBOTS]:
+            robots = _world_robots(probe)
+            if robots is None:
+                return []
+            if len(robots) == 1:
+                return [base or '/']
+        namespaces = [f'{base}/{robot}' for robot in robots]
+        for namespace in namespaces:
+            validate_namespace(namespace)
+        return namespaces
+    finally:
+        probe.destroy_node()
+
+
+def _world_robots(probe: Node) -> list[str] | None:
+    """The robot names of the simulator's world, waiting for the simulator; None if asked to shut down first."""
+    received: list[String] = []
+    probe.create_subscription(String, 'world', received.append, LATCHED)
+    probe.get_logger().info(f'waiting for the simulator ({probe.resolve_topic_name("world")}) to learn its robots')
+    spin_until_shutdown(probe, until=lambda: bool(received))
+    if not received:
+        return None
+    world = world_from_dict(yaml.safe_load(received[-1].data), source=probe.resolve_topic_name('world'))
+    names = [robot.name for robot in world.robots]
+    probe.get_logger().info(f'driving {len(names)} robot(s): {" ".join(names)}')
+    return names
+
 
 def main(name: str, args: list[str] | None = None) -> None:
-    rclpy.init(args=args)
-    node = None
+    spec = BEHAVIOURS[name]
+    argv = prepare_arguments(args, parameter_specs(spec), usage(name, spec), own_options=True)
+    robots = parse_robots(name, user_arguments(argv))
+    rclpy.init(args=argv, signal_handler_options=SignalHandlerOptions.NO)
+    handle_shutdown_signals()
+    nodes: list[BehaviourNode] = []
     try:
-        node = BehaviourNode(name, BEHAVIOURS[name])
-        spin_until_shutdown(node)
-    except (ConfigError, ParameterException) as error:
+        for namespace in robot_namespaces(name, robots):
+            nodes.append(BehaviourNode(name, spec, namespace))
+        if nodes and not shutdown_requested():
+            spin_until_shutdown(*nodes)
+    except (ConfigError, ParameterException, InvalidNamespaceException, WorldError) as error:
         rclpy.logging.get_logger(name).fatal(f'cannot start: {error}')
         raise SystemExit(2)
     finally:
-        if node is not None:
+        for node in nodes:
+            if node.context.ok():
+                node.stop_robot()
             node.destroy_node()
         rclpy.try_shutdown()
 

@@ -1,22 +1,65 @@
-"""Spinning a node until Ctrl-C or SIGTERM, the Jazzy way, without a spurious error at the end."""
+"""Spinning nodes until Ctrl-C or SIGTERM, ending cleanly on the first signal, every time.
+
+rclpy's own signal handlers shut the context down from the signal, wherever the main thread is: inside
+`take_message`, or inside a callback about to publish. Under load that ended nodes with a pybind11
+RuntimeError (exit 1), and once the context is gone a node can no longer say goodbye (a behaviour's last
+zero wheel command). Here the signals only raise a flag; the spin loop sees it within `SIGNAL_LATENCY`,
+returns with the context alive, and the caller's `finally` publishes what it must, destroys its nodes and
+calls `rclpy.try_shutdown()` (exit code 0).
+"""
 from __future__ import annotations
 
-import rclpy
-from rclpy.executors import ExternalShutdownException
+import signal
+import threading
+from collections.abc import Callable
+
+from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
+from rclpy.signals import SignalHandlerOptions, get_current_signal_handlers_options, uninstall_signal_handlers
+
+SIGNAL_LATENCY = 0.1
+"""Wall seconds the spin loop waits for work at most before looking at the flag (a signal does not wake rcl_wait)."""
+
+_requested = threading.Event()
 
 
-def spin_until_shutdown(node: Node) -> None:
-    """`rclpy.spin` that ends quietly on Ctrl-C / SIGTERM.
+def _request_shutdown(signum: int, frame: object) -> None:
+    _requested.set()
 
-    rclpy's signal handler shuts the context down wherever the main thread is, possibly inside a
-    callback that is about to publish; that publish then fails. Such a failure, once the context is
-    gone, is part of shutting down, not an error; any failure while the context is alive is re-raised.
+
+def handle_shutdown_signals() -> None:
+    """From now on SIGINT and SIGTERM only ask for a shutdown (`shutdown_requested()`); call after `rclpy.init`."""
+    if get_current_signal_handlers_options() != SignalHandlerOptions.NO:
+        uninstall_signal_handlers()
+    for signum in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(signum, _request_shutdown)
+
+
+def shutdown_requested() -> bool:
+    return _requested.is_set()
+
+
+def spin_until_shutdown(*nodes: Node, until: Callable[[], bool] | None = None) -> None:
+    """Spin `nodes` on one executor until SIGINT / SIGTERM, the context's shutdown, or `until()` is true.
+
+    Returns with the context still usable (unless something else shut it down). A failure inside a callback
+    once the context is gone is part of someone else shutting it down, not an error; any other is re-raised.
     """
+    handle_shutdown_signals()
+    context = nodes[0].context
+    executor = SingleThreadedExecutor(context=context)
+    for node in nodes:
+        executor.add_node(node)
     try:
-        rclpy.spin(node)
-    except (KeyboardInterrupt, ExternalShutdownException):
+        while not _requested.is_set() and context.ok() and not (until is not None and until()):
+            executor.spin_once(timeout_sec=SIGNAL_LATENCY)
+    except ExternalShutdownException:
         pass
     except Exception:
-        if node.context.ok():
+        if context.ok():
             raise
+    finally:
+        for node in nodes:
+            executor.remove_node(node)
+        executor.shutdown(timeout_sec=0.0)
+
