@@ -1,0 +1,100 @@
+"""teleop as a real process: keys from a pipe become Twists on the chosen robot's cmd_vel; leaving stops the robot."""
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+from collections.abc import Iterator
+from pathlib import Path
+
+import pytest
+from geometry_msgs.msg import Twist
+
+from conftest import BIN_DIR
+from epuck_ros.nodes.teleop_node import SPEED_STEP, Teleop, read_keys
+
+
+class TeleopProcess:
+    """`teleop` with its stdin a pipe the test types into; stopped (by pid) when the test ends."""
+
+    def __init__(self, tmp_path: Path, *args: str) -> None:
+        self.log_path = tmp_path / 'teleop.log'
+        with open(self.log_path, 'w') as log:
+            self.proc = subprocess.Popen([str(BIN_DIR / 'teleop'), *args], stdin=subprocess.PIPE, stdout=log,
+                                         stderr=subprocess.STDOUT, env=dict(os.environ, PYTHONUNBUFFERED='1'))
+
+    def type(self, keys: bytes) -> None:
+        self.proc.stdin.write(keys)
+        self.proc.stdin.flush()
+
+    def output(self) -> str:
+        return self.log_path.read_text()
+
+    def stop(self) -> None:
+        if self.proc.poll() is None:
+            self.proc.kill()
+            self.proc.wait()
+
+
+@pytest.fixture
+def teleop(tmp_path: Path) -> Iterator[callable]:
+    started: list[TeleopProcess] = []
+
+    def start(*args: str) -> TeleopProcess:
+        started.append(TeleopProcess(tmp_path, *args))
+        return started[-1]
+    yield start
+    for process in started:
+        process.stop()
+
+
+def _last(received: list[Twist]) -> tuple[float, float] | None:
+    return (received[-1].linear.x, received[-1].angular.z) if received else None
+
+
+def test_keys_set_motions_and_speeds() -> None:
+    keys = Teleop(speed=0.1, turn=1.5)
+    assert keys.command == (0.0, 0.0)
+    assert keys.press('w') and keys.command == (0.1, 0.0)
+    assert keys.press('left') and keys.command == (0.0, 1.5)
+    assert keys.press('q') and keys.command == pytest.approx((0.0, 1.5 * SPEED_STEP))
+    assert keys.press('s') and keys.command == pytest.approx((-0.1 * SPEED_STEP, 0.0))
+    assert keys.press(' ') and keys.command == (0.0, 0.0)
+    assert not keys.press('?')
+    chars = iter('w\x1b[Dx\nz\x1b[A')
+    assert list(read_keys(lambda: next(chars, ''))) == ['w', 'left', 'x', 'z', 'up']
+
+
+def test_help_describes_keys_options_and_parameters() -> None:
+    result = subprocess.run([str(BIN_DIR / 'teleop'), '--help'], capture_output=True, text=True, timeout=30)
+    assert result.returncode == 0
+    for text in ('--robot', 'speed', 'turn', 'repeat_rate', 'example'):
+        assert text in result.stdout
+
+
+def test_keys_drive_the_chosen_robot_and_end_of_input_stops_it(test_node, teleop) -> None:
+    received = test_node.collect(Twist, '/epuck3/cmd_vel', 100)
+    other = test_node.collect(Twist, '/cmd_vel', 100)
+    process = teleop('--robot', 'epuck3')
+    process.type(b'w')  # held commands are re-sent (repeat_rate), so nothing depends on when DDS matched
+    test_node.spin_until(lambda: _last(received) == (0.1, 0.0), what='forward Twist')
+    process.type(b'\x1b[D')  # left arrow
+    test_node.spin_until(lambda: _last(received) == (0.0, 1.5), what='left turn Twist')
+    process.type(b'q')
+    test_node.spin_until(lambda: _last(received) == pytest.approx((0.0, 1.5 * SPEED_STEP)), what='faster turn')
+    process.proc.stdin.close()
+    assert process.proc.wait(timeout=30) == 0
+    test_node.spin_until(lambda: _last(received) == (0.0, 0.0), what='the stop sent on exit')
+    assert f'turn {1.5 * SPEED_STEP:.2f} rad/s' in process.output()
+    assert other == []
+
+
+def test_interrupt_stops_the_robot(test_node, teleop) -> None:
+    received = test_node.collect(Twist, '/cmd_vel', 100)
+    process = teleop('--ros-args', '-p', 'speed:=0.05')
+    process.type(b'w')
+    test_node.spin_until(lambda: _last(received) == (0.05, 0.0), what='forward Twist at the speed parameter')
+    process.proc.send_signal(signal.SIGINT)
+    assert process.proc.wait(timeout=30) == 0
+    test_node.spin_until(lambda: _last(received) == (0.0, 0.0), what='the stop sent on Ctrl-C')
+    assert 'stopped' in process.output()
