@@ -2,18 +2,24 @@
 
 A properly closed file is opened from its summary (schemas, channels, statistics, chunk
 indexes), which costs the same whatever the file's size. A file without a footer (a recorder
-killed outright) is scanned instead, and every *complete* chunk is read; what follows the last
-complete record is ignored. The file is memory-mapped and messages come out as offsets into
-the (decompressed) chunk, so callers that decode a few fields never copy a message.
+killed outright), or whose summary fails its CRC, is scanned instead, and every *complete*
+chunk is read; what follows the last complete record is ignored. The file is memory-mapped and
+messages come out as offsets into the (decompressed) chunk, so callers that decode a few fields
+never copy a message.
+
+Bags are untrusted input: every length is checked against the bytes that hold it before it is
+used, chunk CRCs are verified, decompressed sizes and YAML documents are bounded, and anything
+wrong raises `BagError` naming the file and the place — never a traceback, never made-up data.
 """
 from __future__ import annotations
 
 import mmap
 import struct
+import zlib
 from collections.abc import Iterable, Iterator
 from dataclasses import dataclass, replace
 from io import BytesIO
-from pathlib import Path
+from pathlib import Path, PurePath
 
 import lz4.frame
 import numpy as np
@@ -28,14 +34,25 @@ from mcap.records import Channel, Metadata, Schema
 MAGIC = b'\x89MCAP0\r\n'
 _RECORD = struct.Struct('<BQ')
 _MESSAGE = struct.Struct('<BQHIQQ')
-_CHUNK = struct.Struct('<QQQII')
+_MESSAGE_FIELDS = 2 + 4 + 8 + 8
+_CHUNK = struct.Struct('<QQQII')  # start time, end time, uncompressed size, uncompressed crc, name length
+_FOOTER = struct.Struct('<BQQQI')  # opcode, length, summary start, summary offset start, summary crc
 _INDEX_HEAD = struct.Struct('<HI')
-_FOOTER_SIZE = 9 + 20
+_U32 = struct.Struct('<I')
+_U64 = struct.Struct('<Q')
 MESSAGE_HEAD = _MESSAGE.size
 """Bytes from a Message record's opcode to its data."""
+MAX_CHUNK_BYTES = 256 * 2**20
+"""Largest decompressed chunk accepted (rosbag2 writes 768 KiB chunks): a corrupt size cannot cost GBs."""
+MAX_METADATA_BYTES = 2**20
+"""Largest metadata.yaml / rosbag2 metadata record parsed; rosbag2's own are a few KiB."""
+MAX_YAML_DEPTH = 32
+"""Deepest nesting accepted in metadata YAML (rosbag2's is 5 levels)."""
+_YAML_LOADER = getattr(yaml, 'CSafeLoader', yaml.SafeLoader)
 
 RawMessage = tuple[str, int, int, bytes, int, int]
-"""(topic, log_time ns, publish_time ns, buffer, data start, data end): the CDR bytes are buffer[start:end]."""
+"""(topic, log_time ns, publish_time ns, buffer, data start, data end): the CDR bytes are buffer[start:end],
+and the buffer ends with the message, so a decoder reading too far fails instead of reading the next one."""
 
 
 class BagError(Exception):
@@ -55,6 +72,8 @@ class Topic:
     message_count: int = 0
     first_ns: int | None = None
     last_ns: int | None = None
+    message_encoding: str = 'cdr'
+    """The channel's message encoding as the file says it (``cdr`` for ROS 2, ``json``, ...)."""
 
     def add_times(self, count: int, first: int, last: int) -> None:
         self.message_count += count
@@ -77,22 +96,56 @@ class BagMessage:
     data: bytes
 
 
-def _read_record(body: bytes, cls: type) -> object:
+def load_yaml(text: str, where: str) -> object:
+    """A YAML document from an untrusted file: no aliases (no expansion bombs), bounded nesting, libyaml speed."""
+    depth = 0
+    try:
+        for event in yaml.parse(text, Loader=_YAML_LOADER):
+            if isinstance(event, yaml.AliasEvent):
+                raise BagError(f'{where}: YAML aliases are not accepted (rosbag2 never writes them)')
+            if isinstance(event, (yaml.SequenceStartEvent, yaml.MappingStartEvent)):
+                depth += 1
+                if depth > MAX_YAML_DEPTH:
+                    raise BagError(f'{where}: YAML nested deeper than {MAX_YAML_DEPTH} levels')
+            elif isinstance(event, (yaml.SequenceEndEvent, yaml.MappingEndEvent)):
+                depth -= 1
+        return yaml.load(text, Loader=_YAML_LOADER)
+    except yaml.YAMLError as error:
+        raise BagError(f'{where}: not valid YAML: {" ".join(str(error).split())}') from None
+
+
+def _read_record(body: bytes, cls: type, where: str) -> object:
     """Parse one record body (after opcode and length) with mcap's record classes."""
-    return cls.read(ReadDataStream(BytesIO(body)))
+    try:
+        return cls.read(ReadDataStream(BytesIO(body)))
+    except (McapError, struct.error, ValueError, EOFError) as error:
+        raise BagError(f'{where}: corrupt {cls.__name__} record ({error or type(error).__name__})') from None
 
 
 def _decompress(compression: str, data: memoryview, size: int, where: str) -> bytes | memoryview:
+    """A chunk's records, exactly `size` bytes (the size its header declares, bounded by MAX_CHUNK_BYTES)."""
+    if size > MAX_CHUNK_BYTES:
+        raise BagError(f'{where}: chunk declares {size} uncompressed bytes (more than {MAX_CHUNK_BYTES})')
     try:
         if compression == '':
-            return data
-        if compression == 'zstd':
-            return zstandard.ZstdDecompressor().decompress(data, max_output_size=size)
-        if compression == 'lz4':
-            return lz4.frame.decompress(data)
-    except (zstandard.ZstdError, RuntimeError) as error:
+            result = data
+        elif compression == 'zstd':
+            framed = zstandard.frame_content_size(data)
+            if framed not in (-1, size):
+                raise BagError(f'{where}: zstd frame holds {framed} bytes, the chunk header says {size}')
+            result = zstandard.ZstdDecompressor().decompress(data, max_output_size=size)
+        elif compression == 'lz4':
+            framed = lz4.frame.get_frame_info(data).get('content_size') or size
+            if framed != size:
+                raise BagError(f'{where}: lz4 frame holds {framed} bytes, the chunk header says {size}')
+            result = lz4.frame.decompress(data)
+        else:
+            raise BagError(f'{where}: unsupported chunk compression {compression!r}')
+    except (zstandard.ZstdError, RuntimeError, ValueError) as error:
         raise BagError(f'{where}: corrupt {compression} chunk ({error})') from None
-    raise BagError(f'{where}: unsupported chunk compression {compression!r}')
+    if len(result) != size:
+        raise BagError(f'{where}: chunk holds {len(result)} bytes of records, its header says {size}')
+    return result
 
 
 class McapFile:
@@ -102,9 +155,9 @@ class McapFile:
         self.path = path
         try:
             self._handle = open(path, 'rb')
+            self.size = path.stat().st_size
         except OSError as error:
             raise BagError(f'{path}: {error.strerror}') from None
-        self.size = path.stat().st_size
         head = self._handle.read(len(MAGIC))
         if not head or head != MAGIC[:len(head)]:
             self._handle.close()
@@ -116,15 +169,23 @@ class McapFile:
         self.topics: dict[int, Topic] = {}
         self.rosbag2_metadata: dict = {}
         self.profile, self.library = '', ''
-        self.closed_properly = self._has_footer()
+        self.summary_problem: str | None = None
+        """Why a file with a footer was scanned instead of read from its summary (None: it was not)."""
         self._chunks: list[tuple[int, frozenset[int] | None]] | None = None
         """(offset, channels) of each chunk, from the summary; None: scan the file instead."""
         self._indexes: list = []
         self.ignored_bytes = 0
         """Bytes after the last complete record of a file that was not closed properly."""
-        if self.closed_properly and self._load_summary():
-            return
-        self._scan()
+        try:
+            footer = self._footer()
+            if footer and self._load_summary(*footer):
+                self.closed_properly = True
+                return
+            self.closed_properly = False
+            self._scan()
+        except BaseException:
+            self.close()
+            raise
 
     def close(self) -> None:
         try:
@@ -135,27 +196,46 @@ class McapFile:
 
     # -- opening ------------------------------------------------------------------------------
 
-    def _has_footer(self) -> bool:
-        footer = self.size - len(MAGIC) - _FOOTER_SIZE
-        return (self.size >= 2 * len(MAGIC) + _FOOTER_SIZE and self._map[-len(MAGIC):] == MAGIC
-                and _RECORD.unpack_from(self._map, footer) == (Opcode.FOOTER, 20))
+    def _footer(self) -> tuple[int, int, int] | None:
+        """(footer offset, summary start, summary crc) when the file ends with a footer and the magic."""
+        footer = self.size - len(MAGIC) - _FOOTER.size
+        if footer < len(MAGIC) or self._map[-len(MAGIC):] != MAGIC:
+            return None
+        opcode, length, summary_start, _, crc = _FOOTER.unpack_from(self._map, footer)
+        if (opcode, length) != (Opcode.FOOTER, _FOOTER.size - 9):
+            return None
+        return footer, summary_start, crc
 
-    def _load_summary(self) -> bool:
-        """Topics and statistics from the summary section; False when the file has none."""
+    def _load_summary(self, footer: int, summary_start: int, crc: int) -> bool:
+        """Topics and statistics from the summary section; False (scan instead) when it has none or it is corrupt."""
+        if summary_start == 0:
+            return False
+        if not len(MAGIC) < summary_start <= footer:
+            self.summary_problem = f'summary start {summary_start} outside the file'
+            return False
+        if crc and zlib.crc32(self._map[summary_start:footer + _FOOTER.size - 4]) != crc:
+            self.summary_problem = 'summary section fails its CRC'
+            return False
         self._handle.seek(0)
-        reader = SeekingReader(self._handle)
         try:
+            reader = SeekingReader(self._handle)
             header = reader.get_header()
             summary = reader.get_summary()
-        except (McapError, struct.error, ValueError) as error:
-            raise BagError(f'{self.path}: unreadable summary section ({error})') from None
+        except (McapError, struct.error, ValueError, EOFError, KeyError, IndexError, OverflowError) as error:
+            self.summary_problem = f'unreadable summary section ({error or type(error).__name__})'
+            return False
         if summary is None or (summary.statistics is None or not summary.chunk_indexes
                                and summary.statistics.message_count):
+            return False
+        indexes = sorted(summary.chunk_indexes, key=lambda c: c.chunk_start_offset)
+        problem = self._check_chunk_indexes(indexes)
+        if problem is not None:
+            self.summary_problem = problem
             return False
         self.profile, self.library = header.profile, header.library
         for channel in summary.channels.values():
             self.topics[channel.id] = self._topic(channel, summary.schemas)
-        self._indexes = sorted(summary.chunk_indexes, key=lambda c: c.chunk_start_offset)
+        self._indexes = indexes
         # A chunk without message indexes may hold any channel (None: always read it).
         self._chunks = [(c.chunk_start_offset, frozenset(c.message_index_offsets) or None) for c in self._indexes]
         statistics = summary.statistics
@@ -166,9 +246,29 @@ class McapFile:
                                                   statistics.message_end_time if last is None else last)
         for index in summary.metadata_indexes:
             if index.name == 'rosbag2':
-                body = self._map[index.offset + 9:index.offset + index.length]
-                self._keep_rosbag2_metadata(_read_record(body, Metadata))
+                body = self._record_body(index.offset, Opcode.METADATA, f'{self.path} metadata record')
+                self._keep_rosbag2_metadata(_read_record(body, Metadata, f'{self.path} at byte {index.offset}'))
         return True
+
+    def _check_chunk_indexes(self, indexes: list) -> str | None:
+        """What is wrong with the summary's chunk indexes (each must point at a chunk and its message indexes)."""
+        for index in indexes:
+            offset = index.chunk_start_offset
+            if offset + 9 > self.size or self._map[offset] != Opcode.CHUNK:
+                return f'chunk index points at byte {offset}, where no chunk starts'
+            for message_index in index.message_index_offsets.values():
+                if message_index + 9 + _INDEX_HEAD.size > self.size:
+                    return f'message index offset {message_index} outside the file'
+        return None
+
+    def _record_body(self, offset: int, opcode: int, what: str) -> memoryview:
+        """The body of the record at `offset`, which must be of the given kind and lie inside the file."""
+        if offset + 9 > self.size or self._map[offset] != opcode:
+            raise BagError(f'{what} at byte {offset}: no such record there')
+        (length,) = _U64.unpack_from(self._map, offset + 1)
+        if offset + 9 + length > self.size:
+            raise BagError(f'{what} at byte {offset}: runs past the end of the file')
+        return memoryview(self._map)[offset + 9:offset + 9 + length]
 
     def _time_range(self, channel_id: int) -> tuple[int | None, int | None]:
         """First and last log_time of a channel from the message indexes of the chunks at the ends (None without)."""
@@ -177,20 +277,26 @@ class McapFile:
         for chunk in sorted(chunks, key=lambda c: c.message_start_time):
             if first is not None and chunk.message_start_time >= first:
                 break
-            earliest = int(self._index_times(chunk.message_index_offsets[channel_id]).min())
+            earliest = int(self._index_times(chunk, channel_id).min(initial=chunk.message_end_time))
             first = earliest if first is None else min(first, earliest)
         for chunk in sorted(chunks, key=lambda c: -c.message_end_time):
             if last is not None and chunk.message_end_time <= last:
                 break
-            latest = int(self._index_times(chunk.message_index_offsets[channel_id]).max())
+            latest = int(self._index_times(chunk, channel_id).max(initial=chunk.message_start_time))
             last = latest if last is None else max(last, latest)
         return first, last
 
-    def _index_times(self, offset: int) -> np.ndarray:
-        """The log_times of a Message Index record (entries are log_time, offset pairs)."""
-        _, length = _INDEX_HEAD.unpack_from(self._map, offset + 9)
-        start = offset + 9 + _INDEX_HEAD.size
-        return np.frombuffer(self._map, dtype='<u8', count=length // 8, offset=start)[::2]
+    def _index_times(self, chunk: object, channel_id: int) -> np.ndarray:
+        """The log_times of a Message Index record (entries are log_time, offset pairs), checked against its chunk."""
+        offset = chunk.message_index_offsets[channel_id]
+        body = self._record_body(offset, Opcode.MESSAGE_INDEX, f'{self.path}: message index')
+        indexed_channel, length = _INDEX_HEAD.unpack_from(body)
+        if indexed_channel != channel_id or length % 16 or _INDEX_HEAD.size + length > len(body):
+            raise BagError(f'{self.path}: message index at byte {offset} is corrupt')
+        times = np.frombuffer(body, dtype='<u8', count=length // 8, offset=_INDEX_HEAD.size)[::2]
+        if len(times) and (times.min() < chunk.message_start_time or times.max() > chunk.message_end_time):
+            raise BagError(f'{self.path}: message index at byte {offset} has times outside its chunk')
+        return times
 
     def _scan(self) -> None:
         """Without a summary: walk every complete record once to find topics and counts."""
@@ -210,17 +316,23 @@ class McapFile:
 
     def _topic(self, channel: Channel, schemas: dict[int, Schema]) -> Topic:
         schema = schemas.get(channel.schema_id)
-        if schema is None:
+        if schema is None and channel.schema_id != 0:  # 0: a channel without schema (MCAP allows it)
             raise BagError(f'{self.path}: topic {channel.topic} has no schema (id {channel.schema_id})')
-        return Topic(channel.topic, schema.name, schema.encoding, schema.data.decode('utf-8', 'replace'),
-                     channel.metadata.get('offered_qos_profiles', ''), channel.metadata.get('topic_type_hash', ''))
+        return Topic(channel.topic, schema.name if schema else '', schema.encoding if schema else '',
+                     schema.data.decode('utf-8', 'replace') if schema else '',
+                     channel.metadata.get('offered_qos_profiles', ''), channel.metadata.get('topic_type_hash', ''),
+                     message_encoding=channel.message_encoding)
 
     def _keep_rosbag2_metadata(self, record: Metadata) -> None:
-        if record.name == 'rosbag2':
-            try:
-                self.rosbag2_metadata = yaml.safe_load(record.metadata.get('serialized_metadata', '')) or {}
-            except yaml.YAMLError:
-                self.rosbag2_metadata = {}
+        """rosbag2's metadata record (for the ROS distro); an unreadable one is ignored, as it is optional."""
+        text = record.metadata.get('serialized_metadata', '') if record.name == 'rosbag2' else ''
+        if not text or len(text) > MAX_METADATA_BYTES:
+            return
+        try:
+            document = load_yaml(text, str(self.path))
+        except BagError:
+            return
+        self.rosbag2_metadata = document if isinstance(document, dict) else {}
 
     # -- reading ------------------------------------------------------------------------------
 
@@ -231,10 +343,10 @@ class McapFile:
             return
         for offset, channels in self._chunks:
             if channel_ids is None or channels is None or not channels.isdisjoint(channel_ids):
-                yield from self._walk_chunk(offset, channel_ids)
+                yield from self._walk_chunk(offset, self.size, channel_ids)
 
     def _walk(self, channel_ids: frozenset[int] | None) -> Iterator[tuple]:
-        """Top-level records from the start; stops at the footer or at the first incomplete record."""
+        """Top-level records from the start; stops at the data end or at the first incomplete record."""
         data, size = self._map, self.size
         schemas: dict[int, Schema] = {}
         position = len(MAGIC)
@@ -244,59 +356,97 @@ class McapFile:
             if end > size:
                 self.ignored_bytes = size - position
                 break
-            if opcode == Opcode.FOOTER:
+            if opcode in (Opcode.FOOTER, Opcode.DATA_END):
                 break
             if opcode == Opcode.CHUNK:
-                yield from self._walk_chunk(position, channel_ids, schemas)
+                yield from self._walk_chunk(position, end, channel_ids, schemas)
             elif opcode == Opcode.HEADER:
-                self.profile, self.library = self._strings(position + 9, 2)
+                self.profile, self.library = self._strings(position + 9, end, 2)
             elif opcode == Opcode.METADATA:
-                self._keep_rosbag2_metadata(_read_record(data[position + 9:end], Metadata))
+                self._keep_rosbag2_metadata(_read_record(data[position + 9:end], Metadata,
+                                                         f'{self.path} at byte {position}'))
             else:
-                yield from self._walk_records(data, position, end, channel_ids, schemas)
+                yield from self._walk_records(data, position, end, channel_ids, schemas, position)
             position = end
 
-    def _strings(self, offset: int, count: int) -> list[str]:
+    def _strings(self, offset: int, end: int, count: int) -> list[str]:
         found = []
         for _ in range(count):
-            (length,) = struct.unpack_from('<I', self._map, offset)
+            if offset + 4 > end:
+                raise BagError(f'{self.path}: header record cut short at byte {offset}')
+            (length,) = _U32.unpack_from(self._map, offset)
+            if offset + 4 + length > end:
+                raise BagError(f'{self.path}: header record cut short at byte {offset}')
             found.append(self._map[offset + 4:offset + 4 + length].decode('utf-8', 'replace'))
             offset += 4 + length
         return found
 
-    def _walk_chunk(self, offset: int, channel_ids: frozenset[int] | None,
+    def _walk_chunk(self, offset: int, limit: int, channel_ids: frozenset[int] | None,
                     schemas: dict[int, Schema] | None = None) -> Iterator[tuple]:
-        data = self._map
-        _, _, size, _, name_length = _CHUNK.unpack_from(data, offset + 9)
+        """The messages of the chunk record at `offset`, which must end by `limit`."""
+        data, where = self._map, f'{self.path}: chunk at byte {offset}'
+        if offset + 9 + _CHUNK.size > limit or data[offset] != Opcode.CHUNK:
+            raise BagError(f'{where}: no chunk there')
+        (length,) = _U64.unpack_from(data, offset + 1)
+        end = offset + 9 + length
+        if end > limit:
+            raise BagError(f'{where}: runs past the end of the file')
+        _, _, size, crc, name_length = _CHUNK.unpack_from(data, offset + 9)
         position = offset + 9 + _CHUNK.size
-        compression = data[position:position + name_length].decode()
+        if position + name_length + 8 > end:
+            raise BagError(f'{where}: corrupt chunk header')
+        try:
+            compression = data[position:position + name_length].decode()
+        except UnicodeDecodeError:
+            raise BagError(f'{where}: corrupt chunk header (compression name is not text)') from None
         position += name_length
-        (records_length,) = struct.unpack_from('<Q', data, position)
+        (records_length,) = _U64.unpack_from(data, position)
+        if position + 8 + records_length > end:
+            raise BagError(f'{where}: its records run past the end of the chunk')
         records = memoryview(data)[position + 8:position + 8 + records_length]
-        where = f'{self.path} chunk at byte {offset}'
         buffer = _decompress(compression, records, size, where)
-        yield from self._walk_records(buffer, 0, len(buffer), channel_ids, schemas if schemas is not None else {})
+        if crc and zlib.crc32(buffer) != crc:
+            raise BagError(f'{where}: chunk fails its CRC (the file is corrupt)')
+        yield from self._walk_records(buffer, 0, len(buffer), channel_ids,
+                                      schemas if schemas is not None else {}, offset)
 
     def _walk_records(self, buffer: bytes, position: int, end: int, channel_ids: frozenset[int] | None,
-                      schemas: dict[int, Schema]) -> Iterator[tuple]:
-        """Messages between two offsets of a buffer; schemas and channels met on the way are registered."""
+                      schemas: dict[int, Schema], where: int) -> Iterator[tuple]:
+        """Messages between two offsets of a buffer; schemas and channels met on the way are registered.
+
+        Each message comes with a view of the buffer that ends where the message does.
+        """
         unpack_message, unpack_record = _MESSAGE.unpack_from, _RECORD.unpack_from
-        topics = self.topics
+        topics, view = self.topics, memoryview(buffer)
         while position < end:
-            if buffer[position] == Opcode.MESSAGE:
+            if buffer[position] == Opcode.MESSAGE and position + MESSAGE_HEAD <= end:
                 _, length, channel_id, _, log_time, publish_time = unpack_message(buffer, position)
+                record_end = position + 9 + length
+                if record_end > end or length < _MESSAGE_FIELDS:
+                    raise BagError(f'{self.path}: record {position} bytes into the chunk or file part at byte '
+                                   f'{where} runs past its end')
                 if channel_ids is None or channel_id in channel_ids:
-                    yield (topics[channel_id].name, log_time, publish_time,
-                           buffer, position + MESSAGE_HEAD, position + 9 + length)
-            else:
-                opcode, length = unpack_record(buffer, position)
-                if opcode == Opcode.SCHEMA:
-                    schema = _read_record(buffer[position + 9:position + 9 + length], Schema)
-                    schemas[schema.id] = schema
-                elif opcode == Opcode.CHANNEL and self._chunks is None:
-                    channel = _read_record(buffer[position + 9:position + 9 + length], Channel)
-                    topics.setdefault(channel.id, self._topic(channel, schemas))
-            position += 9 + length
+                    topic = topics.get(channel_id)
+                    if topic is None:
+                        raise BagError(f'{self.path}: a message at byte {where} + {position} is on channel '
+                                       f'{channel_id}, which the file does not define')
+                    yield topic.name, log_time, publish_time, view[:record_end], position + MESSAGE_HEAD, record_end
+                position = record_end
+                continue
+            if position + 9 > end:
+                raise BagError(f'{self.path}: record cut short {position} bytes into the part at byte {where}')
+            opcode, length = unpack_record(buffer, position)
+            record_end = position + 9 + length
+            if record_end > end or opcode == Opcode.MESSAGE:
+                raise BagError(f'{self.path}: record {position} bytes into the chunk or file part at byte '
+                               f'{where} runs past its end')
+            if opcode == Opcode.SCHEMA:
+                schema = _read_record(buffer[position + 9:record_end], Schema, f'{self.path} at byte {where}')
+                schemas[schema.id] = schema
+            elif opcode == Opcode.CHANNEL and self._chunks is None:
+                channel = _read_record(buffer[position + 9:record_end], Channel, f'{self.path} at byte {where}')
+                topics.setdefault(channel.id, self._topic(channel, schemas))
+            position = record_end
 
 
 class Bag:
@@ -306,7 +456,15 @@ class Bag:
         self.path = Path(path)
         if not self.path.exists():
             raise BagError(f'{self.path}: no such bag folder or file')
-        self.files = [McapFile(p) for p in self._file_paths()]
+        if not self.path.is_dir() and not self.path.is_file():
+            raise BagError(f'{self.path}: neither a bag folder nor a regular file')
+        self.files: list[McapFile] = []
+        try:
+            for file_path in self._file_paths():
+                self.files.append(McapFile(file_path))
+        except BaseException:
+            self.close()
+            raise
         self.topics: dict[str, Topic] = {}
         for file in self.files:
             for topic in file.topics.values():
@@ -320,16 +478,12 @@ class Bag:
             return [self.path]
         metadata = self.path / 'metadata.yaml'
         if metadata.is_file():
-            try:
-                info = yaml.safe_load(metadata.read_text())['rosbag2_bagfile_information']
-                paths = [self.path / name for name in info['relative_file_paths']]
-            except (yaml.YAMLError, KeyError, TypeError) as error:
-                raise BagError(f'{metadata}: not a rosbag2 metadata file ({error})') from None
+            paths = [self.path / name for name in _relative_file_paths(metadata)]
             missing = [str(p) for p in paths if not p.is_file()]
             if missing:
                 raise BagError(f'{metadata} lists files that do not exist: {", ".join(missing)}')
             return paths
-        paths = sorted(self.path.glob('*.mcap'))
+        paths = sorted(p for p in self.path.glob('*.mcap') if p.is_file())
         if not paths:
             raise BagError(f'{self.path}: no .mcap file in this folder')
         return paths
@@ -338,6 +492,9 @@ class Bag:
         return self
 
     def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    def close(self) -> None:
         for file in self.files:
             file.close()
 
@@ -362,7 +519,9 @@ class Bag:
         return sum(f.size for f in self.files)
 
     def topics_of_type(self, type_name: str) -> list[Topic]:
-        return [t for t in self.topics.values() if t.type_name == type_name and t.message_count]
+        """CDR topics of a ROS type that have messages."""
+        return [t for t in self.topics.values()
+                if t.type_name == type_name and t.message_count and t.message_encoding == 'cdr']
 
     def iter_raw(self, topics: Iterable[str] | None = None) -> Iterator[RawMessage]:
         """Messages of some topics (all when None) without copying: decode ``buffer[start:end]``."""
@@ -374,3 +533,29 @@ class Bag:
     def messages(self, topics: Iterable[str] | None = None) -> Iterator[BagMessage]:
         for topic, log_time, publish_time, buffer, start, end in self.iter_raw(topics):
             yield BagMessage(topic, log_time, publish_time, bytes(buffer[start:end]))
+
+
+def _relative_file_paths(metadata: Path) -> list[str]:
+    """The MCAP files a metadata.yaml lists, each a plain relative name."""
+    try:
+        size = metadata.stat().st_size
+        if size > MAX_METADATA_BYTES:
+            raise BagError(f'{metadata}: {size} bytes, too large for a rosbag2 metadata file '
+                           f'(at most {MAX_METADATA_BYTES})')
+        data = metadata.read_bytes()
+    except OSError as error:
+        raise BagError(f'{metadata}: {error.strerror}') from None
+    try:
+        text = data.decode('utf-8')
+    except UnicodeDecodeError as error:
+        raise BagError(f'{metadata}: not a text file (byte {error.start} is not UTF-8)') from None
+    document = load_yaml(text, str(metadata))
+    info = document.get('rosbag2_bagfile_information') if isinstance(document, dict) else None
+    names = info.get('relative_file_paths') if isinstance(info, dict) else None
+    if not isinstance(names, list) or not all(isinstance(n, str) and n for n in names):
+        raise BagError(f'{metadata}: not a rosbag2 metadata file (no rosbag2_bagfile_information.'
+                       'relative_file_paths list of file names)')
+    for name in names:
+        if PurePath(name).is_absolute() or '..' in PurePath(name).parts or '\0' in name:
+            raise BagError(f'{metadata}: relative_file_paths entry {name!r} is not a file inside the bag folder')
+    return names

@@ -4,8 +4,10 @@
 schema per type, ``cdr`` channels carrying ``offered_qos_profiles`` and ``topic_type_hash``,
 chunks with message indexes, the ``rosbag2`` metadata record at open and at close. Every
 completed chunk goes straight to the OS, so a recorder killed outright leaves a file whose
-complete chunks are still readable. `BackgroundWriter` moves the writing to its own thread
-so subscription callbacks only enqueue.
+complete chunks are still readable, and so does a write that fails (a full disk): the file is
+then left as it is, without a summary and without metadata.yaml, which `bag info` reads up to its
+last complete chunk. `BackgroundWriter` moves the writing to its own thread so subscription
+callbacks only enqueue.
 """
 from __future__ import annotations
 
@@ -33,6 +35,10 @@ ROS_DISTRO = os.environ.get('ROS_DISTRO', 'jazzy')
 
 class BagExistsError(FileExistsError):
     """The output folder already exists: recording never overwrites a bag."""
+
+
+class BagWriteError(RuntimeError):
+    """Writing the bag failed (a full disk, a file size limit); what was written before stays readable."""
 
 
 @dataclass
@@ -183,13 +189,25 @@ class BagWriter:
         if self._closed:
             return
         self._closed = True
-        self._mcap.flush()
-        metadata = self.metadata()
-        self._mcap.add_metadata('rosbag2', {'serialized_metadata': dump_yaml(metadata)})
-        self._mcap.finish()
+        try:
+            self._mcap.flush()
+            metadata = self.metadata()
+            self._mcap.add_metadata('rosbag2', {'serialized_metadata': dump_yaml(metadata)})
+            self._mcap.finish()
+        finally:
+            self._file.close()
+        # Written whole or not at all: a half-written metadata.yaml would hide the readable MCAP file.
+        partial = self.path / 'metadata.yaml.part'
+        try:
+            partial.write_text(dump_yaml({'rosbag2_bagfile_information': metadata}), encoding='utf-8')
+            os.replace(partial, self.path / 'metadata.yaml')
+        finally:
+            partial.unlink(missing_ok=True)
+
+    def abort(self) -> None:
+        """Stop after a failed write: close the file as it is (its complete chunks stay readable)."""
+        self._closed = True
         self._file.close()
-        (self.path / 'metadata.yaml').write_text(
-            dump_yaml({'rosbag2_bagfile_information': metadata}), encoding='utf-8')
 
 
 @dataclass
@@ -220,28 +238,33 @@ class BackgroundWriter:
     def add_topic(self, name: str, type_name: str, qos_profiles: list[QosProfile]) -> None:
         self._queue.put(_Topic(name, type_name, qos_profiles))
 
+    @property
+    def error(self) -> BaseException | None:
+        """What made writing fail, if it did; messages written after that are dropped."""
+        return self._error
+
     def write(self, topic: str, data: bytes, log_time: int, publish_time: int | None = None) -> None:
-        if self._error is not None:
-            raise RuntimeError(f'bag writing failed: {self._error}') from self._error
-        self._queue.put((topic, data, log_time, publish_time))
+        if self._error is None:
+            self._queue.put((topic, data, log_time, publish_time))
 
     def close(self) -> None:
-        """Write everything queued, finish the bag; raises what went wrong in the thread, if anything."""
+        """Write everything queued, finish the bag; raises BagWriteError if writing failed at any point."""
         self._queue.put(_STOP)
         self._thread.join()
         if self._error is not None:
-            raise RuntimeError(f'bag writing failed: {self._error}') from self._error
+            raise BagWriteError(f'bag writing failed: {self._error}') from self._error
 
     def _run(self) -> None:
         try:
             self._drain()
         except BaseException as error:  # kept for the producer: a thread cannot raise to it
             self._error = error
-        finally:
-            try:
-                self.writer.close()
-            except BaseException as error:
-                self._error = self._error or error
+            self.writer.abort()
+            return
+        try:
+            self.writer.close()
+        except BaseException as error:
+            self._error = error
 
     def _drain(self) -> None:
         writer, get = self.writer, self._queue.get

@@ -7,11 +7,17 @@ seconds, so topics that appear later are recorded too. Messages are subscribed r
 bytes go to the bag untouched — with a QoS that matches every publisher, and a thread writes
 the bag so callbacks only enqueue. log_time is the node's clock (simulated time under
 ``use_sim_time``); publish_time is the publisher's source timestamp, as rosbag2 records them.
+
+At the end it says what may be missing: samples DDS reported lost (message-lost events) and gaps
+in the header stamps of the bag it wrote (`epuck_ros.bag.gaps`, the same check as ``bag info``).
+If the bag cannot be written (a full disk), it stops with one line and exit code 1; the bag then
+holds every chunk completed before the failure.
 """
 from __future__ import annotations
 
 import argparse
 import importlib
+import math
 import signal
 import sys
 import time
@@ -21,22 +27,27 @@ from pathlib import Path
 import rclpy
 from rclpy.clock import Clock, ClockType
 from rclpy.exceptions import InvalidTopicNameException
-from rclpy.executors import ExternalShutdownException
+from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.event_handler import QoSMessageLostInfo, SubscriptionEventCallbacks, UnsupportedEventTypeError
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
-from rclpy.task import Future
 from rclpy.topic_or_service_is_hidden import topic_or_service_is_hidden
 from rclpy.utilities import remove_ros_args
 from rclpy.validate_topic_name import validate_topic_name
 
+from epuck_ros.bag.gaps import bag_gaps
 from epuck_ros.bag.qos import QosProfile
-from epuck_ros.bag.writer import COMPRESSIONS, BackgroundWriter, BagExistsError, BagWriter
+from epuck_ros.bag.reader import Bag, BagError
+from epuck_ros.bag.writer import COMPRESSIONS, BackgroundWriter, BagExistsError, BagWriteError, BagWriter
 
 DISCOVERY_PERIOD = 0.2
 """s of wall time between two looks at the graph (rosbag2 polls every 0.1 s)."""
 SUBSCRIPTION_DEPTH = 1000
 """Messages DDS may hold for the recorder while it is busy: bursts must never overflow it."""
+NOTHING_RECORDED_WARNING = 5.0
+"""s of wall time without a single message before `record` says it may be on the wrong domain."""
 DEFAULT_BAG_FOLDER = Path('bags')
+EXIT_WRITE_FAILED = 1
 
 
 def default_output() -> Path:
@@ -85,15 +96,30 @@ class Recorder(Node):
         self._before_clock: list[tuple[str, bytes, int]] = []
         self._recording: set[str] = set()
         self._skipped: set[str] = set()
-        self.done = Future()
-        """Completes when --max-duration of the node's clock has been recorded."""
+        self._lost: dict[str, int] = {}
+        """Samples DDS reported lost per topic (message-lost events)."""
+        self.received = 0
+        self.domain_id = self.context.get_domain_id()
+        self._started = time.monotonic()
+        self._warned_idle = False
+        self.failure: str | None = None
+        """Why recording had to stop (the bag could not be written); None while all is well."""
+        self.finished = False
+        """True once --max-duration of the node's clock has been recorded. A plain flag, not a Future:
+        rclpy 7.1's spin_until_future_complete adds a callback to the future on every spin, so a
+        recording of N messages would keep N callbacks alive (ros2/rclpy#1371)."""
         # A steady-clock timer: discovery must run before /clock ticks under use_sim_time.
         self.create_timer(DISCOVERY_PERIOD, self._discover, clock=Clock(clock_type=ClockType.STEADY_TIME))
         self._discover()
-        self.get_logger().info(f'Recording to {writer.path}: '
+        self.get_logger().info(f'Recording to {writer.path} on ROS_DOMAIN_ID={self.domain_id}: '
                                f'{"all topics" if self._wanted is None else ", ".join(sorted(self._wanted))}')
 
     def _discover(self) -> None:
+        if self._bag.error is not None:
+            self.failure = f'{self._bag.writer.path}: bag writing failed: {self._bag.error}'
+            self.finished = True
+            return
+        self._warn_if_idle()
         for topic, types in self.get_topic_names_and_types():
             if topic in self._recording or topic in self._skipped:
                 continue
@@ -117,15 +143,37 @@ class Recorder(Node):
             return
         self._recording.add(topic)
         self._bag.add_topic(topic, types[0], [offered_profile(q) for q in offered])
-        self.create_subscription(msg_class, topic, partial(self._on_message, topic),
-                                 subscription_qos(offered), raw=True)
+        events = SubscriptionEventCallbacks(message_lost=partial(self._on_lost, topic))
+        try:
+            self.create_subscription(msg_class, topic, partial(self._on_message, topic),
+                                     subscription_qos(offered), raw=True, event_callbacks=events)
+        except UnsupportedEventTypeError:  # an RMW without message-lost events: stamp gaps still tell
+            self.create_subscription(msg_class, topic, partial(self._on_message, topic),
+                                     subscription_qos(offered), raw=True)
         self.get_logger().info(f'subscribed to {topic} ({types[0]})')
+
+    def _on_lost(self, topic: str, info: QoSMessageLostInfo) -> None:
+        self._lost[topic] = self._lost.get(topic, 0) + info.total_count_change
+
+    def _warn_if_idle(self) -> None:
+        if self._warned_idle or self.received or time.monotonic() - self._started < NOTHING_RECORDED_WARNING:
+            return
+        self._warned_idle = True
+        if self._recording:
+            self.get_logger().warning(
+                f'no message on {", ".join(sorted(self._recording))} after {NOTHING_RECORDED_WARNING:.0f} s '
+                f'on ROS_DOMAIN_ID={self.domain_id}; is the simulator running?')
+        else:
+            wanted = 'no topics seen' if self._wanted is None else f'none of {", ".join(sorted(self._wanted))} seen'
+            self.get_logger().warning(f'{wanted} on ROS_DOMAIN_ID={self.domain_id} after '
+                                      f'{NOTHING_RECORDED_WARNING:.0f} s; is the simulator on this domain?')
 
     def _skip(self, topic: str, reason: str) -> None:
         self._skipped.add(topic)
         self.get_logger().warning(f'not recording {topic}: {reason}')
 
     def _on_message(self, topic: str, data: bytes, info: dict) -> None:
+        self.received += 1
         now = self.get_clock().now().nanoseconds
         if self._use_sim_time and now == 0:
             # Before the first /clock tick sim time reads 0 (rosbag2 #764): hold the message
@@ -137,8 +185,8 @@ class Recorder(Node):
         self._bag.write(topic, data, now, info.get('source_timestamp') or now)
         if self._max_duration_ns is not None:
             self._first_ns = now if self._first_ns is None else self._first_ns
-            if now - self._first_ns >= self._max_duration_ns and not self.done.done():
-                self.done.set_result(True)
+            if now - self._first_ns >= self._max_duration_ns:
+                self.finished = True
 
     def _write_held(self, stamp: int) -> None:
         for topic, data, published in self._before_clock:
@@ -146,13 +194,33 @@ class Recorder(Node):
         self._before_clock.clear()
 
     def close(self) -> None:
-        """Write what is queued, the MCAP summary and metadata.yaml."""
+        """Write what is queued, the MCAP summary and metadata.yaml; then say what may be missing."""
         if self._before_clock:  # nothing came after the first /clock tick, or no tick at all
             self._write_held(self.get_clock().now().nanoseconds or time.time_ns())
         self._bag.close()
         writer = self._bag.writer
         self.get_logger().info(f'wrote {writer.times.count} messages on {len(writer.topics)} topics '
                                f'to {writer.path}')
+        for line in self.loss_report():
+            if line.startswith('lost'):
+                self.get_logger().warning(line)
+            else:
+                self.get_logger().info(line)
+
+    def loss_report(self) -> list[str]:
+        """Lines on lost samples (DDS events) and stamp gaps in the bag just written."""
+        lost = {topic: count for topic, count in sorted(self._lost.items()) if count}
+        lines = [f'lost {count} samples on {topic} (DDS message-lost events)' for topic, count in lost.items()]
+        try:
+            with Bag(self._bag.writer.path) as bag:
+                checked, gaps = bag_gaps(bag)
+        except BagError as error:
+            return [*lines, f'lost: cannot check the stamps of the bag: {error}']
+        lines += [f'lost: {topic_gaps.describe()}' for topic_gaps in gaps]
+        if not lines:
+            lines.append(f'no message lost: no DDS message-lost event, no gap in the stamps of {len(checked)} '
+                         'stamped topics')
+        return lines
 
 
 def parse_arguments(argv: list[str]) -> argparse.Namespace:
@@ -166,8 +234,8 @@ def parse_arguments(argv: list[str]) -> argparse.Namespace:
     parser.add_argument('--max-duration', type=float, metavar='SECONDS',
                         help="stop after this long on the node's clock (simulated time with use_sim_time)")
     options = parser.parse_args(argv)
-    if options.max_duration is not None and not options.max_duration > 0:
-        parser.error(f'--max-duration must be a positive number of seconds, not {options.max_duration}')
+    if options.max_duration is not None and not 0 < options.max_duration < math.inf:
+        parser.error(f'--max-duration must be a finite positive number of seconds, not {options.max_duration}')
     for topic in options.topics:
         try:
             validate_topic_name(topic)
@@ -186,19 +254,36 @@ def main(args: list[str] | None = None) -> None:
         raise SystemExit(2)
     rclpy.init(args=argv)
     node = None
+    failure = None
     try:
         node = Recorder(writer, options.topics, options.max_duration)
-        rclpy.spin_until_future_complete(node, node.done)
+        spin_until_finished(node)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     finally:
         signal.signal(signal.SIGINT, signal.SIG_IGN)  # a second Ctrl-C must not cut the bag short
-        if node is None:
-            writer.close()
-        else:
-            node.close()
+        try:
+            if node is None:
+                writer.close()
+            else:
+                failure = node.failure
+                node.close()
+        except (BagWriteError, OSError) as error:
+            failure = failure or f'{writer.path}: {error}'
+        if node is not None:
             node.destroy_node()
         rclpy.try_shutdown()
+    if failure is not None:
+        print(f'record: error: {failure}; the bag keeps every chunk completed before it', file=sys.stderr)
+        raise SystemExit(EXIT_WRITE_FAILED)
+
+
+def spin_until_finished(node: Recorder) -> None:
+    """Spin until --max-duration is reached, the bag cannot be written, or the context shuts down."""
+    executor = SingleThreadedExecutor()
+    executor.add_node(node)
+    while not node.finished and rclpy.ok():
+        executor.spin_once()
 
 
 if __name__ == '__main__':

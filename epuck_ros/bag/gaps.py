@@ -1,0 +1,108 @@
+"""Messages a recording may have missed, found from each topic's header stamps.
+
+A topic published once per simulation step (or at any steady rate) has stamps one period apart,
+each shared by the same number of messages (8 Range messages per step on ``proximity``). A stamp
+step much longer than the usual period is a gap (whole steps missing); a stamp carried by fewer
+messages than usual is an incomplete step. The usual period and count are medians, so they hold
+as long as most of the topic arrived. Topics without a stamp first (no ``std_msgs/Header`` or
+``builtin_interfaces/Time`` as their first field) cannot be judged and are skipped. No ROS needed.
+"""
+from __future__ import annotations
+
+import re
+import struct
+from dataclasses import dataclass
+
+import numpy as np
+
+from epuck_ros.bag.cdr import CDR_BE, CDR_LE, ENCAPSULATION
+from epuck_ros.bag.reader import Bag, Topic
+
+GAP_FACTOR = 1.5
+"""A stamp step longer than this many usual periods is a gap."""
+_STAMP_TYPES = ('Header', 'std_msgs/Header', 'std_msgs/msg/Header',
+                'builtin_interfaces/Time', 'builtin_interfaces/msg/Time')
+_FIRST_FIELD = re.compile(r'^\s*([A-Za-z0-9_/]+)\s+\w+\s*(?:#.*)?$', re.MULTILINE)
+_STAMP = {CDR_LE: struct.Struct('<iI'), CDR_BE: struct.Struct('>iI')}
+
+
+@dataclass(frozen=True)
+class TopicGaps:
+    """What the stamps of one topic say about missing messages."""
+
+    topic: str
+    messages: int
+    period_ns: int
+    per_stamp: int
+    gaps: int
+    missing_steps: int
+    longest_gap_ns: int
+    incomplete_steps: int
+    missing_in_steps: int
+
+    @property
+    def missing_messages(self) -> int:
+        """Estimated messages missing: whole steps times the usual count, plus the holes in incomplete steps."""
+        return self.missing_steps * self.per_stamp + self.missing_in_steps
+
+    def describe(self) -> str:
+        parts = []
+        if self.gaps:
+            parts.append(f'{self.gaps} stamp gap{"s" * (self.gaps > 1)} ({self.missing_steps} periods missing, '
+                         f'longest {self.longest_gap_ns / 1e9:.3f} s)')
+        if self.incomplete_steps:
+            parts.append(f'{self.incomplete_steps} stamp{"s" * (self.incomplete_steps > 1)} with fewer than '
+                         f'{self.per_stamp} messages')
+        found = '; '.join(parts) or 'no gap'
+        return (f'{self.topic}: ~{self.missing_messages} of {self.messages + self.missing_messages} messages '
+                f'missing: {found} (usual period {self.period_ns / 1e9:.3f} s, {self.per_stamp} per stamp)')
+
+
+def is_stamped(topic: Topic) -> bool:
+    """Whether the topic's first field is a header or a time (its stamp sits right after the encapsulation)."""
+    if topic.schema_encoding != 'ros2msg':
+        return False
+    match = _FIRST_FIELD.search(topic.schema_text.split('\n===', 1)[0])
+    return match is not None and match.group(1) in _STAMP_TYPES
+
+
+def find_gaps(topic: str, stamps: np.ndarray) -> TopicGaps | None:
+    """Gaps in stamps given in arrival order; None when there are too few distinct stamps to judge."""
+    if len(stamps) < 3:
+        return None
+    starts = np.flatnonzero(np.concatenate(([True], stamps[1:] != stamps[:-1])))
+    counts = np.diff(np.append(starts, len(stamps)))
+    steps = np.diff(stamps[starts])
+    forward = steps[steps > 0]  # a step back is a restart (reset, a new run), not a loss
+    if len(forward) < 2:
+        return None
+    period = int(np.median(forward))
+    per_stamp = max(1, int(np.median(counts)))
+    long_steps = forward[forward > GAP_FACTOR * period]
+    missing_steps = int(np.sum(np.rint(long_steps / period) - 1)) if len(long_steps) else 0
+    inner = counts[1:-1]  # the first and last stamp may be cut by the start and end of the recording
+    short = inner[inner < per_stamp]
+    return TopicGaps(topic, int(len(stamps)), period, per_stamp, int(len(long_steps)), missing_steps,
+                     int(long_steps.max()) if len(long_steps) else 0, int(len(short)),
+                     int(np.sum(per_stamp - short)))
+
+
+def stamp_of(buffer: bytes, start: int, end: int) -> int | None:
+    """The stamp (ns) at the start of a stamped message; None when the data is too short or not CDR."""
+    unpack = _STAMP.get(buffer[start + 1]) if end - start >= ENCAPSULATION + 8 else None
+    if unpack is None:
+        return None
+    sec, nanosec = unpack.unpack_from(buffer, start + ENCAPSULATION)
+    return sec * 1_000_000_000 + nanosec
+
+
+def bag_gaps(bag: Bag) -> tuple[list[str], list[TopicGaps]]:
+    """(stamped topics checked, those with gaps) of a bag, reading the 8 stamp bytes of each message."""
+    checked = sorted(name for name, topic in bag.topics.items() if topic.message_count >= 3 and is_stamped(topic))
+    stamps: dict[str, list[int]] = {name: [] for name in checked}
+    for name, _, _, buffer, start, end in bag.iter_raw(checked):
+        stamp = stamp_of(buffer, start, end)
+        if stamp is not None:
+            stamps[name].append(stamp)
+    found = (find_gaps(name, np.array(values, dtype=np.int64)) for name, values in stamps.items())
+    return checked, [gaps for gaps in found if gaps is not None and gaps.missing_messages]
