@@ -1,0 +1,213 @@
+"""The view without ROS: the state it draws, the actions it accepts, and its HTTP server over a real socket."""
+from __future__ import annotations
+
+import http.client
+import json
+import math
+import threading
+from collections.abc import Iterator
+
+import pytest
+
+from epuck_ros.view.server import ACTIONS, Action, ActionError, ViewServer, parse_action
+from epuck_ros.view.state import ViewState, robot_topic
+from epuck_ros.world import Box, RobotStart, World
+
+THREE = World(arena_size=(1.5, 1.0), boxes=(Box(0.4, 0.3, 0.1, 0.1),),
+              robots=(RobotStart('epuck0', -0.3, 0.0, 0.0), RobotStart('epuck1', 0.1, 0.2, math.pi / 2),
+                      RobotStart('epuck2', 0.3, -0.3, 0.0)))
+
+
+# --- state ---------------------------------------------------------------------------------------------------
+
+def test_topics_are_prefixed_only_when_there_are_several_robots() -> None:
+    assert robot_topic(('epuck',), 'epuck', 'ground_truth') == 'ground_truth'
+    assert robot_topic(THREE.names, 'epuck1', 'ground_truth') == 'epuck1/ground_truth'
+
+
+def test_frame_holds_every_robot_and_the_odometry_error_in_the_world_frame() -> None:
+    state = ViewState()
+    state.set_world(THREE)
+    # epuck1 starts at (0.1, 0.2) facing +y: 0.1 m forward in its odom frame is (0.1, 0.3) in the world.
+    state.update('epuck1', pose=(0.1, 0.31, math.pi / 2 + 0.05), stamp=1.5, odom=(0.1, 0.0, 0.0),
+                 wheel_speeds=(1.0, 2.0), collisions=2)
+    state.update('nobody', pose=(0.0, 0.0, 0.0))  # not in the world: ignored
+    frame = json.loads(state.frame_json(wall_now=0.0))
+    assert sorted(frame['robots']) == ['epuck0', 'epuck1', 'epuck2']
+    robot = frame['robots']['epuck1']
+    assert robot['pose'] == [0.1, 0.31, pytest.approx(math.pi / 2 + 0.05)]
+    assert robot['stamp'] == 1.5 and robot['wheel_speeds'] == [1.0, 2.0]
+    assert robot['odom_error']['odom_in_world'] == pytest.approx([0.1, 0.3])
+    assert robot['odom_error']['distance'] == pytest.approx(0.01)
+    assert robot['odom_error']['yaw'] == pytest.approx(-0.05)
+    assert frame['collisions'] == 2
+    assert frame['robots']['epuck0']['pose'] is None
+
+
+def test_ir_readings_become_ray_lengths_through_the_lookup_table() -> None:
+    state = ViewState()
+    table = state.model.ir_table
+    state.set_world(World())
+    state.set_ir_raw('epuck', [float(table[0, 1]), float(table[3, 1]), float(table[-1, 1]), 10.0] + [0.0] * 4)
+    ranges = state.robots['epuck'].ir_range
+    assert ranges[:3] == pytest.approx([0.0, table[3, 0], table[-1, 0]])
+    assert ranges[3] == state.model.ir_range  # beyond the table's far end: drawn full length, no further
+    # A Range message of a bag without ir_raw: inf is nothing seen, drawn full length with the far raw value.
+    state.set_ir_range('epuck', 5, math.inf)
+    state.set_ir_range('epuck', 6, 0.02)
+    assert state.robots['epuck'].ir_range[5:7] == [state.model.ir_range, 0.02]
+    assert state.robots['epuck'].ir_raw[5:7] == pytest.approx([table[-1, 1], table[4, 1]])
+
+
+def test_real_time_factor_is_measured_over_the_last_second_and_falls_to_zero_when_time_stands_still() -> None:
+    state = ViewState()
+    for i in range(11):
+        state.set_clock(sim_time=0.2 * i, wall_time=100.0 + 0.1 * i)
+    assert state.real_time_factor(wall_now=101.0) == pytest.approx(2.0)
+    assert state.real_time_factor(wall_now=103.0) == 0.0
+    state.set_clock(sim_time=0.0, wall_time=103.0)  # time went back (a bag replayed): old samples dropped
+    state.set_clock(sim_time=0.5, wall_time=103.5)
+    assert state.real_time_factor(wall_now=103.5) == pytest.approx(1.0)
+
+
+def test_world_json_carries_what_the_page_draws() -> None:
+    state = ViewState()
+    state.set_world(THREE)
+    world = json.loads(state.world_json())
+    assert world['arena'] == [1.5, 1.0]
+    assert world['boxes'] == [{'x': 0.4, 'y': 0.3, 'size_x': 0.1, 'size_y': 0.1, 'yaw': 0.0}]
+    assert [r['name'] for r in world['robots']] == ['epuck0', 'epuck1', 'epuck2']
+    assert world['robots'][1]['start'] == [0.1, 0.2, pytest.approx(math.pi / 2)]
+    assert len(world['model']['sensor_poses']) == 8
+
+
+# --- actions -------------------------------------------------------------------------------------------------
+
+def test_the_page_can_ask_only_for_the_whitelisted_actions() -> None:
+    assert set(ACTIONS) == {'pause', 'step', 'reset', 'real_time_factor', 'drive'}
+    assert parse_action('/api/pause', b'{"paused": true}') == Action('pause', {'paused': True})
+    assert parse_action('/api/step', b'') == Action('step', {})
+    assert parse_action('/api/real_time_factor', b'{"value": 0}') == Action('real_time_factor', {'value': 0.0})
+    assert parse_action('/api/drive', b'{"robot": "epuck1", "linear": 0.1, "angular": -1}') == \
+        Action('drive', {'robot': 'epuck1', 'linear': 0.1, 'angular': -1.0})
+
+
+@pytest.mark.parametrize('path, body, complaint', [
+    ('/api/shutdown', b'{}', 'unknown action'),
+    ('/api/../api/step', b'{}', 'unknown action'),
+    ('/api/pause', b'{"paused": "yes"}', 'paused'),
+    ('/api/pause', b'[true]', 'JSON object'),
+    ('/api/pause', b'\xff', 'not JSON'),
+    ('/api/step', b'{"count": 3}', 'unexpected'),
+    ('/api/real_time_factor', b'{"value": NaN}', 'finite'),
+    ('/api/real_time_factor', b'{"value": -1}', 'outside'),
+    ('/api/real_time_factor', b'{"value": true}', 'finite number'),
+    ('/api/drive', b'{"robot": "epuck", "linear": 1e308, "angular": 0}', 'outside'),
+    ('/api/drive', b'{"robot": 3, "linear": 0, "angular": 0}', 'robot'),
+    ('/api/drive', b'{"robot": "epuck", "linear": 0, "angular": 0, "topic": "/x"}', 'robot'),
+])
+def test_bad_actions_are_refused_with_a_reason(path: str, body: bytes, complaint: str) -> None:
+    with pytest.raises(ActionError, match=complaint):
+        parse_action(path, body)
+
+
+# --- the server over HTTP ------------------------------------------------------------------------------------
+
+class Recorder:
+    """An ActionHandler that keeps what it was asked and refuses driving an unknown robot."""
+
+    def __init__(self) -> None:
+        self.actions: list[Action] = []
+
+    def __call__(self, action: Action) -> dict:
+        if action.name == 'drive' and action.args['robot'] != 'epuck':
+            raise ActionError('no such robot')
+        self.actions.append(action)
+        return {'done': action.name}
+
+
+@pytest.fixture
+def served() -> Iterator[tuple[ViewServer, ViewState, Recorder]]:
+    state, recorder = ViewState(), Recorder()
+    server = ViewServer('127.0.0.1', 0, state, recorder)
+    thread = threading.Thread(target=server.serve_forever, daemon=True)
+    thread.start()
+    yield server, state, recorder
+    server.close()
+    thread.join(timeout=10)
+
+
+def _request(server: ViewServer, method: str, path: str, body: bytes | None = None,
+             headers: dict | None = None) -> tuple[int, bytes, str]:
+    connection = http.client.HTTPConnection(*server.server_address[:2], timeout=10)
+    connection.request(method, path, body=body, headers=headers or {})
+    response = connection.getresponse()
+    result = response.status, response.read(), response.getheader('Content-Type', '')
+    connection.close()
+    return result
+
+
+JSON = {'Content-Type': 'application/json'}
+
+
+def test_the_page_and_its_assets_are_served_from_the_package(served) -> None:
+    server = served[0]
+    status, body, kind = _request(server, 'GET', '/')
+    assert status == 200 and kind.startswith('text/html') and b'/static/view.js' in body
+    for asset, expected_kind in (('view.js', 'text/javascript'), ('view.css', 'text/css')):
+        status, body, kind = _request(server, 'GET', f'/static/{asset}')
+        assert status == 200 and kind.startswith(expected_kind) and body
+    assert b'http' not in _request(server, 'GET', '/static/view.js')[1].replace(b'http.', b'')  # no CDN
+    for path in ('/static/../server.py', '/static/%2e%2e/server.py', '/static/missing.js', '/nothing'):
+        assert _request(server, 'GET', path)[0] == 404
+
+
+def test_actions_reach_the_handler_only_from_this_page(served) -> None:
+    server, _, recorder = served
+    body = b'{"paused": true}'
+    status, answer, _ = _request(server, 'POST', '/api/pause', body, JSON)
+    assert status == 200 and json.loads(answer) == {'done': 'pause'}
+    assert recorder.actions == [Action('pause', {'paused': True})]
+    refused = [
+        _request(server, 'POST', '/api/pause', body, {'Content-Type': 'text/plain'}),   # a cross-site form
+        _request(server, 'POST', '/api/pause', body, {**JSON, 'Origin': 'http://evil.example'}),
+        _request(server, 'POST', '/api/pause', body, {**JSON, 'Host': 'evil.example:8765'}),  # DNS rebinding
+    ]
+    assert [status for status, _, _ in refused] == [403, 403, 403]
+    status, answer, _ = _request(server, 'POST', '/api/drive', b'{"robot": "x", "linear": 0, "angular": 0}', JSON)
+    assert status == 400 and json.loads(answer) == {'error': 'no such robot'}
+    assert _request(server, 'POST', '/api/pause', b'{"paused": 1}', JSON)[0] == 400
+    assert _request(server, 'POST', '/api/step', b' ' * 5000, JSON)[0] == 400
+    assert len(recorder.actions) == 1
+
+
+def _events(response: http.client.HTTPResponse) -> Iterator[tuple[str, dict]]:
+    kind = None
+    for raw in response:
+        line = raw.decode().rstrip('\n')
+        if line.startswith('event: '):
+            kind = line[len('event: '):]
+        elif line.startswith('data: '):
+            yield kind, json.loads(line[len('data: '):])
+
+
+def test_the_event_stream_sends_the_world_then_the_newest_state(served) -> None:
+    server, state, _ = served
+    state.set_world(THREE)
+    connection = http.client.HTTPConnection(*server.server_address[:2], timeout=10)
+    connection.request('GET', '/events')
+    response = connection.getresponse()
+    assert response.getheader('Content-Type') == 'text/event-stream'
+    events = _events(response)
+    kind, world = next(events)
+    assert kind == 'world' and [r['name'] for r in world['robots']] == ['epuck0', 'epuck1', 'epuck2']
+    for i in range(1, 501):  # far faster than the stream's frame rate: the page gets the newest, not each one
+        state.update('epuck2', pose=(0.001 * i, 0.0, 0.0), stamp=0.032 * i)
+    for kind, frame in events:
+        assert kind == 'state'
+        if frame['robots']['epuck2']['stamp'] == pytest.approx(0.032 * 500):
+            break
+    assert frame['robots']['epuck2']['pose'] == [0.5, 0.0, 0.0]
+    state.set_world(World())  # a new world reaches a connected page
+    assert next(kind for kind, _ in events if kind == 'world') == 'world'
+    connection.close()
