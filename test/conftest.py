@@ -15,7 +15,7 @@ from pathlib import Path
 
 import pytest
 
-from epuck_ros.bringup import interrupt
+from epuck_ros.bringup.processes import interrupt
 
 os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
 

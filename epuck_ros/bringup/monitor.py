@@ -1,0 +1,153 @@
+"""`bringup`'s own ROS node: what the graph says (who is up, who is connected, who else is simulating)
+and what the run did (simulated time, every ground-truth sample of every robot, the sim's world).
+
+Readiness comes only from what ROS exposes (the graph, services, latched messages), never from the
+children's log lines, so rewording a log line cannot break `bringup`.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import rclpy
+import yaml
+from nav_msgs.msg import Odometry
+from rclpy.context import Context
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+from rclpy.parameter_client import AsyncParameterClient
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+from rosgraph_msgs.msg import Clock
+from std_msgs.msg import String
+
+from epuck_ros.bag.cdr import odometry_fields
+from epuck_ros.world import World, WorldError, world_from_dict
+
+SIM_NODE = 'sim'
+RECORDER_NODE = 'recorder'
+COMMAND_TOPICS = ('wheel_cmd', 'cmd_vel')
+SAMPLE_DEPTH = 10_000
+"""Ground-truth samples DDS may hold for this node while it is busy: the summary needs every step."""
+
+
+def robot_topic(world: World, robot: str, topic: str) -> str:
+    """A robot's topic relative to the simulator's namespace: plain with one robot, `<name>/topic` with several."""
+    return topic if len(world.robots) == 1 else f'{robot}/{topic}'
+
+
+@dataclass
+class RobotTrack:
+    """Every ground-truth sample of one robot: (stamp ns, x, y, yaw, v, w) rows, as the bag reader decodes them."""
+
+    name: str
+    rows: list[tuple[int, float, float, float, float, float]] = field(default_factory=list)
+
+    def add(self, data: bytes) -> None:
+        self.rows.append(odometry_fields(data, 0))
+
+
+class RunMonitor:
+    """Follows the graph, `/clock`, the sim's `world` and each robot's `ground_truth`."""
+
+    def __init__(self, namespace: str) -> None:
+        self.context = Context()
+        remap = ['-r', f'__ns:=/{namespace.strip("/")}'] if namespace else []
+        rclpy.init(args=['--ros-args', *remap], context=self.context,
+                   signal_handler_options=rclpy.signals.SignalHandlerOptions.NO)
+        self.node = Node('bringup', context=self.context, enable_rosout=False)
+        self._executor = SingleThreadedExecutor(context=self.context)
+        self._executor.add_node(self.node)
+        self.sim_time = 0.0
+        self.world: World | None = None
+        self.world_error = ''
+        self.tracks: dict[str, RobotTrack] = {}
+        self._parameters = AsyncParameterClient(self.node, SIM_NODE)
+        self.node.create_subscription(Clock, '/clock', self._on_clock, 10)
+        latched = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+        self.node.create_subscription(String, 'world', self._on_world, latched)
+
+    # --- what the run did -------------------------------------------------------------------------------
+    def _on_clock(self, msg: Clock) -> None:
+        self.sim_time = msg.clock.sec + msg.clock.nanosec * 1e-9
+
+    def _on_world(self, msg: String) -> None:
+        if self.world is not None:
+            return
+        try:
+            self.world = world_from_dict(yaml.safe_load(msg.data) or {}, source='the sim\'s world topic')
+        except (WorldError, yaml.YAMLError) as error:
+            self.world_error = str(error)
+            return
+        qos = QoSProfile(depth=SAMPLE_DEPTH, reliability=ReliabilityPolicy.RELIABLE)
+        for name in self.world.names:
+            track = self.tracks[name] = RobotTrack(name)
+            self.node.create_subscription(Odometry, robot_topic(self.world, name, 'ground_truth'), track.add, qos,
+                                          raw=True)
+
+    def spin_once(self, timeout: float) -> None:
+        self._executor.spin_once(timeout_sec=timeout)
+
+    # --- the graph --------------------------------------------------------------------------------------
+    def sim_ready(self) -> bool:
+        """The sim published its world (so its topics exist) and answers parameter requests."""
+        return self.world is not None and self._parameters.services_are_ready()
+
+    def clock_sources(self) -> list[str]:
+        """The nodes publishing `/clock` on this domain (ours is one of them once it is up)."""
+        return [_full_name(info.node_namespace, info.node_name)
+                for info in self.node.get_publishers_info_by_topic('/clock')]
+
+    def simulators(self) -> list[str]:
+        """Every node called `sim` on this domain, whatever its namespace."""
+        return [_full_name(ns, name) for name, ns in self.node.get_node_names_and_namespaces() if name == SIM_NODE]
+
+    def recorder_subscribed(self) -> bool:
+        """The recorder subscribes to every topic the simulator publishes."""
+        node = self.node
+        try:
+            published = node.get_publisher_names_and_types_by_node(SIM_NODE, node.get_namespace())
+        except Exception:  # noqa: BLE001 - rclpy raises NodeNameNonExistentError until the node is discovered
+            return False
+        return bool(published) and all(
+            any(info.node_name == RECORDER_NODE for info in node.get_subscriptions_info_by_topic(topic))
+            for topic, _ in published if topic != '/rosout')
+
+    def controllers(self, robot: str) -> list[tuple[str, str]]:
+        """(name, namespace) of the nodes publishing `robot`'s wheel_cmd or cmd_vel, once their subscriptions are
+        in the graph too (a controller subscribes before it commands)."""
+        assert self.world is not None
+        found = []
+        for topic in COMMAND_TOPICS:
+            for info in self.node.get_publishers_info_by_topic(robot_topic(self.world, robot, topic)):
+                try:
+                    subscribed = self.node.get_subscriber_names_and_types_by_node(info.node_name, info.node_namespace)
+                except Exception:  # noqa: BLE001 - not discovered yet
+                    continue
+                if subscribed:
+                    found.append((info.node_name, info.node_namespace))
+        return found
+
+    def node_exists(self, name: str) -> bool:
+        return any(n == name for n, _ in self.node.get_node_names_and_namespaces())
+
+    def resume_sim(self, timeout: float) -> bool:
+        """Set the simulator's `paused` parameter to false; True once it said yes."""
+        future = self._parameters.set_parameters([Parameter('paused', value=False)])
+        self._executor.spin_until_future_complete(future, timeout_sec=timeout)
+        return future.done() and all(r.successful for r in future.result().results)
+
+    def close(self) -> None:
+        self._executor.shutdown()
+        self.node.destroy_node()
+        rclpy.try_shutdown(context=self.context)
+
+
+def _full_name(namespace: str, name: str) -> str:
+    return f'{namespace.rstrip("/")}/{name}'
+
+
+def samples_missing(track: RobotTrack, time_step: float, end_time: float) -> int:
+    """Steps up to `end_time` of which no ground-truth sample arrived (the first step is at `time_step`)."""
+    steps = {round(row[0] * 1e-9 / time_step) for row in track.rows}
+    return max(0, int(math.floor(end_time / time_step + 1e-6)) - len(steps))

@@ -1,0 +1,179 @@
+"""Child processes of `bringup`: started so that they end with it however it ends, stopped in order.
+
+Two guards, because `bringup` itself may die by SIGKILL, which it cannot handle:
+
+- on Linux each child asks the kernel for SIGTERM when its parent dies (`prctl(PR_SET_PDEATHSIG)`),
+  which ROS nodes treat like Ctrl-C (a recorder still closes its bag);
+- a small watchdog process (`python -m epuck_ros.bringup.watchdog`) holds the read end of a pipe from
+  `bringup` and learns every child's pid; when the pipe closes without a "done" line, `bringup` is
+  gone: it sends SIGTERM to the children still alive, then SIGKILL to any that ignored it.
+"""
+from __future__ import annotations
+
+import collections
+import ctypes
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import threading
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+
+STOP_SIGNAL = signal.SIGTERM
+"""How `bringup` asks a child to end: rclpy shuts down on it as on Ctrl-C once initialised, and before that the
+default action ends the process without the KeyboardInterrupt traceback a SIGINT would print."""
+STOP_TIMEOUT = 10.0
+"""Wall seconds a child has to end after STOP_SIGNAL before it is killed."""
+ERROR_LINES = 15
+"""Lines of a child's output kept to explain its failure."""
+PR_SET_PDEATHSIG = 1  # <linux/prctl.h>
+CLEAN_EXIT_CODES = (0, -signal.SIGINT, 128 + signal.SIGINT, -signal.SIGTERM, 128 + signal.SIGTERM)
+
+
+def _prctl() -> Callable[..., int] | None:
+    """libc's prctl, looked up before any fork (nothing may be loaded between fork and exec)."""
+    if not sys.platform.startswith('linux'):
+        return None
+    try:
+        return ctypes.CDLL(None, use_errno=True).prctl
+    except (OSError, AttributeError):
+        return None
+
+
+_PRCTL = _prctl()
+
+
+def _die_with(parent: int) -> Callable[[], None]:
+    """A preexec_fn: SIGTERM this child when `parent` dies; if it already has, end now."""
+    def preexec() -> None:
+        if _PRCTL is not None:
+            _PRCTL(PR_SET_PDEATHSIG, signal.SIGTERM, 0, 0, 0)
+        if os.getppid() != parent:  # the parent died before prctl took effect
+            os.kill(os.getpid(), signal.SIGTERM)
+    return preexec
+
+
+def process_start_time(pid: int) -> str | None:
+    """The kernel's start time of `pid` (field 22 of /proc/PID/stat): with the pid, it names one process."""
+    try:
+        stat = Path(f'/proc/{pid}/stat').read_text()
+    except OSError:
+        return None
+    fields = stat[stat.rindex(')') + 2:].split()
+    return None if fields[0] == 'Z' else fields[19]
+
+
+def executable(name: str) -> str:
+    """The package executable next to this interpreter (venv bin/, colcon lib/epuck_ros/), else on PATH."""
+    for folder in (Path(sys.argv[0]).resolve().parent, Path(sys.executable).parent):
+        if (folder / name).is_file():
+            return str(folder / name)
+    found = shutil.which(name)
+    if not found:
+        raise FileNotFoundError(f'cannot find the executable {name!r} next to {sys.argv[0]} or on PATH')
+    return found
+
+
+@dataclass
+class Child:
+    """A started process, its role in the run, and the tail of its output for error reports."""
+
+    role: str
+    name: str
+    process: subprocess.Popen
+    tail: collections.deque = field(default_factory=lambda: collections.deque(maxlen=ERROR_LINES))
+    output_done: threading.Event = field(default_factory=threading.Event)
+
+    def forward_output(self) -> None:
+        """Echo the child's output with a `[name]` prefix and keep its last lines."""
+        assert self.process.stdout is not None
+        for line in self.process.stdout:
+            line = line.rstrip('\n')
+            self.tail.append(line)
+            print(f'[{self.name}] {line}', flush=True)
+        self.output_done.set()
+
+    def failure(self) -> str:
+        """What went wrong, once the process has ended unexpectedly."""
+        self.output_done.wait(2.0)  # its last lines explain the failure
+        lines = '\n  '.join(self.tail) or '(no output)'
+        return f'{self.name} exited unexpectedly with code {self.process.returncode}; last lines:\n  {lines}'
+
+
+class Watchdog:
+    """The process that stops the children if `bringup` dies without stopping them itself."""
+
+    def __init__(self) -> None:
+        self.process = subprocess.Popen(
+            [sys.executable, '-m', 'epuck_ros.bringup.watchdog', str(STOP_TIMEOUT)], stdin=subprocess.PIPE,
+            text=True, start_new_session=True, env={k: v for k, v in os.environ.items() if k != 'ROS_DOMAIN_ID'})
+
+    def watch(self, pid: int) -> None:
+        start = process_start_time(pid)
+        if start is not None and self.process.stdin is not None:
+            self.process.stdin.write(f'{pid} {start}\n')
+            self.process.stdin.flush()
+
+    def release(self) -> None:
+        """Every child has been stopped: the watchdog ends without touching anything."""
+        assert self.process.stdin is not None
+        try:
+            self.process.stdin.write('done\n')
+            self.process.stdin.close()
+        except OSError:
+            pass
+        self.process.wait()
+
+
+class Children:
+    """The run's child processes: started with both guards, stopped in a given order."""
+
+    def __init__(self) -> None:
+        self.started: list[Child] = []
+        self._watchdog = Watchdog()
+
+    def start(self, role: str, name: str, command: list[str]) -> Child:
+        """Start `command` with its output forwarded. Its own session: the terminal's Ctrl-C reaches
+        `bringup` only, which then stops the children in order."""
+        process = subprocess.Popen(
+            command, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, start_new_session=True,
+            preexec_fn=_die_with(os.getpid()),
+            env=dict(os.environ, PYTHONUNBUFFERED='1', RCUTILS_COLORIZED_OUTPUT='0'))
+        self._watchdog.watch(process.pid)
+        child = Child(role, name, process)
+        threading.Thread(target=child.forward_output, daemon=True).start()
+        self.started.append(child)
+        return child
+
+    def dead(self) -> Child | None:
+        """A child that has ended, if any."""
+        return next((c for c in self.started if c.process.poll() is not None), None)
+
+    def stop(self, order: tuple[str, ...], reported: Child | None = None) -> list[str]:
+        """Ask each child to end (roles in `order`, a bounded wait each); returns what went wrong, except for the
+        `reported` child, whose end has been told already."""
+        problems = []
+        for child in sorted(self.started, key=lambda c: order.index(c.role)):
+            if not interrupt(child.process, STOP_TIMEOUT, STOP_SIGNAL):
+                problems.append(f'{child.name} did not stop within {STOP_TIMEOUT:.0f} s of '
+                                f'{STOP_SIGNAL.name} and was killed')
+            elif child is not reported and child.process.returncode not in CLEAN_EXIT_CODES:
+                problems.append(f'{child.name} exited with code {child.process.returncode}')
+        self._watchdog.release()
+        return problems
+
+
+def interrupt(process: subprocess.Popen, timeout: float, signum: int = signal.SIGINT) -> bool:
+    """`signum` (Ctrl-C by default), then SIGKILL after `timeout` seconds; False if it had to be killed."""
+    if process.poll() is None:
+        process.send_signal(signum)
+        try:
+            process.wait(timeout)
+        except subprocess.TimeoutExpired:
+            process.kill()
+            process.wait()
+            return False
+    return True

@@ -1,0 +1,229 @@
+"""The run itself: start every process at once, wait until the graph shows them connected, resume the
+simulator, watch until the end, stop everything in order and print one summary (or only the error)."""
+from __future__ import annotations
+
+import argparse
+import math
+import signal
+import sys
+import threading
+import time
+from collections.abc import Callable
+
+from epuck_ros.bag.reader import BagError
+from epuck_ros.bringup import summary
+from epuck_ros.bringup.cli import Plan, parse_args, ros_domain
+from epuck_ros.bringup.monitor import RunMonitor, samples_missing
+from epuck_ros.bringup.processes import Child, Children, executable
+
+STOP_ORDER = ('controller', 'view', 'record', 'sim')
+"""Controllers stop first (a behaviour commands a stop as it ends) while the simulator still runs and the recorder
+still writes; the recorder closes its bag before the simulator goes."""
+READY_TIMEOUT = 60.0
+"""Wall seconds for every process to show up connected in the graph (a loaded machine takes a few)."""
+SETTLE_TIME = 0.5
+"""Without lockstep only: wall seconds between seeing the controllers in the graph and resuming, for the
+simulator's publishers to match them (the graph does not show matching). In lockstep the simulator re-sends
+its first step until every controller has answered, so no wait is needed there."""
+GRAPH_CHECK_PERIOD = 0.5
+"""Wall seconds between two looks for another simulator during the run."""
+
+
+class RunFailed(Exception):
+    """The run could not start or had to end early; the message says why (and which child, if one died)."""
+
+    def __init__(self, message: str, child: Child | None = None) -> None:
+        super().__init__(message)
+        self.child = child
+
+
+class Supervisor:
+    """Starts the processes and watches them: a child that dies, or another simulator, ends the run."""
+
+    def __init__(self, args: argparse.Namespace, plan: Plan, monitor: RunMonitor, children: Children) -> None:
+        self.args = args
+        self.plan = plan
+        self.monitor = monitor
+        self.children = children
+        self.stop_requested = threading.Event()
+        self.resumed_at: float | None = None
+        self.ended_at: float | None = None
+        self.controller_ended = False
+
+    def ros_args(self, params: list[str], sim_time: bool = True, namespace: str = '') -> list[str]:
+        args = ['--ros-args', *(['-p', 'use_sim_time:=true'] if sim_time else [])]
+        args += [arg for p in params for arg in ('-p', p)]
+        namespace = '/'.join(part for part in (self.args.namespace.strip('/'), namespace) if part)
+        return args + (['-r', f'__ns:=/{namespace}'] if namespace else [])
+
+    def start_all(self) -> None:
+        """Every process at once: the simulator starts paused, so nothing happens before all are connected."""
+        plan, start = self.plan, self.children.start
+        # The clock source never listens to itself: no use_sim_time for the simulator.
+        start('sim', 'sim', [executable('sim'), *self.ros_args(plan.sim_params, sim_time=False)])
+        if plan.record_dir is not None:
+            start('record', 'record', [executable('record'), '-o', str(plan.record_dir), '--compression',
+                                       self.args.record_compression, *self.ros_args([])])
+        command = list(plan.controller_command)
+        if plan.controller_kind != 'rclpy':
+            command[0] = executable(command[0])
+        robot_ns = self.args.robot if plan.controller_kind == 'rclpy' and self.args.robot else ''
+        start('controller', plan.controller, [*command, *self.ros_args(plan.controller_params, namespace=robot_ns)])
+        if self.args.view:
+            start('view', 'view', [executable('view'), *self.ros_args(plan.view_params)])
+
+    def watch(self, done: Callable[[], bool], timeout: float, what: str) -> None:
+        """Spin until `done()` or a stop request; RunFailed on a child's death, another simulator or the timeout."""
+        deadline = time.monotonic() + timeout
+        next_check = 0.0
+        while not self.stop_requested.is_set() and not done():
+            self.monitor.spin_once(0.05)
+            dead = self.children.dead()
+            if dead is not None:
+                if dead.role == 'controller' and dead.process.returncode == 0 and self.plan.controller_kind != \
+                        'behaviour' and self.resumed_at is not None:
+                    self.controller_ended = True  # a script that ends is a run that ends
+                    return
+                raise RunFailed(dead.failure(), dead)
+            if time.monotonic() >= next_check:
+                self.refuse_other_simulators()
+                next_check = time.monotonic() + GRAPH_CHECK_PERIOD
+            if self.monitor.world_error:
+                raise RunFailed(f'cannot read the simulator\'s world: {self.monitor.world_error}')
+            if time.monotonic() > deadline:
+                raise RunFailed(f'{what()} within {timeout:.0f} s')
+
+    def refuse_other_simulators(self) -> None:
+        clocks, sims = self.monitor.clock_sources(), self.monitor.simulators()
+        if len(clocks) > 1 or len(sims) > 1:
+            others = sorted(set(clocks) | set(sims))
+            raise RunFailed(f'another simulator or /clock source is running on this ROS domain ({", ".join(others)} '
+                            f'seen; {ros_domain()}): stop it, or run with another ROS_DOMAIN_ID')
+
+    def connected(self) -> bool:
+        """Everything the run needs is in the graph: sim up, recorder subscribed, controllers connected, view up."""
+        monitor = self.monitor
+        if not monitor.sim_ready():
+            return False
+        if self.plan.record_dir is not None and not monitor.recorder_subscribed():
+            return False
+        if self.args.view and not monitor.node_exists('view'):
+            return False
+        robots = monitor.world.names
+        wanted = self.plan.robots_to_drive
+        if wanted == 'any':
+            return any(monitor.controllers(robot) for robot in robots)
+        if wanted != 'all':
+            missing = [robot for robot in wanted if robot not in robots]
+            if missing:
+                raise RunFailed(f'--robot {missing[0]}: the simulator has no such robot (robots: {", ".join(robots)})')
+            robots = wanted
+        return all(monitor.controllers(robot) for robot in robots)
+
+    def waiting_for(self) -> str:
+        """What is still missing, for the timeout message."""
+        monitor = self.monitor
+        if not monitor.sim_ready():
+            return 'the simulator did not come up'
+        if self.plan.record_dir is not None and not monitor.recorder_subscribed():
+            return 'the recorder did not subscribe to the simulator\'s topics'
+        if self.args.view and not monitor.node_exists('view'):
+            return 'the view did not come up'
+        return f'{self.plan.controller} did not connect to every robot it drives (no wheel_cmd/cmd_vel publisher)'
+
+    def run(self) -> None:
+        """Start everything, resume the simulation, and watch until the end; RunFailed says what went wrong."""
+        args, plan = self.args, self.plan
+        self.start_all()
+        self.watch(self.connected, READY_TIMEOUT, self.waiting_for)
+        if self.stop_requested.is_set():
+            return
+        if not args.lockstep:
+            time.sleep(SETTLE_TIME)
+        self.refuse_other_simulators()
+        if not self.monitor.resume_sim(READY_TIMEOUT):
+            raise RunFailed('the simulator did not accept paused:=false')
+        self.resumed_at = time.monotonic()
+        robots = self.monitor.world.names
+        pace = f'real-time factor {args.real_time_factor:g}' if args.real_time_factor else 'as fast as possible'
+        print(f'[bringup] running {plan.controller}' + (f' on {len(robots)} robots' if len(robots) > 1 else '') +
+              (f' for {args.duration:g} simulated s' if args.duration else ' until Ctrl-C') +
+              f' ({"lockstep" if args.lockstep else "no lockstep"}, {pace})', flush=True)
+        if plan.view_url:
+            print(f'[bringup] view: {plan.view_url}  (open it in a browser)', flush=True)
+        # The simulator pauses itself at exactly `pause_at` = duration: the run ends on that very step.
+        try:
+            self.watch(lambda: bool(args.duration) and self.monitor.sim_time >= args.duration - 1e-6,
+                       math.inf, lambda: '')
+        finally:
+            self.ended_at = time.monotonic()
+
+
+def report(supervisor: Supervisor, sim_time: float, wall_time: float) -> list[str]:
+    """The summary lines: time and speed, then distance and collisions per robot (from the bag if recorded)."""
+    plan, monitor = supervisor.plan, supervisor.monitor
+    speed = f'{sim_time / wall_time:.1f}x real time' if wall_time > 0 else 'no wall time'
+    head = f'[bringup] simulated {sim_time:.2f} s in {wall_time:.1f} s wall ({speed})'
+    notes = []
+    if plan.record_dir is not None:
+        try:
+            figures = summary.from_bag(plan.record_dir)
+        except (BagError, OSError) as error:
+            return [head, f'[bringup] cannot summarise the bag: {error}']
+        notes.append(f'[bringup] recorded to {plan.record_dir} (bag summary {plan.record_dir} says more)')
+    else:
+        figures = summary.from_tracks(monitor.tracks, monitor.world)
+        time_step = _time_step(plan)
+        lost = {t.name: samples_missing(t, time_step, sim_time) for t in monitor.tracks.values()}
+        if any(lost.values()):
+            notes.append(f'[bringup] note: {sum(lost.values())} ground-truth samples did not arrive; distances are '
+                         f'from the others (record the run for exact figures)')
+    if len(figures) == 1:
+        (f,) = figures
+        return [f'{head}; distance travelled {f.distance:.3f} m; collisions '
+                f'{"unknown" if f.collisions is None else f.collisions}', *notes]
+    return [head, *[f'[bringup] {line}' for line in summary.table(figures)], *notes]
+
+
+def _time_step(plan: Plan) -> float:
+    for assignment in plan.sim_params:
+        name, _, value = assignment.partition(':=')
+        if name == 'time_step':
+            return float(value)
+    from epuck_ros.bringup.tables import sim_parameters
+    return float(next(spec.default for spec in sim_parameters() if spec.name == 'time_step'))
+
+
+def run(args: argparse.Namespace, plan: Plan) -> int:
+    print(f'[bringup] {ros_domain()}', flush=True)
+    monitor = RunMonitor(args.namespace)
+    children = Children()
+    supervisor = Supervisor(args, plan, monitor, children)
+    for signum in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(signum, lambda *_: supervisor.stop_requested.set())
+    failure, failed_child = '', None
+    try:
+        supervisor.run()
+    except RunFailed as error:
+        failure, failed_child = str(error), error.child
+    except FileNotFoundError as error:  # an executable is missing from the installation
+        failure = str(error)
+    finally:
+        # The figures are those of the run, not of the moments the simulator keeps going while stopping.
+        sim_time = monitor.sim_time
+        started, ended = supervisor.resumed_at, supervisor.ended_at or time.monotonic()
+        problems = children.stop(STOP_ORDER, failed_child)
+        for _ in range(20):  # samples already on their way in
+            monitor.spin_once(0.0)
+        lines = report(supervisor, sim_time, ended - started) if started is not None and not failure else []
+        monitor.close()
+    for line in lines:
+        print(line, flush=True)
+    for problem in ([failure] if failure else []) + problems:
+        print(f'[bringup] error: {problem}', file=sys.stderr, flush=True)
+    return 1 if failure or problems else 0
+
+
+def main(argv: list[str] | None = None) -> None:
+    args, plan = parse_args(sys.argv[1:] if argv is None else argv)
+    sys.exit(run(args, plan))
