@@ -1,0 +1,221 @@
+"""The e-puck's Webots devices as plain objects, with the semantics of Webots' reference manual; no ROS here.
+
+What each call does, and every message text, follows the Webots controller library (`src/controller/c/motor.c`,
+`distance_sensor.c`, `position_sensor.c`) and the reference pages `motor.md`, `distancesensor.md`,
+`positionsensor.md`, `led.md` (cyberbotics/webots). The robot (`epuck_ros.webots.robot`) hands each sensor the
+readings of every simulator step (`sample`) and asks each motor for the wheel speed of the next step (`command`).
+
+A name a script uses that Webots has but this shim does not is refused with `UnsupportedError`, which says so
+and lists what is supported, instead of Python's bare AttributeError.
+"""
+from __future__ import annotations
+
+import math
+import sys
+from collections.abc import Callable
+
+import numpy as np
+
+NANOSECONDS_PER_MS = 1_000_000
+MOTOR_CONTROL_P = 10.0
+"""Webots' default controlPID P gain: the motor's position controller (I and D are 0 by default)."""
+
+
+def report(message: str) -> None:
+    """Webots prints its controller-library errors and warnings on stderr; so do we."""
+    print(message, file=sys.stderr, flush=True)
+
+
+class UnsupportedError(AttributeError):
+    """A Webots API name this shim does not provide (an AttributeError, so `hasattr` still works)."""
+
+
+def unsupported(owner: str, name: str, supported: list[str]) -> UnsupportedError:
+    return UnsupportedError(
+        f'{owner}.{name} is part of the Webots API but not supported by epuck_ros\'s Webots shim; '
+        f'{owner} supports: {", ".join(supported)}')
+
+
+def public_methods(cls: type) -> list[str]:
+    return sorted(name for name in dir(cls) if not name.startswith('_') and callable(getattr(cls, name)))
+
+
+class Device:
+    """What every Webots device has: a name; unknown Webots calls are named in a clear error."""
+
+    def __init__(self, name: str) -> None:
+        self._name = name
+
+    def getName(self) -> str:
+        return self._name
+
+    def __getattr__(self, name: str) -> object:  # only called for names the class does not define
+        if name.startswith('_'):
+            raise AttributeError(name)
+        raise unsupported(type(self).__name__, name, public_methods(type(self)))
+
+    def __repr__(self) -> str:
+        return f'<{type(self).__name__} {self._name!r}>'
+
+
+class Motor(Device):
+    """A wheel's RotationalMotor: position control by default, velocity control after `setPosition(inf)`.
+
+    Position control is Webots' own: each step the motor runs at P x (target - angle), at most at the set
+    velocity, on the wheel's encoder angle (Webots uses the exact joint angle; the encoder is within 2π/1000 rad).
+    """
+
+    def __init__(self, name: str, max_velocity: float) -> None:
+        super().__init__(name)
+        self._max_velocity = max_velocity
+        self._velocity = max_velocity  # Webots starts a motor's velocity at its maxVelocity
+        self._target: float | None = None  # None: hold the angle of the first reading (the joint's start)
+
+    def setPosition(self, position: float) -> None:
+        position = float(position)
+        if math.isnan(position):
+            report("Error: wb_motor_set_position() called with an invalid 'position' argument (NaN).")
+            return
+        self._target = position
+
+    def getTargetPosition(self) -> float:
+        return 0.0 if self._target is None else self._target
+
+    def setVelocity(self, velocity: float) -> None:
+        velocity = float(velocity)
+        if math.isnan(velocity):
+            report("Error: wb_motor_set_velocity() called with an invalid 'velocity' argument.(NaN)")
+            return
+        if velocity < 0.0 and not self.in_velocity_mode:
+            report(f"Error: wb_motor_set_velocity() called with negative 'velocity' argument in position control "
+                   f"mode ({self.getTargetPosition():g}).")
+            return
+        if abs(velocity) > self._max_velocity:
+            report(f'WARNING: RotationalMotor "{self._name}": The requested velocity {velocity:g} exceeds '
+                   f"'maxVelocity' = {self._max_velocity:g}.")
+        self._velocity = velocity
+
+    def getVelocity(self) -> float:
+        """The velocity as set (Webots' library returns the request; the simulator applies it clamped)."""
+        return self._velocity
+
+    def getMaxVelocity(self) -> float:
+        return self._max_velocity
+
+    def getMinPosition(self) -> float:
+        return 0.0  # Webots: minPosition = maxPosition = 0 means no limit, as on the e-puck's wheels
+
+    def getMaxPosition(self) -> float:
+        return 0.0
+
+    @property
+    def in_velocity_mode(self) -> bool:
+        return self._target is not None and math.isinf(self._target)
+
+    def command(self, angle: float) -> float:
+        """The wheel speed (rad/s) for the next step, given the wheel's encoder angle now."""
+        limit = min(abs(self._velocity), self._max_velocity)
+        if self.in_velocity_mode:
+            return math.copysign(limit, self._velocity)
+        if self._target is None:
+            self._target = angle
+        return max(-limit, min(limit, MOTOR_CONTROL_P * (self._target - angle)))
+
+
+class SampledSensor(Device):
+    """A sensor read every sampling period: NaN until the first period has elapsed after `enable`."""
+
+    API_PREFIX = ''
+    """The C function prefix Webots' messages name, e.g. `wb_distance_sensor`."""
+
+    def __init__(self, name: str, now_ns: Callable[[], int]) -> None:
+        super().__init__(name)
+        self._now_ns = now_ns
+        self._period_ms = 0
+        self._due_ns = 0
+        self._value = math.nan
+
+    def enable(self, samplingPeriod: int) -> None:
+        period = int(samplingPeriod)
+        if period < 0:
+            report(f'Error: {self.API_PREFIX}_enable() called with negative sampling period.')
+            return
+        self._period_ms = period
+        self._due_ns = self._now_ns() + period * NANOSECONDS_PER_MS
+
+    def disable(self) -> None:
+        self.enable(0)
+
+    def getSamplingPeriod(self) -> int:
+        return self._period_ms
+
+    def getValue(self) -> float:
+        if self._period_ms <= 0:
+            report(f'Error: {self.API_PREFIX}_get_value() called for a disabled device! Please use: '
+                   f'{self.API_PREFIX}_enable().')
+        return self._value
+
+    def sample(self, time_ns: int, value: float) -> None:
+        """The simulator's reading at `time_ns`: kept if a sampling period has elapsed since the last one."""
+        if self._period_ms <= 0 or time_ns < self._due_ns:
+            return
+        self._value = float(value)
+        period_ns = self._period_ms * NANOSECONDS_PER_MS
+        while self._due_ns <= time_ns:
+            self._due_ns += period_ns
+
+
+class DistanceSensor(SampledSensor):
+    """An IR proximity sensor psN: getValue() is the raw lookup-table value, with the simulator's noise."""
+
+    API_PREFIX = 'wb_distance_sensor'
+
+    def __init__(self, name: str, now_ns: Callable[[], int], lookup_table: np.ndarray, aperture: float) -> None:
+        super().__init__(name, now_ns)
+        self._table = lookup_table
+        self._aperture = aperture
+
+    def getMinValue(self) -> float:
+        return float(self._table[:, 1].min())
+
+    def getMaxValue(self) -> float:
+        return float(self._table[:, 1].max())
+
+    def getAperture(self) -> float:
+        return self._aperture
+
+    def getLookupTable(self) -> list[float]:
+        """The table as Webots gives it: distance, value, noise of each row, flattened."""
+        return [float(x) for x in self._table.ravel()]
+
+
+class PositionSensor(SampledSensor):
+    """A wheel encoder: radians, from the simulator's quantised wheel angle."""
+
+    API_PREFIX = 'wb_position_sensor'
+
+    def __init__(self, name: str, now_ns: Callable[[], int]) -> None:
+        super().__init__(name, now_ns)
+        self._speed = math.nan
+
+    def sample_with_speed(self, time_ns: int, angle: float, speed: float) -> None:
+        if self._period_ms > 0 and time_ns >= self._due_ns:
+            self._speed = float(speed)
+        self.sample(time_ns, angle)
+
+    def getVelocity(self) -> float:
+        return self._speed
+
+
+class LED(Device):
+    """An e-puck LED: 0 off, 1 on (its one colour); the state lives in the controller."""
+
+    def __init__(self, name: str) -> None:
+        super().__init__(name)
+        self._value = 0
+
+    def set(self, value: int) -> None:
+        self._value = int(value)
+
+    def get(self) -> int:
+        return self._value

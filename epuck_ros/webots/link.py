@@ -1,0 +1,214 @@
+"""The controller's one rclpy node: it answers each simulator step with wheel speeds and gathers the next step.
+
+Webots runs a controller in lockstep: `step()` hands the motor commands over, the world advances, the sensors
+are read. Over ROS the same exchange is: publish `wheel_cmd` (the answer to the step the controller has seen),
+then wait until the simulator's next step is complete here: its `/clock`, its `joint_states` (stamped with
+that time) and a fresh `ir_raw` (one per step, unstamped, published before `/clock`). With the simulator in
+lockstep nothing of a later step exists before the answer, so every reading belongs to the step asked for.
+Waiting spins this node's executor in the calling (main) thread: a script that does not call `step` leaves
+messages queued and the simulator, after its `cmd_timeout`, stops the robot.
+"""
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.node import Node
+from rclpy.parameter_client import AsyncParameterClient
+from rclpy.qos import QoSProfile, ReliabilityPolicy
+from rosgraph_msgs.msg import Clock
+from sensor_msgs.msg import JointState
+from std_msgs.msg import Float64MultiArray
+
+from epuck_ros.nodes.sim_node import JOINT_NAMES
+
+QOS = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
+COMMAND_TOPIC = 'wheel_cmd'
+SPIN_PERIOD = 0.1
+"""Seconds one wait on the executor lasts at most, so that Ctrl-C and a vanished simulator are noticed."""
+ROBOT_CHOICE_GRACE = 3.0
+"""Wall seconds the simulator's other robots may be in the graph without ours before `--robot` is refused."""
+
+
+class LinkError(RuntimeError):
+    """The simulator cannot serve this controller (wrong robot name, no time step); the message says why."""
+
+
+@dataclass(frozen=True)
+class StepData:
+    """What the simulator says about one step of one robot."""
+
+    time_ns: int
+    wheel_angles: tuple[float, float]
+    wheel_speeds: tuple[float, float]
+    ir_raw: tuple[float, ...]
+
+
+def _nanoseconds(stamp: object) -> int:
+    return stamp.sec * 1_000_000_000 + stamp.nanosec
+
+
+class SimLink:
+    """Publishes `[left, right]` on `<robot>/wheel_cmd`; reads `/clock`, `<robot>/joint_states`, `<robot>/ir_raw`."""
+
+    def __init__(self, node_name: str, robot: str, stop_waiting: Callable[[], bool]) -> None:
+        """`robot` '' = the single robot (unprefixed topics); `stop_waiting()` true ends any wait (Ctrl-C)."""
+        self.node = Node(node_name)
+        self._prefix = f'{robot}/' if robot else ''
+        self._robot = robot
+        self._stop_waiting = stop_waiting
+        self._executor = SingleThreadedExecutor(context=self.node.context)
+        self._executor.add_node(self.node)
+        self._command = Float64MultiArray()
+        self._publisher = self.node.create_publisher(Float64MultiArray, self._prefix + COMMAND_TOPIC, QOS)
+        self._clock_ns: int | None = None
+        self._joints: JointState | None = None
+        self._ir_raw: tuple[float, ...] | None = None
+        self._fresh_ir = False
+        self._consumed_ns = -1
+        self._subscriptions = [
+            self.node.create_subscription(Clock, '/clock', self._on_clock, QOS),
+            self.node.create_subscription(JointState, self._prefix + 'joint_states', self._on_joints, QOS),
+            self.node.create_subscription(Float64MultiArray, self._prefix + 'ir_raw', self._on_ir_raw, QOS)]
+
+    # --- callbacks --------------------------------------------------------------------------------------------
+
+    def _on_clock(self, msg: Clock) -> None:
+        self._clock_ns = _nanoseconds(msg.clock)
+
+    def _on_joints(self, msg: JointState) -> None:
+        self._joints = msg
+
+    def _on_ir_raw(self, msg: Float64MultiArray) -> None:
+        self._ir_raw = tuple(msg.data)
+        self._fresh_ir = True
+
+    # --- connecting -------------------------------------------------------------------------------------------
+
+    def connect(self) -> float | None:
+        """Wait for the simulator and this robot's topics; the simulator's time step in seconds (None: stopped)."""
+        if not self._wait(self._sim_in_graph, 'the simulator (a node publishing /clock)'):
+            return None
+        if not self._wait_for_robot():
+            return None
+        if not self._wait(self._matched, f'the simulator\'s {self._prefix}ir_raw and {self._prefix}joint_states'):
+            return None
+        return self._time_step()
+
+    def _sim_in_graph(self) -> bool:
+        return self.node.count_publishers('/clock') > 0
+
+    def _matched(self) -> bool:
+        return self._publisher.get_subscription_count() > 0 and all(
+            sub.get_publisher_count() > 0 for sub in self._subscriptions)
+
+    def _robots_in_graph(self) -> list[str]:
+        """The robots whose wheel_cmd the simulator subscribes to, as names relative to this node's namespace."""
+        namespace = self.node.get_namespace().rstrip('/') + '/'
+        robots = []
+        for topic, _ in self.node.get_topic_names_and_types():
+            if topic.endswith('/' + COMMAND_TOPIC) and topic.startswith(namespace) and \
+                    self.node.count_subscribers(topic) > 0:
+                robots.append(topic[len(namespace):-len(COMMAND_TOPIC)].rstrip('/'))
+        return sorted(robots)
+
+    def _wait_for_robot(self) -> bool:
+        """Until the simulator subscribes to our wheel_cmd; LinkError once it clearly serves other robots only."""
+        others_since: float | None = None
+        while not self._stop_waiting():
+            if self._publisher.get_subscription_count() > 0:
+                return True
+            robots = self._robots_in_graph()
+            if robots:
+                others_since = others_since if others_since is not None else time.monotonic()
+                if time.monotonic() - others_since > ROBOT_CHOICE_GRACE:
+                    raise LinkError(self._wrong_robot(robots))
+            self._executor.spin_once(timeout_sec=SPIN_PERIOD)
+        return False
+
+    def _wrong_robot(self, robots: list[str]) -> str:
+        if robots == ['']:
+            return f'--robot {self._robot}: the simulator has a single robot (its topics carry no robot name); ' \
+                   f'leave --robot out'
+        names = ', '.join(name for name in robots if name)
+        if not self._robot:
+            return f'the simulator has several robots ({names}): choose one with --robot NAME'
+        return f'--robot {self._robot}: no such robot in the simulator (robots: {names})'
+
+    def _time_step(self) -> float:
+        """The `time_step` parameter of the node that publishes /clock."""
+        found: list[str] = []
+        if not self._wait(lambda: bool(found.extend(self._clock_sources()) or found), 'the /clock publisher\'s name'):
+            return None
+        sim_name = found[0]
+        client = AsyncParameterClient(self.node, sim_name)
+        if not self._wait(lambda: client.services_are_ready(), f'the parameter services of {sim_name}'):
+            return None
+        future = client.get_parameters(['time_step'])
+        if not self._wait(future.done, f'{sim_name} to answer'):
+            return None
+        value = future.result().values[0].double_value if future.result().values else 0.0
+        if not value > 0.0:
+            raise LinkError(f'{sim_name} publishes /clock but has no time_step parameter: is it epuck_ros\'s sim?')
+        return value
+
+    def _clock_sources(self) -> list[str]:
+        """Full names of the nodes publishing /clock (the graph knows an endpoint before its node's name)."""
+        return [info.node_namespace.rstrip('/') + '/' + info.node_name
+                for info in self.node.get_publishers_info_by_topic('/clock')
+                if not info.node_name.startswith('_NODE_NAME_UNKNOWN')]
+
+    def _wait(self, done: Callable[[], bool], what: str) -> bool:
+        """Spin until `done()`; False if told to stop first. Says once what it waits for when it takes a while."""
+        said = False
+        started = time.monotonic()
+        while not done():
+            if self._stop_waiting():
+                return False
+            if not said and time.monotonic() - started > 2.0:
+                print(f'webots_controller: waiting for {what} ...', flush=True)
+                said = True
+            self._executor.spin_once(timeout_sec=SPIN_PERIOD)
+        return True
+
+    # --- stepping ---------------------------------------------------------------------------------------------
+
+    def first_step(self) -> StepData | None:
+        """The simulator's current step, once it is complete here (the simulator may be paused until then)."""
+        return self._next_step()
+
+    def answer_and_wait(self, left: float, right: float) -> StepData | None:
+        """Send the wheel speeds for the step last returned, then wait for the next one (None: stop or sim gone)."""
+        self._fresh_ir = False  # an ir_raw received before the answer belongs to an earlier step
+        self._command.data = [float(left), float(right)]
+        self._publisher.publish(self._command)
+        return self._next_step()
+
+    def _complete(self) -> bool:
+        clock = self._clock_ns
+        return clock is not None and clock > self._consumed_ns and self._fresh_ir and \
+            self._joints is not None and _nanoseconds(self._joints.header.stamp) >= clock
+
+    def _next_step(self) -> StepData | None:
+        last_check = time.monotonic()
+        while not self._complete():
+            if self._stop_waiting():
+                return None
+            self._executor.spin_once(timeout_sec=SPIN_PERIOD)
+            if time.monotonic() - last_check > SPIN_PERIOD:
+                last_check = time.monotonic()
+                if not self._sim_in_graph():
+                    print('webots_controller: the simulator is gone', flush=True)
+                    return None
+        self._consumed_ns = self._clock_ns
+        joints = self._joints
+        index = {name.rsplit('/', 1)[-1]: i for i, name in enumerate(joints.name)}
+        left, right = index[JOINT_NAMES[0]], index[JOINT_NAMES[1]]
+        return StepData(self._consumed_ns, (joints.position[left], joints.position[right]),
+                        (joints.velocity[left], joints.velocity[right]), self._ir_raw)
+
+    def close(self) -> None:
+        self._executor.shutdown(timeout_sec=0.0)
+        self.node.destroy_node()

@@ -1,0 +1,205 @@
+"""`Robot`: Webots' controller API for the e-puck, over the simulator's topics (one per controller process).
+
+Semantics are Webots' (reference manual, `robot.md`): `Robot()` connects to the simulator and returns once it
+has the simulator's current step; `step(duration)` hands the motor commands over and returns when `duration`
+ms of simulated time have passed, one simulator step per basic time step, with the sensors read at that
+instant; it returns -1 once the simulation is ending (Ctrl-C / SIGTERM, or the simulator gone), and, as
+Webots does, a controller still running one second after that is stopped. One difference: a controller sees
+the simulator from its first step on, so `getTime()` is 0.032 (not 0) before the first `step`.
+
+The runner (`epuck_ros.webots.runner`) calls `configure()` before the script runs; a script run some other
+way gets the defaults (the single robot, rclpy's own command line).
+"""
+from __future__ import annotations
+
+import _thread
+import signal
+import threading
+from dataclasses import dataclass, field
+
+import rclpy
+from rclpy.signals import SignalHandlerOptions
+
+from epuck_ros.model import SENSOR_NAMES, RobotModel
+from epuck_ros.webots.devices import (
+    LED, NANOSECONDS_PER_MS, Device, DistanceSensor, Motor, PositionSensor, public_methods, report, unsupported)
+from epuck_ros.webots.link import SimLink, StepData
+
+MOTOR_NAMES = ('left wheel motor', 'right wheel motor')
+ENCODER_NAMES = ('left wheel sensor', 'right wheel sensor')
+LED_NAMES = tuple(f'led{i}' for i in range(10))
+NOT_SIMULATED = ('camera', 'accelerometer', 'gyro', 'speaker', 'emitter', 'receiver', 'tof',
+                 *(f'ls{i}' for i in range(8)), *(f'gs{i}' for i in range(3)))
+"""Devices of Webots' e-puck that this simulator does not model."""
+SINGLE_ROBOT_NAME = 'epuck'
+"""`getName()` of the robot of a one-robot world (its topics carry no name)."""
+KILL_DELAY = 1.0
+"""Wall seconds a controller may run on after step() returned -1 (Webots then kills it)."""
+
+
+@dataclass
+class Session:
+    """Process-wide state: the runner's choices and the ending of the simulation (signals)."""
+
+    robot: str = ''
+    ros_args: list[str] = field(default_factory=list)
+    ending: bool = False
+    in_step: bool = False
+
+    def start(self) -> None:
+        """rclpy without its own signal handling: Ctrl-C inside step() is step's -1, elsewhere KeyboardInterrupt."""
+        if not rclpy.ok():
+            rclpy.init(args=['webots_controller', *self.ros_args], signal_handler_options=SignalHandlerOptions.NO)
+        if threading.current_thread() is threading.main_thread():
+            for signum in (signal.SIGINT, signal.SIGTERM):
+                signal.signal(signum, self._on_signal)
+
+    def _on_signal(self, signum: int, frame: object) -> None:
+        if self.ending or not self.in_step:
+            self.ending = True
+            raise KeyboardInterrupt
+        self.ending = True
+        timer = threading.Timer(KILL_DELAY, _thread.interrupt_main)
+        timer.daemon = True
+        timer.start()
+
+
+SESSION = Session()
+
+
+def configure(robot: str, ros_args: list[str]) -> None:
+    """The runner's choices, before the script creates its Robot."""
+    SESSION.robot = robot
+    SESSION.ros_args = list(ros_args)
+
+
+class Robot:
+    """The e-puck: motors, wheel encoders, ps0..ps7, led0..led9, simulated time."""
+
+    created: Robot | None = None
+
+    def __init__(self) -> None:
+        if Robot.created is not None:
+            report('Error: only one Robot instance can be created per controller process.')
+            self.__class__ = _AnotherRobot  # Webots goes on; its API calls act on the one robot there is
+            return
+        Robot.created = self
+        SESSION.start()
+        model = RobotModel()
+        node_name = 'webots_controller' + (f'_{SESSION.robot}' if SESSION.robot else '')
+        self._name = SESSION.robot or SINGLE_ROBOT_NAME
+        self._link = SimLink(node_name, SESSION.robot, lambda: SESSION.ending)
+        time_step = self._link.connect()
+        data = self._link.first_step() if time_step is not None else None
+        if data is None:
+            raise KeyboardInterrupt  # stopped while connecting
+        self._basic_step_ms = time_step * 1000.0
+        self._time_ns = data.time_ns
+        self._data = data
+        now = lambda: self._time_ns  # noqa: E731 - the devices' view of simulated time
+        self._motors = [Motor(name, model.max_wheel_speed) for name in MOTOR_NAMES]
+        self._encoders = [PositionSensor(name, now) for name in ENCODER_NAMES]
+        self._distance_sensors = [DistanceSensor(name, now, model.ir_table, model.ir_aperture)
+                                  for name in SENSOR_NAMES]
+        self._leds = [LED(name) for name in LED_NAMES]
+        self._devices: dict[str, Device] = {
+            device.getName(): device
+            for device in (*self._motors, *self._encoders, *self._distance_sensors, *self._leds)}
+
+    # --- time ---------------------------------------------------------------------------------------------------
+
+    def getBasicTimeStep(self) -> float:
+        """The simulator's step in ms (its `time_step` parameter): 32.0 by default."""
+        return self._basic_step_ms
+
+    def getTime(self) -> float:
+        return self._time_ns * 1e-9
+
+    def step(self, duration: int | None = None) -> int:
+        """Advance `duration` ms (default: one basic step); -1 once the simulation is ending, else 0."""
+        if duration is None:
+            duration = int(self._basic_step_ms)
+        if SESSION.ending:
+            return -1
+        if duration < 0:
+            report('Error: wb_robot_step() called with a negative duration.')
+            return 0
+        target_ns = self._time_ns + round(duration * NANOSECONDS_PER_MS)
+        half_step_ns = self._basic_step_ms * NANOSECONDS_PER_MS / 2.0
+        SESSION.in_step = True
+        try:
+            while self._time_ns < target_ns - half_step_ns:
+                left, right = (motor.command(angle) for motor, angle in zip(self._motors, self._data.wheel_angles))
+                data = self._link.answer_and_wait(left, right)
+                if data is None:
+                    SESSION.ending = True
+                    return -1
+                self._read(data)
+        finally:
+            SESSION.in_step = False
+        return -1 if SESSION.ending else 0
+
+    def _read(self, data: StepData) -> None:
+        self._data = data
+        self._time_ns = data.time_ns
+        for encoder, angle, speed in zip(self._encoders, data.wheel_angles, data.wheel_speeds):
+            encoder.sample_with_speed(data.time_ns, angle, speed)
+        for sensor, value in zip(self._distance_sensors, data.ir_raw):
+            sensor.sample(data.time_ns, value)
+
+    # --- devices ------------------------------------------------------------------------------------------------
+
+    def getName(self) -> str:
+        return self._name
+
+    def getDevice(self, name: str) -> Device | None:
+        device = self._devices.get(name)
+        if device is None:
+            if name in NOT_SIMULATED:
+                report(f'Device "{name}" exists on Webots\' e-puck but is not simulated by epuck_ros '
+                       f'(devices: {", ".join(self._devices)})')
+            else:
+                report(f'Device "{name}" was not found on robot "{self._name}"')
+        return device
+
+    def getNumberOfDevices(self) -> int:
+        return len(self._devices)
+
+    def getDeviceByIndex(self, index: int) -> Device:
+        return list(self._devices.values())[index]
+
+    def _deprecated(self, getter: str, name: str) -> Device | None:
+        report(f'DEPRECATION: Robot.{getter} is deprecated, please use Robot.getDevice instead.')
+        return self.getDevice(name)
+
+    def getMotor(self, name: str) -> Device | None:
+        return self._deprecated('getMotor', name)
+
+    def getDistanceSensor(self, name: str) -> Device | None:
+        return self._deprecated('getDistanceSensor', name)
+
+    def getPositionSensor(self, name: str) -> Device | None:
+        return self._deprecated('getPositionSensor', name)
+
+    def getLED(self, name: str) -> Device | None:
+        return self._deprecated('getLed', name)  # sic: Webots' message says getLed
+
+    def __getattr__(self, name: str) -> object:  # only called for names the class does not define
+        if name.startswith('_'):
+            raise AttributeError(name)
+        raise unsupported('Robot', name, public_methods(Robot))
+
+    # --- the runner's side --------------------------------------------------------------------------------------
+
+    def close(self) -> None:
+        """Leave the simulation: the node goes (the simulator's cmd_timeout then stops the wheels)."""
+        self._link.close()
+
+
+class _AnotherRobot(Robot):
+    """A second Robot(): Webots prints an error and goes on; here its calls act on the first Robot."""
+
+    def __getattribute__(self, name: str) -> object:
+        if name in ('__class__', '__dict__'):
+            return object.__getattribute__(self, name)
+        return getattr(Robot.created, name)

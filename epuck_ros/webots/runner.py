@@ -1,0 +1,104 @@
+"""`webots_controller`: run an unmodified Webots controller script (Python) against the e-puck simulator.
+
+The script runs as `python SCRIPT.py` would run it (`__name__ == '__main__'`, its folder on the import path,
+`sys.argv` = the script and its own arguments) with one difference: `import controller` finds
+`epuck_ros/webots/shim/controller`, whose `Robot` talks to the simulator over ROS. Exit code: the script's
+(0 when it ends, also on Ctrl-C / SIGTERM through `step() == -1`), 1 with the script's traceback when it
+raises, 2 for a bad command line or a robot the simulator does not have.
+"""
+from __future__ import annotations
+
+import argparse
+import runpy
+import sys
+import traceback
+from pathlib import Path
+from types import TracebackType
+
+import rclpy
+
+from epuck_ros.nodes.params import Usage, prepare_arguments, user_arguments
+from epuck_ros.webots.link import LinkError
+from epuck_ros.webots.robot import Robot, configure
+
+PROGRAM = 'webots_controller'
+SHIM_DIR = Path(__file__).resolve().parent / 'shim'
+EXAMPLES_DIR = Path(__file__).resolve().parent / 'examples'
+USAGE = Usage(
+    program=PROGRAM,
+    summary='Run an unmodified Webots controller script (from controller import Robot ...) against the e-puck '
+            'simulator over ROS: one rclpy node inside Robot(); step(32) is one simulator step (with the sim in '
+            'lockstep, the run is deterministic). Start `sim` first (or use `bringup --controller SCRIPT.py`). '
+            f'Examples: {EXAMPLES_DIR}.',
+    example=f'{PROGRAM} {EXAMPLES_DIR / "avoid_obstacles.py"}   # with `sim` running',
+    options='  SCRIPT.py [ARG ...]  the controller script and its own arguments (sys.argv[1:])\n'
+            '  --robot NAME         the robot of a multi-robot world to drive (its topics are NAME/...); '
+            'default: the single robot')
+
+
+def parse(user: list[str]) -> argparse.Namespace:
+    parser = argparse.ArgumentParser(prog=PROGRAM, add_help=False)
+    parser.add_argument('--robot', default='')
+    parser.add_argument('script', nargs='?')
+    parser.add_argument('script_args', nargs=argparse.REMAINDER)
+    options, unknown = parser.parse_known_args(user)
+    if options.script is None:
+        fail('no controller script given (usage: webots_controller SCRIPT.py [--robot NAME]; see --help)')
+    options.script_args = unknown + options.script_args
+    return options
+
+
+def fail(message: str) -> None:
+    print(f'{PROGRAM}: {message}', file=sys.stderr)
+    raise SystemExit(2)
+
+
+def run_script(path: Path, script_args: list[str]) -> int:
+    """Run the script as __main__; its exit code (1 and its traceback when it raises)."""
+    sys.path[:0] = [str(SHIM_DIR), str(path.parent)]
+    sys.argv = [str(path), *script_args]
+    try:
+        runpy.run_path(str(path), run_name='__main__')
+    except KeyboardInterrupt:
+        return 0
+    except SystemExit as end:
+        if end.code is None or isinstance(end.code, int):
+            return end.code or 0
+        print(end.code, file=sys.stderr)
+        return 1
+    except LinkError as error:
+        print(f'{PROGRAM}: {error}', file=sys.stderr)
+        return 2
+    except BaseException as error:  # noqa: BLE001 - whatever the script raises is reported as Python would
+        traceback.print_exception(type(error), error, _from_script(error.__traceback__, path))
+        return 1
+    return 0
+
+
+def _from_script(tb: TracebackType | None, path: Path) -> TracebackType | None:
+    """The traceback from the script's own frame on: the runner's and runpy's frames say nothing to its author."""
+    frame = tb
+    while frame is not None and Path(frame.tb_frame.f_code.co_filename) != path:
+        frame = frame.tb_next
+    return frame or tb
+
+
+def main(argv: list[str] | None = None) -> None:
+    args = prepare_arguments([PROGRAM, *(sys.argv[1:] if argv is None else argv)], [], USAGE, own_options=True)
+    options = parse(user_arguments(args))
+    path = Path(options.script).resolve()
+    if not path.is_file():
+        fail(f'no such controller script: {options.script}')
+    configure(options.robot, args[1:])
+    code = 0
+    try:
+        code = run_script(path, options.script_args)
+    finally:
+        if isinstance(Robot.created, Robot):
+            Robot.created.close()
+        rclpy.try_shutdown()
+    raise SystemExit(code)
+
+
+if __name__ == '__main__':
+    main()
