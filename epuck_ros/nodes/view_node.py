@@ -48,8 +48,8 @@ from epuck_ros.view.server import Action, ActionError, ViewServer, is_loopback
 from epuck_ros.view.state import ViewState, pose_from_odometry, robot_topic
 from epuck_ros.world import WorldError, world_from_dict
 
-SPIN_RATE = 60.0
-"""Times a second the node takes its newest messages: twice the page's frame rate, a fixed cost per second."""
+SPIN_RATE = 30.0
+"""Times a second the node takes its newest messages: the page's frame rate, a fixed cost per second."""
 ACTION_TIMEOUT = 5.0
 """Wall seconds the page waits for the simulator to answer an action."""
 DRIVE_IDLE = 2.0
@@ -303,10 +303,15 @@ def spin_thinned(node: ViewNode) -> None:
     period = 1.0 / SPIN_RATE
     while node.context.ok():
         started = time.monotonic()
-        handles = (len(list(node.subscriptions)) + len(list(node.clients)) + len(list(node.services))
-                   + len(list(node.timers)) + len(list(node.waitables)))
-        for _ in range(handles):
+        # One wait finds every ready entity; each spin_once runs one of them. A spin that changed nothing means
+        # the ready ones are done (a service answer or parameter event left over waits for the next round).
+        most = sum(len(list(entities)) for entities in (node.subscriptions, node.clients, node.services,
+                                                        node.timers, node.waitables))
+        for _ in range(most):
+            version = node.state.version
             executor.spin_once(timeout_sec=0.0)
+            if node.state.version == version:
+                break
         node.run_requests()
         time.sleep(max(0.0, period - (time.monotonic() - started)))
 
