@@ -57,7 +57,7 @@ def test_one_command_moves_the_robot_until_the_timeout(launch, test_node):
 
 def test_proximity_is_eight_ranges_per_cycle_in_index_order(launch, test_node):
     start_sim(launch)
-    ranges = test_node.collect(Range, 'proximity', 50)
+    ranges = test_node.collect(Range, 'proximity', 1000)
     test_node.spin_until(lambda: len(ranges) >= 8 * 20, what='20 sensing cycles')
     first = next(i for i, m in enumerate(ranges) if m.header.frame_id == 'ps0')
     cycles = [ranges[i:i + 8] for i in range(first, len(ranges) - 7, 8)]

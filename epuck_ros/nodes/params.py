@@ -18,6 +18,7 @@ from __future__ import annotations
 import difflib
 import re
 import sys
+import textwrap
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -175,7 +176,7 @@ def help_text(specs: Iterable[ParamSpec], usage: Usage) -> str:
                                                                                     else '')) for spec in specs]
     widths = [max([len(header)] + [len(row[i]) for row in rows]) for i, header in enumerate(('name', 'default',
                                                                                                'range'))]
-    lines = [f'usage: {usage.program} [-h] [--ros-args -p NAME:=VALUE ...]', '', usage.summary, '']
+    lines = [f'usage: {usage.program} [-h] [--ros-args -p NAME:=VALUE ...]', '', textwrap.fill(usage.summary, 100), '']
     if usage.options:
         lines += ['options:', usage.options.rstrip(), '']
     lines.append('parameters (--ros-args -p NAME:=VALUE; integers are accepted for numbers):')

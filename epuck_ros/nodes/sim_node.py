@@ -2,94 +2,107 @@
 
 The simulation steps in its own thread, paced by `real_time_factor` against the wall clock
 (0 = as fast as the machine can go), and is the source of `/clock`; the executor thread only
-receives commands and service calls. Every message of a step carries that step's simulated time.
+receives commands, service calls and parameters. Every message of a step carries that step's simulated
+time, and `/clock` goes out last. Each robot's topics belong to its `RobotPorts`.
 """
 from __future__ import annotations
 
-import math
 import os
+import sys
 import threading
 import time
+from collections import Counter
+from collections.abc import Callable
 
 import rclpy
 import yaml
 from builtin_interfaces.msg import Time
-from geometry_msgs.msg import Twist, TwistStamped
-from nav_msgs.msg import Odometry
-from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor, SetParametersResult
+from rcl_interfaces.msg import SetParametersResult
 from rclpy.exceptions import ParameterException
 from rclpy.node import Node
 from rclpy.parameter import Parameter
-from rclpy.qos import DurabilityPolicy, QoSProfile
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from rosgraph_msgs.msg import Clock
-from sensor_msgs.msg import JointState, Range
-from std_msgs.msg import Float64MultiArray, String, UInt32
-from std_srvs.srv import Empty
+from std_msgs.msg import String
+from std_srvs.srv import Empty, Trigger
+from visualization_msgs.msg import MarkerArray
 
-from epuck_ros.model import SENSOR_NAMES, RobotModel
+from epuck_ros.markers import world_markers
+from epuck_ros.model import RobotModel
+from epuck_ros.nodes.ack_window import AckWindow
+from epuck_ros.nodes.params import ParamSpec, Usage, declare_parameters, prepare_arguments
+from epuck_ros.nodes.robot_ports import JOINT_NAMES, WARN_PERIOD, RobotPorts
 from epuck_ros.nodes.spinning import spin_until_shutdown
 from epuck_ros.simulation import CommandError, Simulation, StepEvents
-from epuck_ros.world import World, WorldError, default_world, load_world
+from epuck_ros.world import World, WorldError, default_world, load_world, place_robots
 
-JOINT_NAMES = ['left_wheel_joint', 'right_wheel_joint']
+__all__ = ['JOINT_NAMES', 'SIM_PARAMETERS', 'SimNode', 'main']
 
-# Diagonal covariances (x, y, z, roll, pitch, yaw): the planar robot knows nothing of z, roll and
-# pitch (a large variance says so, as REP 105 users expect); x, y and yaw are of the order of
-# the encoder quantisation (2π/1000 rad · 0.02 m ≈ 1.3e-4 m per tick).
-_UNKNOWN = 1e6
-POSE_COVARIANCE = [1e-6, 1e-6, _UNKNOWN, _UNKNOWN, _UNKNOWN, 1e-5]
-TWIST_COVARIANCE = [1e-5, 1e-5, _UNKNOWN, _UNKNOWN, _UNKNOWN, 1e-4]
 PUBLISHER_HISTORY_STEPS = 300
+"""Steps each step topic's publisher keeps for reliable readers (proximity: eight messages per step)."""
+ACK_WINDOW_STEPS = 100
+"""Steps the simulator may run ahead of what its reliable readers acknowledged; below the history above, so a
+recorder never loses a step (see `AckWindow`)."""
 LOCKSTEP_START_RESENDS = 10
-WARN_PERIOD = 1.0
-"""Seconds between two warnings about the same kind of refused command."""
+GRAPH_POLL = 0.05
+"""Wall seconds between two looks at which robots have a controller while lockstep waits for answers."""
+IDLE_POLL = 0.05
+"""Wall seconds between two looks at the parameters while paused."""
+PACING_SLICE = 0.02
+"""Pacing sleeps at most this long at a time, then reads the real-time factor again: a change takes effect at once."""
+DISCOVERY_WINDOW = 0.5
+"""Wall seconds after start-up during which the sim looks for another simulator (another `/clock` publisher)
+before publishing anything; DDS discovery on one machine takes up to about 0.3 s."""
+SUMMARY_PERIOD = 30.0
+"""Wall seconds between two summaries of a repeated condition (command time-outs)."""
+
+SIM_PARAMETERS = [
+    ParamSpec('time_step', 0.032, 'simulated seconds per step (Webots basicTimeStep is 32 ms)', (0.001, 1.0),
+              read_only=True),
+    ParamSpec('real_time_factor', 1.0, 'simulated seconds per wall second; 0 = as fast as possible', (0.0, 1e4)),
+    ParamSpec('paused', False, 'while true, simulated time stands still (nothing is stepped or published); '
+                               'the step service advances one step'),
+    ParamSpec('pause_at', 0.0, 'simulated time (s) at which the simulation pauses by itself, exactly; 0 = never',
+              (0.0, 1e9)),
+    ParamSpec('lockstep', False, 'step only once every robot that has a controller (a publisher on its wheel_cmd or '
+                                 'cmd_vel) has answered the last step, or after lockstep_timeout: runs are the same '
+                                 'whatever the load of the machine', read_only=True),
+    ParamSpec('lockstep_timeout', 1.0, 'wall seconds a lockstep simulation waits for the answers before stepping '
+                                       'anyway', (0.001, 60.0), read_only=True),
+    ParamSpec('world', '', 'path to a world YAML file; empty = the built-in 1 m x 1 m arena', read_only=True),
+    ParamSpec('robots', 0, 'number of robots: 0 = those of the world; N = N robots epuck0.. placed clear of '
+                           'everything, seeded by seed', (0, 100000), read_only=True),
+    ParamSpec('seed', 0, 'seed of every random draw (noise, placement): same seed, same run', (0, 2**31 - 1),
+              read_only=True),
+    ParamSpec('noise', True, 'IR sensor noise (Webots lookup table, relative Gaussian) on or off', read_only=True),
+    ParamSpec('cmd_timeout', 0.5, 'simulated seconds without a command before a robot stops; 0 = never',
+              (0.0, 3600.0)),
+    ParamSpec('cmd_vel_stamped', False, 'subscribe cmd_vel as geometry_msgs/TwistStamped instead of Twist',
+              read_only=True),
+    ParamSpec('frame_prefix', '', 'prefix of every frame_id (e.g. "sim1/"); with several robots each robot\'s '
+                                  'frames are <prefix><name>/odom, ...', read_only=True),
+]
+"""The simulator's parameters; `bringup` routes `-p` assignments with this table."""
+
+USAGE = Usage(
+    'sim',
+    'The e-puck simulator: steps the robots of a world and publishes, per robot, odom, ground_truth, proximity '
+    '(8 Range), ir_raw (the 8 raw IR values), joint_states and collisions, plus the latched world and '
+    'world_markers and /clock; takes cmd_vel (Twist) or wheel_cmd ([left, right] rad/s) per robot; services '
+    'reset (Empty) and step (Trigger, one step while paused). With several robots, robot NAME\'s topics are '
+    'NAME/odom, NAME/cmd_vel, ...',
+    'sim --ros-args -p real_time_factor:=0 -p seed:=4 -p robots:=5')
 
 
-def _diagonal(values: list[float]) -> list[float]:
-    matrix = [0.0] * 36
-    for i, value in enumerate(values):
-        matrix[7 * i] = value
-    return matrix
-
-
-def _float_param(description: str, low: float, high: float, read_only: bool = False) -> ParameterDescriptor:
-    return ParameterDescriptor(
-        description=description, read_only=read_only,
-        floating_point_range=[FloatingPointRange(from_value=low, to_value=high, step=0.0)])
-
-
-def _flag(description: str, read_only: bool = True) -> ParameterDescriptor:
-    return ParameterDescriptor(description=description, read_only=read_only)
-
-
-PARAMETERS: dict[str, tuple[object, ParameterDescriptor]] = {
-    'time_step': (0.032, _float_param(
-        'simulated seconds per step (Webots basicTimeStep is 32 ms)', 0.001, 1.0, read_only=True)),
-    'real_time_factor': (1.0, _float_param('simulated seconds per wall second; 0 = as fast as possible', 0.0, 1e4)),
-    'paused': (False, _flag('while true, simulated time stands still (nothing is stepped or published)', False)),
-    'pause_at': (0.0, _float_param(
-        'simulated time (s) at which the simulation pauses by itself, exactly; 0 = never', 0.0, 1e9)),
-    'lockstep': (False, _flag(
-        'step only once a command has arrived since the last step (or after lockstep_timeout): runs with one '
-        'controller are the same whatever the load of the machine')),
-    'lockstep_timeout': (1.0, _float_param(
-        'wall seconds a lockstep simulation waits for a command before stepping anyway', 0.001, 60.0,
-        read_only=True)),
-    'world': ('', _flag('path to a world YAML file; empty = the built-in 1 m x 1 m arena')),
-    'seed': (0, ParameterDescriptor(
-        description='seed of every random draw: same seed, same run', read_only=True,
-        integer_range=[IntegerRange(from_value=0, to_value=2**31 - 1, step=1)])),
-    'noise': (True, _flag('IR sensor noise (Webots lookup table, relative Gaussian) on or off')),
-    'cmd_timeout': (0.5, _float_param(
-        'simulated seconds without a command before the robot stops; 0 = never', 0.0, 3600.0)),
-    'cmd_vel_stamped': (False, _flag('subscribe cmd_vel as geometry_msgs/TwistStamped instead of Twist')),
-    'frame_prefix': ('', _flag('prefix of every frame_id (e.g. "robot1/") for several robots in one TF tree')),
-}
-"""The simulator's parameters: name -> (default, descriptor). `bringup` routes `-p` assignments with it."""
+class AnotherSimulator(RuntimeError):
+    """Another clock source runs on this ROS domain: two simulators would mix their times and topics."""
 
 
 class Pacer:
-    """Sleeps so that simulated time runs `factor` times wall time (factor 0: no sleep at all)."""
+    """Sleeps so that simulated time runs `factor` times wall time (factor 0: no sleep at all).
+
+    The sleep is cut into short slices and the factor read again after each, so a change of the factor takes
+    effect within a slice, whatever the factor was (1e-300 included: nothing divides by it)."""
 
     FALL_BEHIND = 0.5
     """Wall seconds behind schedule after which pacing starts afresh instead of bursting to catch up."""
@@ -100,57 +113,142 @@ class Pacer:
     def restart(self) -> None:
         self._origin = None
 
-    def wait(self, sim_time: float, factor: float) -> None:
-        now = time.monotonic()
-        if factor <= 0.0 or self._origin is None or self._origin[2] != factor:
-            self._origin = (now, sim_time, factor)
-            return
-        wall_origin, sim_origin, _ = self._origin
-        delay = wall_origin + (sim_time - sim_origin) / factor - now
-        if delay > 0.0:
-            time.sleep(delay)
-        elif delay < -self.FALL_BEHIND:
-            self._origin = (now, sim_time, factor)
+    def wait(self, sim_time: float, factor: Callable[[], float], keep_waiting: Callable[[], bool]) -> None:
+        """Return once wall time has caught up with `sim_time` at the current `factor()`."""
+        while keep_waiting():
+            rate, now = factor(), time.monotonic()
+            if rate <= 0.0 or self._origin is None or self._origin[2] != rate:
+                self._origin = (now, sim_time, rate)  # a new rate paces from this step on
+                return
+            wall_origin, sim_origin, _ = self._origin
+            ahead = (sim_time - sim_origin) - rate * (now - wall_origin)  # simulated seconds ahead of schedule
+            if ahead <= 0.0:
+                if -ahead > rate * self.FALL_BEHIND:
+                    self._origin = (now, sim_time, rate)
+                return
+            time.sleep(PACING_SLICE if ahead >= rate * PACING_SLICE else ahead / rate)
+
+
+class RepeatedCondition:
+    """A condition that may happen thousands of times (a robot's command time-out): logged the first time for each
+    robot, then counted, with a summary every `SUMMARY_PERIOD` wall seconds and at the end."""
+
+    def __init__(self, log: Callable[[str], None], what: str) -> None:
+        self._log, self._what = log, what
+        self._counts: Counter[str] = Counter()
+        self._unreported: Counter[str] = Counter()
+        self._last_summary = time.monotonic()
+
+    def happened(self, robot: str, first_message: str) -> None:
+        if not self._counts[robot]:
+            self._log(f'{first_message} (further ones are counted, not logged)')
+        else:
+            self._unreported[robot] += 1
+        self._counts[robot] += 1
+        if self._unreported and time.monotonic() - self._last_summary > SUMMARY_PERIOD:
+            self.summarise()
+
+    def summarise(self) -> None:
+        if self._unreported:
+            counts = ', '.join(f'{robot} {count}' for robot, count in sorted(self._unreported.items()))
+            self._log(f'{self._what} {sum(self._unreported.values())} more times ({counts})')
+        self._unreported.clear()
+        self._last_summary = time.monotonic()
 
 
 class SimNode(Node):
-    """Publishes odom, ground_truth, proximity, joint_states, world and /clock; takes cmd_vel and wheel_cmd."""
+    """The simulator: one `RobotPorts` per robot, plus /clock, world, world_markers, reset and step."""
 
     def __init__(self) -> None:
         super().__init__('sim')
-        self._declare_parameters()
-        world_path = self.get_parameter('world').value
-        world = load_world(world_path) if world_path else default_world()
-        self._time_step = self.get_parameter('time_step').value
-        self._rtf = self.get_parameter('real_time_factor').value
-        self._paused = self.get_parameter('paused').value
-        self._pause_at = self.get_parameter('pause_at').value
-        self._sim = Simulation(
-            world, RobotModel(), time_step=self._time_step, seed=self.get_parameter('seed').value,
-            noise=self.get_parameter('noise').value, cmd_timeout=self.get_parameter('cmd_timeout').value)
+        started = time.monotonic()
+        values = declare_parameters(self, SIM_PARAMETERS)
+        self._stop_listening_to_own_clock()
+        world = load_world(values['world']) if values['world'] else default_world()
+        if values['robots'] > 0:
+            world = place_robots(world, values['robots'], values['seed'])
+        self._time_step = values['time_step']
+        self._rtf = values['real_time_factor']
+        self._paused = values['paused']
+        self._pause_at = values['pause_at']
+        self._lockstep = values['lockstep']
+        self._lockstep_timeout = values['lockstep_timeout']
+        self._sim = Simulation(world, RobotModel(), time_step=self._time_step, seed=values['seed'],
+                               noise=values['noise'], cmd_timeout=values['cmd_timeout'])
         self._lock = threading.Lock()
-        self._commanded = threading.Event()
-        self._lockstep = self.get_parameter('lockstep').value
-        self._lockstep_timeout = self.get_parameter('lockstep_timeout').value
-        self._answered_once = False
+        """Guards the simulation: the loop thread steps it, the executor thread commands and resets it."""
+        self._answers = threading.Condition()
+        """Lockstep: notified when a robot's command arrives."""
+        self._wake = threading.Event()
+        self._step_requests = 0
+        self._stepped = threading.Condition()
         self._resends = 0
         self.failure = ''
         self._running = threading.Event()
         self._thread = threading.Thread(target=self._run, name='sim_loop', daemon=True)
+        self._timeouts = RepeatedCondition(self.get_logger().info, 'command time-out: wheels stopped')
+        self._stalled_topics: set[str] = set()
         self.add_on_set_parameters_callback(self._on_set_parameters)
+        self._refuse_if_another_simulator(started)
 
-        prefix = self.get_parameter('frame_prefix').value
-        self._frames = {name: prefix + name for name in ('odom', 'base_link', 'world', *SENSOR_NAMES)}
-        self._make_messages(world)
-        self._make_interfaces()
+        stream = QoSProfile(depth=PUBLISHER_HISTORY_STEPS, reliability=ReliabilityPolicy.RELIABLE)
+        latched = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+        several = len(world.robots) > 1
+        self.ports = [
+            RobotPorts(self, index, name, several, stream, latched, self._on_command, values['frame_prefix'],
+                       values['cmd_vel_stamped'])
+            for index, name in enumerate(self._sim.names)]
+        self.create_publisher(String, 'world', latched).publish(
+            String(data=yaml.safe_dump(world.to_dict(), sort_keys=False)))
+        self.create_publisher(MarkerArray, 'world_markers', latched).publish(world_markers(world))
+        self.create_service(Empty, 'reset', self._on_reset)
+        self.create_service(Trigger, 'step', self._on_step)
+        self._clock_pub = self.create_publisher(Clock, '/clock', stream)
+        self._clock_msg = Clock()
+        self._acks = AckWindow(self._stream_publishers, ACK_WINDOW_STEPS, self._on_ack_stall)
+        robots = f'{len(world.robots)} robots ({", ".join(world.names[:5])}{", ..." if len(world.robots) > 5 else ""})' \
+            if several else 'one robot'
         self.get_logger().info(
-            f'sim ready: world {world_path or "default arena"}, time step {self._time_step} s, '
-            f'real-time factor {self._rtf or "max"}, seed {self.get_parameter("seed").value}, '
-            f'noise {"on" if self.get_parameter("noise").value else "off"}')
+            f'sim ready: world {values["world"] or "default arena"}, {robots}, time step {self._time_step} s, '
+            f'real-time factor {self._rtf or "max"}, seed {values["seed"]}, noise {"on" if values["noise"] else "off"}'
+            f'{", lockstep" if self._lockstep else ""}{", paused" if self._paused else ""}')
 
-    def _declare_parameters(self) -> None:
-        for name, (default, descriptor) in PARAMETERS.items():
-            self.declare_parameter(name, default, descriptor)
+    # --- start-up ---------------------------------------------------------------------------------------
+
+    def _stop_listening_to_own_clock(self) -> None:
+        """The clock source never follows `/clock` (it would hear itself, and pay for it): use_sim_time off."""
+        if self.get_parameter('use_sim_time').value:
+            self.set_parameters([Parameter('use_sim_time', value=False)])
+            self.get_logger().info('use_sim_time ignored: the simulator is the source of /clock, it does not follow it')
+
+    def _refuse_if_another_simulator(self, started: float) -> None:
+        """Another `/clock` publisher (a simulator, a bag being played) or a node with this one's name: refuse."""
+        me = (self.get_name(), self.get_namespace())
+        deadline = started + DISCOVERY_WINDOW
+        while True:
+            clocks = self.get_publishers_info_by_topic('/clock')
+            namesakes = self.get_node_names_and_namespaces().count(me)
+            if clocks or namesakes > 1:
+                who = ', '.join(sorted({f'{c.node_namespace.rstrip("/")}/{c.node_name}' for c in clocks}))
+                raise AnotherSimulator(
+                    f'another simulator runs on ROS domain {os.environ.get("ROS_DOMAIN_ID", "0")}: '
+                    + (f'/clock is published by {who}' if clocks else f'a node named {self.get_fully_qualified_name()}'
+                                                                      ' exists') +
+                    '; stop it or use another ROS_DOMAIN_ID')
+            if time.monotonic() >= deadline:
+                return
+            time.sleep(0.02)
+
+    def _stream_publishers(self) -> list:
+        return [self._clock_pub] + [pub for ports in self.ports for pub in ports.stream_publishers]
+
+    def _on_ack_stall(self, topic: str) -> None:
+        if topic not in self._stalled_topics:
+            self._stalled_topics.add(topic)
+            self.get_logger().warning(
+                f'a reader of {topic} acknowledged nothing for 10 s: no longer waiting for it (it may lose messages)')
+
+    # --- parameters, commands, services -----------------------------------------------------------------
 
     def _on_set_parameters(self, params: list[Parameter]) -> SetParametersResult:
         with self._lock:
@@ -163,79 +261,43 @@ class SimNode(Node):
                     self._pause_at = param.value
                 elif param.name == 'cmd_timeout':
                     self._sim.cmd_timeout = param.value
+        self._wake.set()
         return SetParametersResult(successful=True)
 
-    def _make_messages(self, world: World) -> None:
-        """Messages are built once and refilled every step: it halves the cost of publishing."""
-        self._odom = Odometry()
-        self._odom.header.frame_id = self._frames['odom']
-        self._odom.child_frame_id = self._frames['base_link']
-        self._odom.pose.covariance = _diagonal(POSE_COVARIANCE)
-        self._odom.twist.covariance = _diagonal(TWIST_COVARIANCE)
-        self._truth = Odometry()
-        self._truth.header.frame_id = self._frames['world']
-        self._truth.child_frame_id = self._frames['base_link']
-        model = RobotModel()
-        self._ranges = []
-        for name in SENSOR_NAMES:
-            msg = Range()
-            msg.header.frame_id = self._frames[name]
-            msg.radiation_type = Range.INFRARED
-            msg.field_of_view = model.ir_aperture
-            msg.min_range = 0.0
-            msg.max_range = model.ir_range
-            self._ranges.append(msg)
-        self._joints = JointState()
-        self._joints.name = JOINT_NAMES
-        self._clock_msg = Clock()
-        self._world_msg = String(data=yaml.safe_dump(world.to_dict(), sort_keys=False))
-
-    def _make_interfaces(self) -> None:
-        # Reliable KEEP_LAST: a reader gets a sample only while it is still in the publisher's history, so
-        # the history holds about a second of steps at 10x real time; a recorder that stalls for a moment
-        # (a disk flush, a garbage collection) then loses nothing.
-        depth = PUBLISHER_HISTORY_STEPS
-        self._pub_clock = self.create_publisher(Clock, '/clock', depth)
-        self._pub_odom = self.create_publisher(Odometry, 'odom', depth)
-        self._pub_truth = self.create_publisher(Odometry, 'ground_truth', depth)
-        self._pub_range = self.create_publisher(Range, 'proximity', depth * len(SENSOR_NAMES))
-        self._pub_joints = self.create_publisher(JointState, 'joint_states', depth)
-        latched = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
-        self.create_publisher(String, 'world', latched).publish(self._world_msg)
-        self._pub_collisions = self.create_publisher(UInt32, 'collisions', latched)
-        self._pub_collisions.publish(UInt32(data=0))
-        if self.get_parameter('cmd_vel_stamped').value:
-            self.create_subscription(TwistStamped, 'cmd_vel', lambda m: self._on_twist(m.twist), 10)
-        else:
-            self.create_subscription(Twist, 'cmd_vel', self._on_twist, 10)
-        self.create_subscription(Float64MultiArray, 'wheel_cmd', self._on_wheel_cmd, 10)
-        self.create_service(Empty, 'reset', self._on_reset)
-
-    def _on_twist(self, msg: Twist) -> None:
-        self._command('cmd_vel', self._sim.command_twist, msg.linear.x, msg.angular.z)
-
-    def _on_wheel_cmd(self, msg: Float64MultiArray) -> None:
-        if len(msg.data) != 2:
-            self.get_logger().warning(
-                f'wheel_cmd refused: data must be [left, right] rad/s, got {len(msg.data)} values',
-                throttle_duration_sec=WARN_PERIOD)
-            return
-        self._command('wheel_cmd', self._sim.command_wheels, msg.data[0], msg.data[1])
-
-    def _command(self, topic: str, apply: object, first: float, second: float) -> None:
+    def _on_command(self, robot: int, topic: str, kind: str, first: float, second: float) -> None:
+        apply = self._sim.command_wheels if kind == 'wheels' else self._sim.command_twist
         try:
             with self._lock:
-                apply(first, second)
+                apply(robot, first, second)
         except CommandError as error:
             self.get_logger().warning(f'{topic} refused: {error}', throttle_duration_sec=WARN_PERIOD)
             return
-        self._commanded.set()
+        with self._answers:
+            self.ports[robot].answered = True
+            self._answers.notify_all()
 
     def _on_reset(self, request: Empty.Request, response: Empty.Response) -> Empty.Response:
         with self._lock:
             self._sim.reset()
-        self.get_logger().info('reset: robot back at its start pose, odometry zeroed')
+        self.get_logger().info('reset: every robot back at its start pose, odometry zeroed')
         return response
+
+    def _on_step(self, request: Trigger.Request, response: Trigger.Response) -> Trigger.Response:
+        """One step while paused; answers once that step is published (its /clock included)."""
+        if not self._paused:
+            response.success, response.message = False, 'not paused: the simulation is running (set paused:=true)'
+            return response
+        with self._stepped:
+            target = self._sim.steps + 1
+            self._step_requests += 1
+            self._wake.set()
+            done = self._stepped.wait_for(lambda: self._sim.steps >= target or not self._running.is_set(),
+                                          timeout=max(5.0, 2 * self._lockstep_timeout))
+        response.success = done and self._running.is_set()
+        response.message = f't={self._sim.time:.3f} s' if response.success else 'the step did not happen in time'
+        return response
+
+    # --- the loop ---------------------------------------------------------------------------------------
 
     def start(self) -> None:
         self._running.set()
@@ -243,16 +305,22 @@ class SimNode(Node):
 
     def stop(self) -> None:
         self._running.clear()
-        self._commanded.set()  # a lockstep loop waiting for a command wakes up and sees it must end
+        self._wake.set()
+        with self._answers:  # a lockstep loop waiting for answers wakes up and sees it must end
+            self._answers.notify_all()
+        with self._stepped:
+            self._stepped.notify_all()
+        self._acks.close()
         if self._thread.is_alive():
             self._thread.join(timeout=5.0)
+        self._timeouts.summarise()
 
     def _run(self) -> None:
         """The loop thread: a failure in it ends the node (exit code 1) instead of freezing time silently."""
         try:
             self._loop()
         except Exception as error:  # noqa: BLE001 - anything at all ends the node, with its story
-            if self.context.ok():  # not merely the context going away under us while shutting down
+            if self.context.ok() and self._running.is_set():  # not merely the context going away under us
                 self.failure = f'simulation loop failed: {error!r}'
                 self.get_logger().fatal(self.failure)
                 self.context.try_shutdown()
@@ -262,66 +330,78 @@ class SimNode(Node):
         pacer = Pacer()
         resend = False
         while self._running.is_set() and self.context.ok():
-            if self._paused:
+            if self._paused and not self._step_requests:
                 pacer.restart()
-                time.sleep(0.01)
+                self._acks.restart(self._sim.steps)
+                self._wake.wait(IDLE_POLL)
+                self._wake.clear()
                 continue
+            with self._answers:
+                for ports in self.ports:
+                    ports.answered = False
             with self._lock:
                 events = None if resend else self._sim.step()
                 self._publish()
-                rtf, now_sim = self._rtf, self._sim.time
+                now_sim, steps = self._sim.time, self._sim.steps
             if events is not None:
                 self._after_step(events, now_sim)
-            resend = self._lockstep and not self._await_command()
-            pacer.wait(now_sim, rtf)
+                if self._step_requests:
+                    with self._stepped:  # the step service answers now; lockstep needs the executor free
+                        self._step_requests -= 1
+                        self._stepped.notify_all()
+            resend = self._lockstep and not self._await_answers()
+            self._acks.published(steps)
+            pacer.wait(now_sim, lambda: self._rtf, lambda: self._running.is_set() and not self._paused)
+
+    def _publish(self) -> None:
+        """One step's messages, robot by robot; `/clock` goes last, so a node whose timer fires on that tick has
+        its data."""
+        stamp = _stamp(self._sim.time)
+        for ports in self.ports:
+            ports.publish(self._sim, stamp)
+        self._clock_msg.clock = stamp
+        self._clock_pub.publish(self._clock_msg)
 
     def _after_step(self, events: StepEvents, now_sim: float) -> None:
-        if events.timed_out:
-            self.get_logger().info(f'no command for {self._sim.cmd_timeout:g} s: wheels stopped (t={now_sim:.2f} s)')
+        names = self._sim.names
+        for robot in events.timed_out:
+            self._timeouts.happened(names[robot], f'{names[robot]}: no command for {self._sim.cmd_timeout:g} s: '
+                                                  f'wheels stopped (t={now_sim:.2f} s)')
         for robot in events.new_contacts:
             count = int(self._sim.collisions[robot])
-            x, y, _ = self._sim.true_pose[robot]
-            self._pub_collisions.publish(UInt32(data=count))
-            self.get_logger().warning(f'collision #{count} at x={x:.3f} y={y:.3f} (t={now_sim:.2f} s)')
+            x, y, _ = self._sim.true_pose[robot].tolist()
+            self.ports[robot].publish_collisions(count)
+            self.get_logger().warning(f'{names[robot]}: collision #{count} at x={x:.3f} y={y:.3f} (t={now_sim:.2f} s)')
         if 0.0 < self._pause_at <= now_sim + 1e-9:
             self.set_parameters([Parameter('paused', value=True)])
             self.get_logger().info(f'paused at t={now_sim:.3f} s (pause_at)')
 
-    def _await_command(self) -> bool:
-        """Lockstep: wait for the controller to answer this step; False if the step should be sent again.
+    def _await_answers(self) -> bool:
+        """Lockstep: wait until every robot with a controller answered this step; False to send the step again.
 
-        Until the controller has answered once, a step nobody answered is sent again rather than passed: a
-        controller still connecting may have missed it (DDS matching is not visible from outside), and
-        two runs would then start a step apart. A few resends at most, so a lost first answer cannot hang
-        the simulation."""
-        answered = self._commanded.wait(self._lockstep_timeout)
-        self._commanded.clear()
-        if answered:
-            self._answered_once = True
-        if answered or self._answered_once or self._resends >= LOCKSTEP_START_RESENDS:
+        A robot nobody drives holds nobody up; with no controller at all the sim waits for any command, up to
+        `lockstep_timeout`. Until a robot's controller has answered once, a step it did not answer is sent
+        again rather than passed: a controller still connecting may have missed it, and two runs would then
+        start a step apart. A few resends at most, so a lost first answer cannot hang the simulation."""
+        deadline = time.monotonic() + self._lockstep_timeout
+        with self._answers:
+            while True:
+                driven = [ports for ports in self.ports if ports.has_controller()]
+                waiting_for = driven or self.ports
+                if (all if driven else any)(ports.answered for ports in waiting_for):
+                    for ports in waiting_for:
+                        ports.answered_once = ports.answered_once or ports.answered
+                    return True
+                remaining = deadline - time.monotonic()
+                if remaining <= 0.0 or not self._running.is_set():
+                    break
+                self._answers.wait(min(remaining, GRAPH_POLL))
+            never_answered = [ports for ports in waiting_for if not ports.answered_once]
+        if not never_answered or self._resends >= LOCKSTEP_START_RESENDS or not self._running.is_set():
             return True
         self._resends += 1
         self.get_logger().info(f'lockstep: no answer to t={self._sim.time:.3f} s yet, sending it again')
         return False
-
-    def _publish(self) -> None:
-        """One step's messages; `/clock` goes last, so a node whose timer fires on that tick has its data."""
-        sim = self._sim
-        stamp = _stamp(sim.time)
-        _fill_odometry(self._odom, stamp, sim.odom_pose[0], sim.odom_twist[0])
-        self._pub_odom.publish(self._odom)
-        _fill_odometry(self._truth, stamp, sim.true_pose[0], sim.true_twist[0])
-        self._pub_truth.publish(self._truth)
-        for msg, value in zip(self._ranges, sim.ir_range[0]):
-            msg.header.stamp = stamp
-            msg.range = float(value)
-            self._pub_range.publish(msg)
-        self._joints.header.stamp = stamp
-        self._joints.position = [float(a) for a in sim.wheel_angles[0]]
-        self._joints.velocity = [float(w) for w in sim.wheel_speeds[0]]
-        self._pub_joints.publish(self._joints)
-        self._clock_msg.clock = stamp
-        self._pub_clock.publish(self._clock_msg)
 
 
 def _stamp(seconds: float) -> Time:
@@ -329,37 +409,30 @@ def _stamp(seconds: float) -> Time:
     return Time(sec=nanoseconds // 1_000_000_000, nanosec=nanoseconds % 1_000_000_000)
 
 
-def _fill_odometry(msg: Odometry, stamp: object, pose: object, twist: object) -> None:
-    x, y, yaw = (float(v) for v in pose)
-    msg.header.stamp = stamp
-    msg.pose.pose.position.x = x
-    msg.pose.pose.position.y = y
-    msg.pose.pose.orientation.z = math.sin(yaw / 2.0)
-    msg.pose.pose.orientation.w = math.cos(yaw / 2.0)
-    msg.twist.twist.linear.x = float(twist[0])
-    msg.twist.twist.angular.z = float(twist[1])
-
-
 def main(args: list[str] | None = None) -> None:
+    argv = prepare_arguments(args, SIM_PARAMETERS, USAGE)
     # FastDDS sends from its own thread instead of inside publish(): the loop thread is then free to step
     # (measured with benchmarks/bench_sim_node.py: about 1.5x the real-time factor with a subscriber attached).
     os.environ.setdefault('RMW_FASTRTPS_PUBLICATION_MODE', 'ASYNCHRONOUS')
-    rclpy.init(args=args)
+    rclpy.init(args=argv)
     node = None
+    code = 0
     try:
         node = SimNode()
         node.start()
         spin_until_shutdown(node)
-    except (WorldError, ParameterException) as error:
-        rclpy.logging.get_logger('sim').fatal(f'cannot start: {error}')
-        raise SystemExit(2)
+    except (WorldError, ParameterException, AnotherSimulator) as error:
+        print(f'sim: cannot start: {error}', file=sys.stderr)
+        code = 2
     finally:
         if node is not None:
             node.stop()
             node.destroy_node()
         rclpy.try_shutdown()
     if node is not None and node.failure:
-        raise SystemExit(1)
+        code = 1
+    if code:
+        raise SystemExit(code)
 
 
 if __name__ == '__main__':

@@ -1,0 +1,178 @@
+"""One robot's ports on the simulator node, as turtlesim's Turtle owns its topics.
+
+`RobotPorts` holds everything of one robot that ROS sees: its command subscriptions, its step publishers with
+their reusable messages, its frame ids, and whether a controller answered the current step (lockstep). With
+one robot every name is the historical one (`odom`, frame `base_link`, `frame_prefix` in front); with several,
+each robot's topics live under its name relative to the simulator's namespace (`epuck3/odom`) and its frames
+are `epuck3/odom`, `epuck3/base_link`, `epuck3/ps0`... (stage_ros2's convention).
+"""
+from __future__ import annotations
+
+import math
+from array import array
+from collections.abc import Callable
+
+from builtin_interfaces.msg import Time
+from geometry_msgs.msg import Twist, TwistStamped
+from nav_msgs.msg import Odometry
+from rclpy.node import Node
+from rclpy.qos import QoSProfile
+from sensor_msgs.msg import JointState, Range
+from std_msgs.msg import Float64MultiArray, UInt32
+
+from epuck_ros.model import SENSOR_NAMES, RobotModel
+from epuck_ros.simulation import Simulation
+
+JOINT_NAMES = ['left_wheel_joint', 'right_wheel_joint']
+WORLD_FRAME = 'world'
+
+# Diagonal covariances (x, y, z, roll, pitch, yaw): the planar robot knows nothing of z, roll and
+# pitch (a large variance says so, as REP 105 users expect); x, y and yaw are of the order of
+# the encoder quantisation (2π/1000 rad · 0.02 m ≈ 1.3e-4 m per tick).
+_UNKNOWN = 1e6
+POSE_COVARIANCE = [1e-6, 1e-6, _UNKNOWN, _UNKNOWN, _UNKNOWN, 1e-5]
+TWIST_COVARIANCE = [1e-5, 1e-5, _UNKNOWN, _UNKNOWN, _UNKNOWN, 1e-4]
+
+WARN_PERIOD = 1.0
+"""Seconds between two warnings about refused commands."""
+CommandHandler = Callable[[int, str, str, float, float], None]
+"""(robot index, topic, 'wheels' or 'twist', first value, second value): what the node does with a command."""
+
+
+def topic_prefix(name: str, several: bool) -> str:
+    """What a robot's topic names start with: nothing for a lone robot (today's names), else `<name>/`."""
+    return f'{name}/' if several else ''
+
+
+def frame_prefix(name: str, several: bool, prefix: str = '') -> str:
+    """What a robot's frame ids start with: `prefix` for a lone robot, else `<prefix><name>/`."""
+    return prefix + topic_prefix(name, several)
+
+
+class RobotPorts:
+    """The topics of robot `index`: publishes its step messages, hands its commands to `on_command`."""
+
+    def __init__(self, node: Node, index: int, name: str, several: bool, stream_qos: QoSProfile,
+                 latched_qos: QoSProfile, on_command: CommandHandler, frames_prefix: str = '',
+                 cmd_vel_stamped: bool = False, model: RobotModel = RobotModel()) -> None:
+        self.index, self.name = index, name
+        self.answered = False
+        """A command arrived since the current step was published (lockstep)."""
+        self.answered_once = False
+        topics = topic_prefix(name, several)
+        frames = frame_prefix(name, several, frames_prefix)
+        self.odom_frame, self.base_frame = frames + 'odom', frames + 'base_link'
+        # A lone robot keeps today's prefixed world frame; several share one `world` (where their markers are).
+        world_frame = (frames_prefix if not several else '') + WORLD_FRAME
+        self._on_command = on_command
+        self._logger = node.get_logger()
+        self._make_messages(frames, world_frame, model)
+
+        self._odom_pub = node.create_publisher(Odometry, topics + 'odom', stream_qos)
+        self._truth_pub = node.create_publisher(Odometry, topics + 'ground_truth', stream_qos)
+        self._range_pub = node.create_publisher(Range, topics + 'proximity', _deeper(stream_qos, len(SENSOR_NAMES)))
+        self._joints_pub = node.create_publisher(JointState, topics + 'joint_states', stream_qos)
+        self._raw_pub = node.create_publisher(Float64MultiArray, topics + 'ir_raw', stream_qos)
+        self._collisions_pub = node.create_publisher(UInt32, topics + 'collisions', latched_qos)
+        self.stream_publishers = [self._odom_pub, self._truth_pub, self._range_pub, self._joints_pub, self._raw_pub]
+        self.publish_collisions(0)
+
+        if cmd_vel_stamped:
+            self._twist_sub = node.create_subscription(
+                TwistStamped, topics + 'cmd_vel', lambda msg: self._twist(msg.twist), 10)
+        else:
+            self._twist_sub = node.create_subscription(Twist, topics + 'cmd_vel', self._twist, 10)
+        self._wheels_sub = node.create_subscription(Float64MultiArray, topics + 'wheel_cmd', self._wheels, 10)
+
+    def _make_messages(self, frames: str, world_frame: str, model: RobotModel) -> None:
+        """Messages are built once and refilled every step: it halves the cost of publishing."""
+        self._odom = Odometry()
+        self._odom.header.frame_id = self.odom_frame
+        self._odom.child_frame_id = self.base_frame
+        self._odom.pose.covariance = _diagonal(POSE_COVARIANCE)
+        self._odom.twist.covariance = _diagonal(TWIST_COVARIANCE)
+        self._truth = Odometry()
+        self._truth.header.frame_id = world_frame
+        self._truth.child_frame_id = self.base_frame
+        self._ranges = []
+        for sensor in SENSOR_NAMES:
+            msg = Range()
+            msg.header.frame_id = frames + sensor
+            msg.radiation_type = Range.INFRARED
+            msg.field_of_view = model.ir_aperture
+            msg.min_range = 0.0
+            msg.max_range = model.ir_range
+            self._ranges.append(msg)
+        self._joints = JointState()
+        self._joints.name = JOINT_NAMES
+        self._raw = Float64MultiArray()
+
+    # --- commands ---------------------------------------------------------------------------------------
+
+    def _twist(self, msg: Twist) -> None:
+        self._on_command(self.index, self._twist_sub.topic_name, 'twist', msg.linear.x, msg.angular.z)
+
+    def _wheels(self, msg: Float64MultiArray) -> None:
+        if len(msg.data) != 2:
+            self._logger.warning(
+                f'{self._wheels_sub.topic_name} refused: data must be [left, right] rad/s, got {len(msg.data)} '
+                'values', throttle_duration_sec=WARN_PERIOD)
+            return
+        self._on_command(self.index, self._wheels_sub.topic_name, 'wheels', msg.data[0], msg.data[1])
+
+    def has_controller(self) -> bool:
+        """Some node publishes on this robot's wheel_cmd or cmd_vel (a matched publisher): lockstep waits for it."""
+        return self._wheels_sub.get_publisher_count() > 0 or self._twist_sub.get_publisher_count() > 0
+
+    # --- publishing -------------------------------------------------------------------------------------
+
+    def publish(self, sim: Simulation, stamp: Time) -> None:
+        """This robot's step messages (not `/clock`, which the node sends last); topics nobody reads are skipped."""
+        robot = self.index
+        if self._odom_pub.get_subscription_count():
+            _fill_odometry(self._odom, stamp, sim.odom_pose[robot], sim.odom_twist[robot])
+            self._odom_pub.publish(self._odom)
+        if self._truth_pub.get_subscription_count():
+            _fill_odometry(self._truth, stamp, sim.true_pose[robot], sim.true_twist[robot])
+            self._truth_pub.publish(self._truth)
+        if self._raw_pub.get_subscription_count():
+            self._raw.data = array('d', sim.ir_raw[robot].tolist())
+            self._raw_pub.publish(self._raw)
+        if self._range_pub.get_subscription_count():
+            for msg, value in zip(self._ranges, sim.ir_range[robot].tolist()):
+                msg.header.stamp = stamp
+                msg.range = value
+                self._range_pub.publish(msg)
+        if self._joints_pub.get_subscription_count():
+            self._joints.header.stamp = stamp
+            self._joints.position = array('d', sim.wheel_angles[robot].tolist())
+            self._joints.velocity = array('d', sim.wheel_speeds[robot].tolist())
+            self._joints_pub.publish(self._joints)
+
+    def publish_collisions(self, count: int) -> None:
+        self._collisions_pub.publish(UInt32(data=count))
+
+
+def _deeper(qos: QoSProfile, factor: int) -> QoSProfile:
+    """The same profile with `factor` times the history: proximity sends eight messages per step."""
+    return QoSProfile(history=qos.history, depth=qos.depth * factor, reliability=qos.reliability,
+                      durability=qos.durability)
+
+
+def _diagonal(values: list[float]) -> list[float]:
+    matrix = [0.0] * 36
+    for i, value in enumerate(values):
+        matrix[7 * i] = value
+    return matrix
+
+
+def _fill_odometry(msg: Odometry, stamp: Time, pose: object, twist: object) -> None:
+    x, y, yaw = pose.tolist()
+    msg.header.stamp = stamp
+    msg.pose.pose.position.x = x
+    msg.pose.pose.position.y = y
+    msg.pose.pose.orientation.z = math.sin(yaw / 2.0)
+    msg.pose.pose.orientation.w = math.cos(yaw / 2.0)
+    v, w = twist.tolist()
+    msg.twist.twist.linear.x = v
+    msg.twist.twist.angular.z = w
