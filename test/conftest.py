@@ -22,24 +22,41 @@ os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
 _DOMAIN_LOCK_DIR = Path('/tmp/epuck_ros_test_domains')
 
 
-def _claim_domain_id() -> int:
-    """Lock a ROS_DOMAIN_ID no other test run on this machine holds; the lock lasts as long as this process."""
+def _lock_domain(domain: int) -> bool:
+    """Hold the lock of `domain` for as long as this process lives; False if another test run holds it."""
+    handle = open(_DOMAIN_LOCK_DIR / f'{domain}.lock', 'w')
+    try:
+        fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except OSError:
+        handle.close()
+        return False
+    _lock_domain.handle = handle  # type: ignore[attr-defined]  # keep the lock alive
+    return True
+
+
+def _claim_domain_id() -> tuple[int, str]:
+    """The ROS_DOMAIN_ID of this test run and how it was chosen: the user's own if set and no other test run holds
+    it, else one between 10 and 99 that no other test run on this machine holds."""
     _DOMAIN_LOCK_DIR.mkdir(exist_ok=True)
+    wanted = os.environ.get('ROS_DOMAIN_ID', '')
+    if wanted.isdigit() and _lock_domain(int(wanted)):
+        return int(wanted), 'set by you'
     start = os.getpid() % 90
     for offset in range(90):
         domain = 10 + (start + offset) % 90
-        handle = open(_DOMAIN_LOCK_DIR / f'{domain}.lock', 'w')
-        try:
-            fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except OSError:
-            handle.close()
-            continue
-        _claim_domain_id.handle = handle  # type: ignore[attr-defined]  # keep the lock alive
-        return domain
+        if _lock_domain(domain):
+            how = f'your ROS_DOMAIN_ID={wanted} is in use by another test run' if wanted else 'ROS_DOMAIN_ID unset'
+            return domain, f'{how}: a free one was claimed'
     raise RuntimeError('no free ROS_DOMAIN_ID between 10 and 99 for this test run')
 
 
-os.environ['ROS_DOMAIN_ID'] = str(_claim_domain_id())
+_DOMAIN, _DOMAIN_CHOICE = _claim_domain_id()
+os.environ['ROS_DOMAIN_ID'] = str(_DOMAIN)
+
+
+def pytest_report_header() -> str:
+    return f'ROS_DOMAIN_ID={_DOMAIN} ({_DOMAIN_CHOICE}), ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST'
+
 
 BIN_DIR = Path(sys.executable).parent
 

@@ -1,100 +1,255 @@
-"""The entry script: starts sim + behaviour (+ recorder) as processes and always stops them all."""
+"""The entry script: starts sim + controller (+ recorder, view) as processes and always stops them all.
+
+Runs use lockstep (bringup's default), so what they do does not depend on the machine's load; waits are on
+conditions (output lines, the graph, processes gone) with generous timeouts, never on elapsed time."""
 from __future__ import annotations
 
 import os
 import re
 import signal
+import subprocess
+import sys
+import textwrap
+import time
+from pathlib import Path
 
 import pytest
-from conftest import processes_in_this_domain
+from conftest import BIN_DIR, processes_in_this_domain
 
-from epuck_ros.bag.reader import Bag as BagReader
-from epuck_ros.bringup import parse_args
+from epuck_ros.bringup.cli import parse_args
 
-
-def behaviour_pids(name: str) -> list[int]:
-    return [pid for pid, cmd in processes_in_this_domain() if re.search(rf'/{name}\b', cmd)]
+SUMMARY = re.compile(r'simulated ([\d.]+) s in [\d.]+ s wall \(([\d.]+)x real time\); '
+                     r'distance travelled ([\d.]+) m; collisions (\d+)')
 
 
-def test_parameters_go_to_the_node_that_declares_them():
-    args = parse_args(['rectangle', '--seed', '7', '--no-noise', '-p', 'turn_mode:=timed',
-                       '-p', 'cmd_timeout:=2.0', '-p', 'rectangle.side_a:=0.2', '-p', 'sim.time_step:=0.016'])
-    assert args.behaviour_params == ['turn_mode:=timed', 'side_a:=0.2']
-    assert set(args.sim_params) >= {'seed:=7', 'noise:=false', 'cmd_timeout:=2.0', 'time_step:=0.016',
-                                    'real_time_factor:=1.0'}
+def summary_of(output: str) -> tuple[float, float, int]:
+    """(simulated s, distance m, collisions) from bringup's last line."""
+    found = SUMMARY.search(output)
+    assert found, output
+    return float(found[1]), float(found[3]), int(found[4])
+
+
+def child_pids() -> list[int]:
+    """The ROS processes of this test's domain other than bringup itself."""
+    return [pid for pid, cmd in processes_in_this_domain() if '/bringup' not in cmd]
+
+
+def wait_until_gone(pids: list[int], timeout: float) -> list[int]:
+    """Wait (bounded) until none of `pids` is a live process; returns those still alive."""
+    deadline = time.monotonic() + timeout
+    while True:
+        alive = [pid for pid in pids if _alive(pid)]
+        if not alive or time.monotonic() > deadline:
+            return alive
+        time.sleep(0.1)
+
+
+def _alive(pid: int) -> bool:
+    try:
+        state = Path(f'/proc/{pid}/stat').read_text().rsplit(')', 1)[1].split()[0]
+    except (OSError, IndexError):
+        return False
+    return state != 'Z'
+
+
+def test_parameters_go_to_the_node_that_declares_them_as_their_type():
+    args, plan = parse_args(['rectangle', '--seed', '7', '--no-noise', '-p', 'turn_mode:=timed',
+                             '-p', 'cmd_timeout:=2', '-p', 'rectangle.side_a:=0.2', '-p', 'sim.real_time_factor:=0'])
+    assert plan.controller_params == ['turn_mode:=timed', 'side_a:=0.2']
+    # Integers given for float parameters reach the node as floats: `-p cruise_speed:=1` works.
+    assert {'seed:=7', 'noise:=false', 'cmd_timeout:=2.0', 'real_time_factor:=0.0', 'lockstep:=true',
+            'paused:=true'} <= set(plan.sim_params)
+    _, plan = parse_args(['avoid', '-p', 'cruise_speed:=1'])
+    assert plan.controller_params == ['cruise_speed:=1.0']
+    _, plan = parse_args(['avoid', '--no-lockstep'])
+    assert 'lockstep:=false' in plan.sim_params
+
+
+def test_several_robots_are_driven_by_one_behaviour_process():
+    _, plan = parse_args(['avoid', '--robots', '20'])
+    assert 'robots:=20' in plan.sim_params
+    assert plan.controller_command == ['avoid', '--robots', 'all']
+    _, plan = parse_args(['avoid'])
+    assert plan.controller_command == ['avoid']
+
+
+def test_a_controller_script_runs_as_webots_or_as_rclpy(tmp_path):
+    webots = tmp_path / 'webots_style.py'
+    webots.write_text('from controller import Robot\nrobot = Robot()\n')
+    own = tmp_path / 'own_node.py'
+    own.write_text('import rclpy\n')
+    _, plan = parse_args(['--controller', str(webots), '--robot', 'epuck'])
+    assert plan.controller_kind == 'webots'
+    assert plan.controller_command == ['webots_controller', str(webots.resolve()), '--robot', 'epuck']
+    _, plan = parse_args(['--controller', str(own)])
+    assert plan.controller_kind == 'rclpy'
+    assert plan.controller_command == [sys.executable, str(own.resolve())]
 
 
 @pytest.mark.parametrize('argv, message', [
     (['dance'], 'invalid choice'),
     (['avoid', '--duration', '-3'], '--duration'),
     (['avoid', '-p', 'oops'], 'NAME:=VALUE'),
+    (['avoid', '-p', 'cruise_speed:='], 'empty value'),
     (['avoid', '-p', 'turtle.speed:=1'], 'unknown node'),
     (['avoid', '--world', '/no/such.yaml'], 'no such file'),
+    (['forward', '-p', 'goal_distnace:=0.3'], 'did you mean goal_distance?'),
+    (['forward', '-p', 'sim.seeed:=3'], 'did you mean seed?'),
+    (['forward', '-p', 'sim.seed:=abc'], "seed: expected an integer, got abc"),
+    (['avoid', '-p', 'cruise_speed:=99'], 'cruise_speed: 99'),
+    (['avoid', '--namespace', 'bad ns!'], "--namespace 'bad ns!'"),
+    (['--controller', '/no/such_controller.py'], 'no such file'),
+    (['avoid', '--controller', __file__], 'not both'),
+    (['avoid', '--robots', '0'], '--robots'),
 ])
-def test_bad_arguments_are_refused(argv, message, capsys):
+def test_bad_arguments_are_refused_with_one_line(argv, message, capsys):
     with pytest.raises(SystemExit) as exit_info:
         parse_args(argv)
     assert exit_info.value.code == 2
-    assert message in capsys.readouterr().err
+    err = capsys.readouterr().err
+    assert message in err
+    assert len(err.strip().splitlines()) == 1, err
 
 
-def test_a_run_with_duration_ends_by_itself_and_leaves_no_process(launch):
-    run = launch('bringup', 'forward', '--duration', '4', '--real-time-factor', '8', '--no-noise')
-    assert run.proc.wait(timeout=60) == 0, run.output()
-    summary = re.search(r'simulated ([\d.]+) s .* distance travelled ([\d.]+) m; collisions (\d+)', run.output())
-    assert summary, run.output()
-    simulated, distance, collisions = float(summary[1]), float(summary[2]), int(summary[3])
+def test_a_refused_command_line_starts_nothing_and_prints_no_traceback():
+    result = subprocess.run([str(BIN_DIR / 'bringup'), 'forward', '-p', 'name:=', '--namespace', 'bad ns!'],
+                            capture_output=True, text=True, timeout=60)
+    assert result.returncode == 2
+    assert 'Traceback' not in result.stderr and len(result.stderr.strip().splitlines()) == 1, result.stderr
+    assert processes_in_this_domain() == []
+
+
+def test_a_run_with_duration_ends_by_itself_and_leaves_no_process(launch, test_node):
+    run = launch('bringup', 'forward', '--duration', '4', '--real-time-factor', '0', '--no-noise')
+    assert run.proc.wait(timeout=90) == 0, run.output()
+    simulated, distance, collisions = summary_of(run.output())
     assert simulated == pytest.approx(4.0, abs=0.032)
-    # The simulator resumes once the behaviour is up: it drives at 0.0628 m/s for (almost) the whole run.
-    assert 0.0628 * (simulated - 0.2) < distance <= 0.0628 * simulated + 1e-3
+    # In lockstep the robot drives at 0.0628 m/s from the first step (t = 0.032 s) to the last.
+    assert distance == pytest.approx(0.0628 * (simulated - 0.032), abs=2e-3)
     assert collisions == 0
+    assert f'ROS_DOMAIN_ID={os.environ["ROS_DOMAIN_ID"]}' in run.output()
     assert processes_in_this_domain() == []
 
 
-def test_sigterm_stops_every_child_cleanly(launch):
+def test_sigterm_stops_every_child_cleanly_and_the_sim_does_not_listen_to_its_own_clock(launch, test_node):
     run = launch('bringup', 'spin', '--real-time-factor', '4')
-    run.wait_for_output('[bringup] running spin', timeout=30)
+    run.wait_for_output('[bringup] running spin', timeout=90)
+    node = test_node.node
+    test_node.spin_until(lambda: node.get_subscriptions_info_by_topic('/clock'), 30, 'a /clock subscriber')
+    assert [info.node_name for info in node.get_subscriptions_info_by_topic('/clock')
+            if info.node_name == 'sim'] == []
+    children = child_pids()
+    assert len(children) == 2, processes_in_this_domain()
     run.proc.send_signal(signal.SIGTERM)
-    assert run.proc.wait(timeout=40) == 0, run.output()
+    assert run.proc.wait(timeout=60) == 0, run.output()
+    assert 'error' not in run.output().lower(), run.output()
     assert processes_in_this_domain() == []
+
+
+def test_sigkill_of_bringup_ends_every_child(launch, tmp_path):
+    run = launch('bringup', 'avoid', '--real-time-factor', '2', '--record', str(tmp_path / 'killed'))
+    run.wait_for_output('[bringup] running avoid', timeout=90)
+    children = child_pids()
+    assert len(children) == 3, processes_in_this_domain()  # sim, recorder, avoid
+    os.kill(run.proc.pid, signal.SIGKILL)
+    run.proc.wait(timeout=10)
+    assert wait_until_gone(children, timeout=60) == [], processes_in_this_domain()
 
 
 def test_a_dying_behaviour_stops_the_rest_and_fails_the_run(launch):
     run = launch('bringup', 'circle', '--real-time-factor', '4')
-    run.wait_for_output('[bringup] running circle', timeout=30)
-    (pid,) = behaviour_pids('circle')
+    run.wait_for_output('[bringup] running circle', timeout=90)
+    (pid,) = [pid for pid, cmd in processes_in_this_domain() if re.search(r'/circle\b', cmd)]
     os.kill(pid, signal.SIGKILL)
-    assert run.proc.wait(timeout=40) == 1
-    assert 'circle exited unexpectedly with code -9' in run.output()
+    assert run.proc.wait(timeout=60) == 1
+    assert run.output().count('circle exited unexpectedly with code -9') == 1, run.output()
+    assert 'simulated' not in run.output()
     assert processes_in_this_domain() == []
 
 
-def test_avoid_for_five_simulated_minutes_without_a_collision(launch):
-    """Noise on, default world, through real processes: the bound is the one of test_behaviours' pure runs
-    (cruising at 0.0628 m/s at least half of 300 s gives > 9.4 m; spinning in place gives ~0)."""
-    run = launch('bringup', 'avoid', '--duration', '300', '--real-time-factor', '10', '--seed', '5')
-    assert run.proc.wait(timeout=240) == 0, run.output()
-    summary = re.search(r'simulated ([\d.]+) s .* distance travelled ([\d.]+) m; collisions (\d+)', run.output())
-    assert summary, run.output()
-    assert float(summary[1]) == pytest.approx(300.0, abs=0.032)
-    assert int(summary[3]) == 0
-    assert float(summary[2]) > 9.4
+def test_another_simulator_on_the_domain_is_refused(launch, test_node):
+    other = launch('sim')
+    test_node.spin_until(lambda: test_node.node.count_publishers('/clock') == 1, 60, "the other sim's /clock")
+    run = launch('bringup', 'forward', '--duration', '2')
+    assert run.proc.wait(timeout=90) == 1, run.output()
+    assert 'another simulator' in run.output()
+    assert 'simulated' not in run.output()
+    assert [pid for pid, _ in processes_in_this_domain()] == [other.proc.pid]
 
 
-def test_lockstep_runs_are_identical(launch, tmp_path):
-    """Noise on, seed fixed: with --lockstep the recorded trajectories of two runs are the same to the last bit
-    (the messages themselves; the recorder's log times depend on when each message arrived)."""
-    trajectories, logs = [], []
+def test_avoid_for_two_simulated_minutes_without_a_collision(launch):
+    """Noise on, default world, through real processes, in lockstep: the bound is the one of test_behaviours'
+    pure runs (cruising at 0.0628 m/s at least half of the time gives > 3.7 m; spinning in place gives ~0)."""
+    run = launch('bringup', 'avoid', '--duration', '120', '--real-time-factor', '0', '--seed', '5')
+    assert run.proc.wait(timeout=300) == 0, run.output()
+    simulated, distance, collisions = summary_of(run.output())
+    assert simulated == pytest.approx(120.0, abs=0.032)
+    assert collisions == 0
+    assert distance > 0.0628 * 60
+
+
+def test_the_summary_is_the_bag_summary_and_lockstep_runs_are_identical(launch, tmp_path):
+    """Noise on, seed fixed: two recorded runs give the same trajectory to the last bit, and bringup's figures are
+    the ones `bag summary` prints for the same bag."""
+    from epuck_ros.bag.reader import Bag
+    trajectories, distances = [], []
     for run_index in range(2):
         bag = tmp_path / f'run{run_index}'
-        run = launch('bringup', 'avoid', '--duration', '12', '--real-time-factor', '0', '--lockstep', '--seed', '3',
+        run = launch('bringup', 'avoid', '--duration', '12', '--real-time-factor', '0', '--seed', '3',
                      '--record', str(bag))
         assert run.proc.wait(timeout=120) == 0, run.output()
-        logs.append('\n'.join(line for line in run.output().splitlines() if '[avoid]' in line or 'bringup]' in line or 'lockstep:' in line))
-        with BagReader(bag) as reader:
+        simulated, distance, _ = summary_of(run.output())
+        assert simulated == pytest.approx(12.0, abs=0.032)
+        bag_summary = subprocess.run([str(BIN_DIR / 'bag'), 'summary', str(bag)], capture_output=True, text=True,
+                                     timeout=60)
+        assert bag_summary.returncode == 0, bag_summary.stderr
+        bag_distance = float(re.search(r'Distance:\s+([\d.]+) m', bag_summary.stdout)[1])
+        assert f'{distance:.3f}' == f'{bag_distance:.3f}', (run.output(), bag_summary.stdout)
+        distances.append(distance)
+        with Bag(bag) as reader:
             messages = [m.data for m in reader.messages(topics=['/ground_truth'])]
-        # In lockstep the sim re-sends its first step until the behaviour answers: drop such repeats.
+        # In lockstep the sim may re-send its first step until the behaviour answers: drop such repeats.
         trajectories.append([data for i, data in enumerate(messages) if i == 0 or data != messages[i - 1]])
-    assert [len(t) for t in trajectories] == [round(12 / 0.032)] * 2, '\n----\n'.join(logs)
+    assert [len(t) for t in trajectories] == [round(12 / 0.032)] * 2
     differ = [i for i, (a, b) in enumerate(zip(*trajectories)) if a != b]
-    assert not differ, f'{len(differ)} steps differ, the first at step {differ[0] + 1}:\n' + '\n----\n'.join(logs)
+    assert not differ, f'{len(differ)} steps differ, the first at step {differ[0] + 1}'
+    assert distances[0] == distances[1] > 0.2
+
+
+def test_several_robots_one_behaviour_process_a_table_per_robot(launch, tmp_path):
+    run = launch('bringup', 'avoid', '--robots', '3', '--duration', '3', '--real-time-factor', '0', '--seed', '2',
+                 '--record', str(tmp_path / 'swarm'))
+    assert run.proc.wait(timeout=120) == 0, run.output()
+    rows = re.findall(r'\[bringup\] (epuck\d)\s+([\d.]+)\s+(\d+)', run.output())
+    assert [name for name, _, _ in rows] == ['epuck0', 'epuck1', 'epuck2'], run.output()
+    assert all(float(distance) > 0.05 for _, distance, _ in rows), run.output()
+    assert '[bringup] running avoid on 3 robots' in run.output()
+    assert processes_in_this_domain() == []
+
+
+def test_an_rclpy_controller_script_runs_with_sim_time_and_gets_the_summary(launch, tmp_path):
+    script = tmp_path / 'my_node.py'
+    script.write_text(textwrap.dedent('''
+        """A student's own node: both wheels at 2 rad/s on every simulated tick."""
+        import rclpy
+        from rclpy.executors import ExternalShutdownException
+        from std_msgs.msg import Float64MultiArray
+
+        rclpy.init()
+        node = rclpy.create_node('my_node')
+        assert node.get_parameter('use_sim_time').value
+        publisher = node.create_publisher(Float64MultiArray, 'wheel_cmd', 10)
+        node.create_timer(0.032, lambda: publisher.publish(Float64MultiArray(data=[2.0, 2.0])))
+        try:
+            rclpy.spin(node)
+        except (KeyboardInterrupt, ExternalShutdownException):
+            pass
+        finally:
+            rclpy.try_shutdown()
+    '''))
+    run = launch('bringup', '--controller', str(script), '--duration', '3', '--real-time-factor', '0', '--no-noise')
+    assert run.proc.wait(timeout=90) == 0, run.output()
+    simulated, distance, _ = summary_of(run.output())
+    assert simulated == pytest.approx(3.0, abs=0.032)
+    assert 0.02 * 2.0 * (simulated - 0.2) < distance <= 0.02 * 2.0 * simulated + 1e-3
+    assert processes_in_this_domain() == []
