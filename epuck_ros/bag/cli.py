@@ -1,4 +1,4 @@
-"""bag: inspect recorded runs without ROS (info, summary, plot, csv).
+"""bag: inspect and replay recorded runs (info, summary, plot, csv without ROS; play over ROS).
 
 Each works on a bag folder or a single ``.mcap`` file. A bag that cannot be used gives one
 line on stderr naming the file and the problem, and exit code 2.
@@ -16,9 +16,21 @@ from epuck_ros.bag.cdr import CdrError
 from epuck_ros.bag.export import export_csv
 from epuck_ros.bag.info import format_info
 from epuck_ros.bag.reader import Bag, BagError
-from epuck_ros.bag.run_summary import RunData, RunSummary, format_summary, load_run, robot_namespaces, summarise
+from epuck_ros.bag.run_summary import BagSummary, RunData, format_bag_summary, load_runs, summarise_runs
 
 EXIT_ERROR = 2
+PLOT_FORMATS = ('png', 'svg', 'pdf')
+"""What `bag plot` writes, chosen by the output's extension."""
+
+
+def _positive(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f'expected a number, got {text!r}') from None
+    if not 0.0 < value < float('inf'):
+        raise argparse.ArgumentTypeError(f'must be positive and finite, got {text}')
+    return value
 
 
 def _info(args: argparse.Namespace) -> None:
@@ -26,67 +38,120 @@ def _info(args: argparse.Namespace) -> None:
         print(format_info(bag))
 
 
-def _runs(bag: Bag, namespace: str | None) -> list[tuple[RunData, RunSummary]]:
-    namespaces = [namespace] if namespace else robot_namespaces(bag) or [None]
-    runs = [load_run(bag, ns) for ns in namespaces]
-    return [(run, summarise(run)) for run in runs]
+def _runs(bag: Bag) -> tuple[list[RunData], BagSummary]:
+    runs = load_runs(bag)
+    return runs, summarise_runs(runs)
+
+
+def _only(runs: list[RunData], summary: BagSummary, namespace: str | None,
+          path: Path) -> tuple[list[RunData], BagSummary]:
+    """One robot's part of a bag (robot-robot contacts were counted with every robot)."""
+    if namespace is None:
+        return runs, summary
+    namespace = '/' + namespace.strip('/')
+    names = [run.namespace for run in runs]
+    if namespace not in names:
+        raise BagError(f'{path}: no odometry under namespace {namespace} (robots: {", ".join(names)})')
+    i = names.index(namespace)
+    contacts = [c for c in summary.contacts if c.robot == runs[i].name]
+    return [runs[i]], BagSummary(summary.bag, [summary.robots[i]], summary.robot_robot_contacts, contacts)
 
 
 def _summary(args: argparse.Namespace) -> None:
     with Bag(args.path) as bag:
-        summaries = [summary for _, summary in _runs(bag, args.namespace)]
-    if args.json:
-        data = [s.to_dict() for s in summaries]
-        print(json.dumps(data[0] if len(data) == 1 else data, indent=2))
-    else:
-        print('\n\n'.join(format_summary(s) for s in summaries))
+        runs, summary = _only(*_runs(bag), args.namespace, args.path)
+    print(json.dumps(summary.to_dict(), indent=2) if args.json else format_bag_summary(summary))
 
 
 def _plot(args: argparse.Namespace) -> None:
-    from epuck_ros.bag.plot import plot_run  # matplotlib takes ~0.5 s to import: only when plotting
+    suffix = args.output.suffix.lower().lstrip('.')
+    if suffix not in PLOT_FORMATS:
+        raise BagError(f'{args.output}: cannot write {"." + suffix if suffix else "a file without extension"}; '
+                       f'use one of {", ".join("." + f for f in PLOT_FORMATS)}')
+    from epuck_ros.bag.plot import plot_runs  # matplotlib takes ~0.5 s to import: only when plotting
     with Bag(args.path) as bag:
-        run, summary = _runs(bag, args.namespace)[0]
-    plot_run(run, summary, args.output)
+        runs, summary = _only(*_runs(bag), args.namespace, args.path)
+    plot_runs(runs, summary, args.output)
     print(f'wrote {args.output}')
 
 
 def _csv(args: argparse.Namespace) -> None:
+    topic = '/' + args.topic.lstrip('/')  # `epuck3/odom` means /epuck3/odom, as `ros2 topic echo` takes it
     with Bag(args.path) as bag:
         if args.output is None:
-            export_csv(bag, args.topic, sys.stdout, args.join_arrays)
+            export_csv(bag, topic, sys.stdout, args.join_arrays)
             return
         with open(args.output, 'w', newline='', encoding='utf-8') as output:
-            rows = export_csv(bag, args.topic, output, args.join_arrays)
+            rows = export_csv(bag, topic, output, args.join_arrays)
     print(f'wrote {rows} rows to {args.output}', file=sys.stderr)
 
 
+def _play(args: argparse.Namespace) -> None:
+    from epuck_ros.nodes.play_node import play  # rclpy only for the one command that needs it
+    play(args)
+
+
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog='bag', description=__doc__.split('\n\n')[0])
+    parser = argparse.ArgumentParser(
+        prog='bag', description=__doc__.split('\n\n')[0], formatter_class=argparse.RawDescriptionHelpFormatter,
+        epilog='example:\n  bag summary bags/circle\n\n`bag COMMAND --help` explains each command.')
     commands = parser.add_subparsers(dest='command', required=True, metavar='COMMAND')
 
-    def command(name: str, handler: Callable[[argparse.Namespace], None], help_text: str) -> argparse.ArgumentParser:
-        sub = commands.add_parser(name, help=help_text, description=help_text)
+    def command(name: str, handler: Callable[[argparse.Namespace], None], help_text: str,
+                examples: list[str]) -> argparse.ArgumentParser:
+        sub = commands.add_parser(name, help=help_text, description=help_text,
+                                  formatter_class=argparse.RawDescriptionHelpFormatter,
+                                  epilog='examples:\n' + '\n'.join(f'  {e}' for e in examples))
         sub.add_argument('path', type=Path, help='bag folder or .mcap file')
         sub.set_defaults(handler=handler)
         return sub
 
-    command('info', _info, 'what ros2 bag info prints, plus topic rates; instant from the MCAP summary')
-    summary = command('summary', _summary, 'distance, speed, closest approach, collisions, course shape figures')
+    command('info', _info, 'what ros2 bag info prints, plus topic rates; instant from the MCAP summary',
+            ['bag info bags/avoid'])
+    summary = command('summary', _summary,
+                      'distance, speed, closest approach, collisions, and what the run was (straight line, '
+                      'spin, circle, rectangle, free motion) with that shape\'s figures; one row per robot',
+                      ['bag summary bags/rectangle', 'bag summary --json bags/circle',
+                       'bag summary bags/swarm --namespace /epuck3'])
     summary.add_argument('--json', action='store_true', help='machine-readable output')
-    plot = command('plot', _plot, 'PNG of the trajectory over the arena, coloured by time')
-    plot.add_argument('-o', '--output', type=Path, required=True, help='PNG file to write')
+    plot = command('plot', _plot, 'a picture of the run: every robot\'s path over the arena, heading arrows, '
+                                  'collisions, odometry from the start pose (1200x1000 px)',
+                   ['bag plot bags/rectangle -o rectangle.png', 'bag plot bags/swarm -o swarm.svg'])
+    plot.add_argument('-o', '--output', type=Path, required=True,
+                      help=f'file to write; the extension picks the format ({", ".join(PLOT_FORMATS)})')
     for sub in (summary, plot):
-        sub.add_argument('--namespace', help='robot namespace (default: every robot; plot: the first)')
-    csv = command('csv', _csv, "one topic's messages as CSV: log_time, publish_time, then every field")
-    csv.add_argument('topic', help='topic name, e.g. /odom')
+        sub.add_argument('--namespace', help='only this robot, e.g. /epuck3 (default: every robot)')
+    csv = command('csv', _csv, "one topic's messages as CSV: log_time, publish_time, then every field",
+                  ['bag csv bags/avoid /odom -o odom.csv', 'bag csv bags/swarm /epuck3/odom | head'])
+    csv.add_argument('topic', help='topic name, e.g. /odom or /epuck3/odom')
     csv.add_argument('-o', '--output', type=Path, help='CSV file to write (default: stdout)')
     csv.add_argument('--join-arrays', action='store_true',
                      help='one space-separated cell per array instead of one column per element')
+    play = command('play', _play,
+                   'publish a bag on its topics with their recorded QoS (latched ones transient local) and '
+                   '/clock from the log time, as `ros2 bag play --clock` does; Ctrl-C stops. While paused, '
+                   'Enter (on a terminal) or the std_srvs/Trigger services ~/resume, ~/pause, '
+                   '~/toggle_paused of the `bag_player` node resume or pause',
+                   ['bag play bags/avoid', 'bag play bags/avoid --rate 5 --loop',
+                    'bag play bags/avoid --start-paused --topics /ground_truth /world',
+                    'bag play bags/avoid --ros-args -r __ns:=/replay'])
+    play.add_argument('--rate', type=_positive, default=1.0, help='playback speed: 2 plays twice as fast (default 1)')
+    play.add_argument('--loop', action='store_true', help='start again at the end, until Ctrl-C')
+    play.add_argument('--start-paused', action='store_true', help='wait for a resume before the first message')
+    play.add_argument('--topics', nargs='+', metavar='TOPIC', help='only these topics (default: all)')
+    play.add_argument('--clock', type=_positive, default=100.0, metavar='HZ',
+                      help='/clock publications per wall second (default 100)')
     return parser
 
 
 def main(argv: list[str] | None = None) -> None:
+    argv = sys.argv[1:] if argv is None else argv
+    ros_args = []
+    if '--ros-args' in argv:  # bag play passes them to rclpy, as ros2 run does
+        split = argv.index('--ros-args')
+        argv, ros_args = argv[:split], argv[split:]
     args = build_parser().parse_args(argv)
+    args.ros_args = ros_args
     try:
         args.handler(args)
     except (BagError, CdrError) as error:

@@ -1,0 +1,188 @@
+"""`bag play`: publishes a recorded bag on its topics, with /clock, as ``ros2 bag play --clock`` does.
+
+Messages go out as their recorded CDR bytes (rclpy publishes bytes raw), each when the playback clock
+reaches its log time (`epuck_ros.bag.play.PlaybackClock`), with the QoS its publishers offered (latched
+topics transient local). /clock is published from the same clock at a steady wall rate, never ahead of
+the next message, and the bag's own /clock is not replayed. The node is `bag_player`; pause and resume
+with its std_srvs/Trigger services ``~/pause``, ``~/resume``, ``~/toggle_paused``, or Enter on a terminal.
+"""
+from __future__ import annotations
+
+import argparse
+import sys
+import threading
+import time
+
+import rclpy
+from rclpy.duration import Duration
+from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.node import Node
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rosgraph_msgs.msg import Clock
+from std_srvs.srv import Trigger
+
+from epuck_ros.bag.play import CLOCK_TOPIC, PlaybackClock, replay_profile
+from epuck_ros.bag.reader import Bag, BagError, Topic
+from epuck_ros.nodes.record_node import message_class
+
+MATCH_TIMEOUT = 2.0
+"""s to wait, before the first message, for the subscribers already in the graph to match each publisher."""
+ACK_TIMEOUT = 5.0
+"""s to wait at the end for reliable subscribers to acknowledge everything (exiting earlier would lose it)."""
+PAUSED_POLL = 0.1
+"""s between looks at the context while nothing is due (a shutdown by SIGTERM sets no event)."""
+
+
+def rclpy_qos(topic: Topic) -> QoSProfile:
+    profile = replay_profile(topic.offered_qos_profiles)
+    return QoSProfile(
+        history=HistoryPolicy.KEEP_LAST, depth=profile.depth,
+        reliability=ReliabilityPolicy.RELIABLE if profile.reliability == 'reliable' else ReliabilityPolicy.BEST_EFFORT,
+        durability=(DurabilityPolicy.TRANSIENT_LOCAL if profile.durability == 'transient_local'
+                    else DurabilityPolicy.VOLATILE))
+
+
+class Player(Node):
+    """Publishers for the bag's topics, /clock, and the pause/resume services; `play` runs the playback."""
+
+    def __init__(self, bag: Bag, topics: list[str] | None, rate: float, clock_hz: float, paused: bool) -> None:
+        super().__init__('bag_player', enable_rosout=False)  # its log lines must not mix with a replayed /rosout
+        self._bag = bag
+        self._outputs = {}
+        wanted = set(topics) if topics else None
+        for name, topic in sorted(bag.topics.items()):
+            if name == CLOCK_TOPIC or not topic.message_count or (wanted is not None and name not in wanted):
+                continue
+            try:
+                msg_class = message_class(topic.type_name)
+            except (ImportError, AttributeError, ValueError):
+                self.get_logger().warning(f'{name}: type {topic.type_name} is not installed: not played')
+                continue
+            self._outputs[name] = self.create_publisher(msg_class, name, rclpy_qos(topic))
+        if wanted is not None and wanted - set(bag.topics):
+            missing = ', '.join(sorted(wanted - set(bag.topics)))
+            raise BagError(f'{bag.path}: no topic {missing} (topics: {", ".join(sorted(bag.topics))})')
+        if not self._outputs:
+            raise BagError(f'{bag.path}: nothing to play (no message on a topic whose type is installed)')
+        self._clock_publisher = self.create_publisher(Clock, CLOCK_TOPIC, 10)
+        self._clock_period = 1.0 / clock_hz
+        self._next_tick = time.monotonic()
+        self._start_ns = min(bag.topics[name].first_ns for name in self._outputs)
+        self.clock = PlaybackClock(self._start_ns, rate, time.monotonic(), paused)
+        self._lock = threading.Lock()
+        self._wake = threading.Event()
+        self.create_service(Trigger, '~/pause', lambda _, response: self._set_paused(True, response))
+        self.create_service(Trigger, '~/resume', lambda _, response: self._set_paused(False, response))
+        self.create_service(Trigger, '~/toggle_paused',
+                            lambda _, response: self._set_paused(not self.clock.paused, response))
+
+    def _set_paused(self, paused: bool, response: Trigger.Response) -> Trigger.Response:
+        with self._lock:
+            was = self.clock.paused
+            (self.clock.pause if paused else self.clock.resume)(time.monotonic())
+        self._wake.set()
+        response.success = True
+        response.message = f'{"paused" if paused else "playing"}{" already" if was == paused else ""}'
+        self.get_logger().info(response.message)
+        return response
+
+    def toggle(self) -> None:
+        self._set_paused(not self.clock.paused, Trigger.Response())
+
+    def wait_for_subscribers(self, timeout: float = MATCH_TIMEOUT) -> None:
+        """Until every subscriber the graph lists for a played topic has matched its publisher (or timeout)."""
+        deadline = time.monotonic() + timeout
+        while time.monotonic() < deadline and self.context.ok():
+            if all(p.get_subscription_count() >= self.count_subscribers(name) for name, p in self._outputs.items()):
+                return
+            time.sleep(0.01)
+
+    def play(self, loop: bool) -> int:
+        """Publish the bag (again and again with `loop`); returns the number of messages published."""
+        published = 0
+        if not self._wait_until_due(self._start_ns):  # paused until resumed (--start-paused)
+            return published
+        self.wait_for_subscribers()
+        with self._lock:
+            self.clock.restart(self._start_ns, time.monotonic())
+        while self.context.ok():
+            for topic, log_time, _, buffer, start, end in self._bag.iter_raw(self._outputs):
+                if not self._wait_until_due(log_time):
+                    return published
+                self._outputs[topic].publish(bytes(buffer[start:end]))
+                published += 1
+            if not loop:
+                break
+            with self._lock:
+                self.clock.restart(self._start_ns, time.monotonic())
+        self.wait_for_acknowledgements()
+        return published
+
+    def wait_for_acknowledgements(self, timeout: float = ACK_TIMEOUT) -> None:
+        """Until every reliable subscriber has acknowledged every message (as ros2 bag play --wait-for-all-acked)."""
+        deadline = time.monotonic() + timeout
+        for name, publisher in self._outputs.items():
+            left = deadline - time.monotonic()
+            if not publisher.wait_for_all_acked(Duration(seconds=max(left, 0.0))):
+                self.get_logger().warning(f'{name}: not every subscriber acknowledged every message '
+                                          f'within {timeout:.0f} s')
+
+    def _wait_until_due(self, log_time: int) -> bool:
+        """Publish /clock ticks until the message is due; False when the node is shutting down."""
+        while self.context.ok():
+            now = time.monotonic()
+            with self._lock:
+                due = self.clock.due(log_time)
+                if now >= self._next_tick:
+                    self._tick(min(self.clock.bag_time(now), log_time))
+                    self._next_tick = max(self._next_tick + self._clock_period, now)
+            if now >= due:
+                return True
+            self._wake.wait(min(due, self._next_tick, now + PAUSED_POLL) - now)
+            self._wake.clear()
+        return False
+
+    def _tick(self, bag_ns: int) -> None:
+        msg = Clock()
+        msg.clock.sec, msg.clock.nanosec = divmod(bag_ns, 1_000_000_000)
+        self._clock_publisher.publish(msg)
+
+
+def _enter_toggles(player: Player) -> None:
+    """Each line typed on the terminal pauses or resumes."""
+    for _ in sys.stdin:
+        player.toggle()
+
+
+def play(args: argparse.Namespace) -> None:
+    """`bag play` (see `epuck_ros.bag.cli`): plays until the end (or Ctrl-C / SIGTERM with --loop)."""
+    with Bag(args.path) as bag:
+        rclpy.init(args=['bag', *args.ros_args])
+        player, executor, services = None, None, None
+        try:
+            player = Player(bag, args.topics, args.rate, args.clock, args.start_paused)
+            executor = SingleThreadedExecutor()
+            executor.add_node(player)
+            services = threading.Thread(target=executor.spin, name='services')
+            services.start()
+            if args.start_paused:
+                how = 'press Enter or call' if sys.stdin.isatty() else 'call'
+                player.get_logger().info(f'paused: {how} {player.get_fully_qualified_name()}/resume')
+            if sys.stdin.isatty():
+                threading.Thread(target=_enter_toggles, args=(player,), name='keys', daemon=True).start()
+            started = time.monotonic()
+            count = player.play(args.loop)
+            player.get_logger().info(f'played {count} messages in {time.monotonic() - started:.2f} s')
+        except (KeyboardInterrupt, ExternalShutdownException):
+            pass
+        except Exception:
+            if player is None or player.context.ok():
+                raise  # a publish failing because Ctrl-C shut the context down is part of stopping
+        finally:
+            if executor is not None:
+                executor.shutdown(timeout_sec=1.0)
+            if services is not None:
+                services.join()
+            if player is not None:
+                player.destroy_node()
+            rclpy.try_shutdown()
