@@ -133,7 +133,7 @@ function drawWorld(world) {
     ctx.fillRect(-box.size_x / 2, -box.size_y / 2, box.size_x, box.size_y);
     ctx.restore();
   }
-  ctx.fillStyle = '#4d80b7';
+  ctx.fillStyle = '#7d8a96';
   for (const cylinder of world.cylinders) {
     ctx.beginPath();
     ctx.arc(cylinder.x, cylinder.y, cylinder.radius, 0, 2 * Math.PI);
@@ -152,10 +152,10 @@ function drawRobot(name, robot, colour, scale) {
   const model = view.world.model;
   const [x, y, yaw] = robot.pose;
   const trail = view.trails[name] || [];
-  ctx.lineWidth = 2 / scale;
+  ctx.lineWidth = 3 / scale;
+  ctx.strokeStyle = colour;
   for (let i = 1; i < trail.length; i++) {   // older segments fainter
-    ctx.strokeStyle = colour;
-    ctx.globalAlpha = 0.7 * i / trail.length;
+    ctx.globalAlpha = 0.25 + 0.75 * i / trail.length;
     ctx.beginPath();
     ctx.moveTo(trail[i - 1][0], trail[i - 1][1]);
     ctx.lineTo(trail[i][0], trail[i][1]);
@@ -250,7 +250,7 @@ async function act(name, body = {}) {
       method: 'POST', headers: {'Content-Type': 'application/json'}, body: JSON.stringify(body)});
     const answer = await response.json();
     if (!response.ok) throw new Error(answer.error || response.statusText);
-    if (name !== 'drive') showMessage(`${name}: done`, false);
+    if (name !== 'drive') showMessage(`${name}: ${answer.message || 'done'}`, false);
     return answer;
   } catch (error) {
     showMessage(`${name}: ${error.message}`, true);

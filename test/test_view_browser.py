@@ -1,0 +1,221 @@
+"""The view in a real browser (headless Chromium through Selenium and the system chromedriver) while a real sim runs.
+
+The simulator starts paused and moves only when the page's Step button is clicked (or, once, when it is resumed),
+so what the page draws is compared with `ground_truth` at the same simulated instant, never by timing.
+"""
+from __future__ import annotations
+
+import math
+import shutil
+import tempfile
+from collections.abc import Iterator
+from pathlib import Path
+
+import pytest
+from geometry_msgs.msg import Twist
+from nav_msgs.msg import Odometry
+from rclpy.parameter_client import AsyncParameterClient
+
+CHROMIUM = shutil.which('chromium') or '/usr/bin/chromium'
+CHROMEDRIVER = shutil.which('chromedriver') or '/usr/bin/chromedriver'
+if not (Path(CHROMIUM).exists() and Path(CHROMEDRIVER).exists()):
+    pytest.skip('Chromium is not installed (apt-get install chromium chromium-driver; .ci/run does): '
+                'the browser tests of the view are skipped', allow_module_level=True)
+
+from selenium import webdriver  # noqa: E402
+from selenium.webdriver.chrome.service import Service  # noqa: E402
+from selenium.webdriver.common.action_chains import ActionChains  # noqa: E402
+from selenium.webdriver.common.by import By  # noqa: E402
+from selenium.webdriver.common.keys import Keys  # noqa: E402
+from selenium.webdriver.support.select import Select  # noqa: E402
+from selenium.webdriver.support.ui import WebDriverWait  # noqa: E402
+
+STEP = 0.032
+TIMEOUT = 60.0
+SCREENSHOT = Path(__file__).resolve().parents[1] / 'docs' / 'images' / 'view.png'
+THREE_ROBOTS = """
+arena: {size: [1.0, 0.8]}
+boxes: [{position: [-0.3, 0.2], size: [0.1, 0.1], yaw: 0.4}]
+cylinders: [{position: [0.25, -0.2], radius: 0.05}]
+robots:
+  - {name: epuck0, start: [-0.3, -0.34, 0.0]}
+  - {name: epuck1, start: [0.0, 0.1, 1.5708]}
+  - {name: epuck2, start: [0.31, -0.09, 3.1416]}
+"""
+
+
+@pytest.fixture(scope='module')
+def browser() -> Iterator[webdriver.Chrome]:
+    options = webdriver.ChromeOptions()
+    options.binary_location = CHROMIUM
+    profile = tempfile.mkdtemp(prefix='epuck_view_chromium_')
+    for argument in ('--headless=new', '--no-sandbox', '--disable-gpu', '--disable-background-networking',
+                     '--disable-component-update', '--disable-sync', '--no-first-run', '--window-size=1200,760',
+                     f'--user-data-dir={profile}'):
+        options.add_argument(argument)
+    driver = webdriver.Chrome(options=options, service=Service(CHROMEDRIVER))
+    try:
+        yield driver
+    finally:
+        driver.quit()  # ends chromedriver and every Chromium process it started
+        shutil.rmtree(profile, ignore_errors=True)
+
+
+def _yaw(msg: Odometry) -> float:
+    q = msg.pose.pose.orientation
+    return 2.0 * math.atan2(q.z, q.w)
+
+
+class Truth:
+    """Every ground_truth message of one robot, by stamp (ns)."""
+
+    def __init__(self, test_node, topic: str) -> None:
+        self.poses: dict[int, tuple[float, float, float]] = {}
+        test_node.node.create_subscription(Odometry, topic, self._on_msg, 1000)
+
+    def _on_msg(self, msg: Odometry) -> None:
+        stamp = msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
+        self.poses[stamp] = (msg.pose.pose.position.x, msg.pose.pose.position.y, _yaw(msg))
+
+
+def _ns(seconds: float) -> int:
+    return round(seconds * 1e9)
+
+
+class Page:
+    """The view's page in the browser: clicks, keys, and what it last drew (`window.epuckView.drawn`)."""
+
+    def __init__(self, driver: webdriver.Chrome, url: str) -> None:
+        self.driver = driver
+        driver.get(url)
+        self.wait_until(lambda: self.script('return view.frame && view.frame.paused !== null && view.world'),
+                        'the page to show the world and the simulator settings')
+
+    def script(self, code: str) -> object:
+        return self.driver.execute_script(code.replace('view.', 'window.epuckView.'))
+
+    def wait_until(self, condition, what: str) -> object:
+        return WebDriverWait(self.driver, TIMEOUT, poll_frequency=0.05).until(
+            lambda _: condition(), message=f'waiting for {what}')
+
+    def drawn(self) -> dict:
+        return self.script('return view.drawn') or {}
+
+    def click(self, element_id: str) -> None:
+        self.driver.find_element(By.ID, element_id).click()
+
+    def text(self, element_id: str) -> str:
+        return self.driver.find_element(By.ID, element_id).text
+
+    def step(self) -> float:
+        """Click Step; the simulated time of that step, as the simulator answered it (shown on the page)."""
+        self.script("document.getElementById('message').textContent = ''")
+        self.click('step')
+        message = self.wait_until(lambda: self.text('message').startswith('step: t=') and self.text('message'),
+                                  'the answer to Step')
+        stepped = float(message.split('t=')[1].split()[0])
+        self.wait_until(lambda: self.drawn().get('time') == pytest.approx(stepped, abs=1e-9),
+                        f'the page to draw t={stepped}')
+        return stepped
+
+
+def _open_view(launch, *sim_params: str) -> str:
+    launch('sim', '--ros-args', '-p', 'paused:=true', '-p', 'noise:=false', *sim_params)
+    view = launch('view', '--ros-args', '-p', 'port:=0')
+    view.wait_for_output('view: http://')
+    return next(line for line in view.output().splitlines() if line.startswith('view: '))[len('view: '):]
+
+
+def _settings(test_node, client: AsyncParameterClient) -> dict:
+    future = client.get_parameters(['paused', 'real_time_factor'])
+    test_node.spin_until(future.done, what='the simulator parameters')
+    values = future.result().values
+    return {'paused': values[0].bool_value, 'real_time_factor': values[1].double_value}
+
+
+def test_page_draws_ground_truth_steps_pauses_and_drives(launch, test_node, browser) -> None:
+    truth = Truth(test_node, 'ground_truth')
+    commands = test_node.collect(Twist, 'cmd_vel', 1000)
+    sim_parameters = AsyncParameterClient(test_node.node, 'sim')
+    page = Page(browser, _open_view(launch))
+    assert page.text('run-state') == 'paused'
+
+    # Paused: a Step is exactly one time step, and the robot is drawn where ground_truth says.
+    first = page.step()
+    assert page.step() == pytest.approx(first + STEP, abs=1e-9)
+    test_node.spin_until(lambda: _ns(first + STEP) in truth.poses, what='ground_truth of the second step')
+    drawn = page.drawn()['robots']['epuck']
+    assert _ns(drawn['stamp']) == _ns(first + STEP)
+    assert drawn['pose'] == pytest.approx(truth.poses[_ns(first + STEP)], abs=1e-12)
+
+    # A held arrow key drives the robot: cmd_vel from the page, then the next steps move it forward.
+    page.click('arena')
+    ActionChains(browser).key_down(Keys.ARROW_UP).perform()
+    test_node.spin_until(lambda: commands and commands[-1].linear.x > 0.0, what='a forward cmd_vel from the page')
+    assert commands[-1].angular.z == 0.0
+    start_x = truth.poses[_ns(first + STEP)][0]
+    for _ in range(5):  # the command reaches the sim with the page's next message at the latest
+        stepped = page.step()
+        test_node.spin_until(lambda: _ns(stepped) in truth.poses, what='ground_truth of the step')
+        if truth.poses[_ns(stepped)][0] > start_x:
+            break
+    moved = truth.poses[_ns(stepped)]
+    assert moved[0] > start_x and moved[1] == pytest.approx(0.0, abs=1e-9)
+    assert page.drawn()['robots']['epuck']['pose'] == pytest.approx(moved, abs=1e-12)
+    ActionChains(browser).key_up(Keys.ARROW_UP).perform()
+    test_node.spin_until(lambda: commands[-1].linear.x == 0.0 and commands[-1].angular.z == 0.0,
+                         what='the stop sent when the key is released')
+
+    # Real-time factor, resume and pause go to the simulator's parameters.
+    rtf_input = browser.find_element(By.ID, 'rtf-input')
+    rtf_input.clear()
+    rtf_input.send_keys('0')
+    page.click('rtf-set')
+    test_node.spin_until(lambda: _settings(test_node, sim_parameters)['real_time_factor'] == 0.0,
+                         what='real_time_factor 0 on the sim')
+    page.click('pause')  # labelled Resume while paused
+    page.wait_until(lambda: (page.drawn().get('time') or 0.0) > stepped + 1.0, 'simulated time to run on')
+    assert not _settings(test_node, sim_parameters)['paused']
+    page.wait_until(lambda: page.text('pause') == 'Pause', 'the button to offer Pause')
+    page.click('pause')
+    test_node.spin_until(lambda: _settings(test_node, sim_parameters)['paused'], what='paused on the sim')
+    page.wait_until(lambda: page.text('run-state') == 'paused', 'the page to show paused')
+    # Paused at a real-time factor of 0: time stands still, two Steps are exactly one step apart.
+    after_pause = page.step()
+    assert page.step() == pytest.approx(after_pause + STEP, abs=1e-9)
+
+
+def test_several_robots_each_drawn_and_only_the_selected_one_driven(launch, test_node, browser, tmp_path) -> None:
+    world = tmp_path / 'three.yaml'
+    world.write_text(THREE_ROBOTS)
+    names = ('epuck0', 'epuck1', 'epuck2')
+    truths = {name: Truth(test_node, f'{name}/ground_truth') for name in names}
+    commands = {name: test_node.collect(Twist, f'{name}/cmd_vel', 1000) for name in names}
+    page = Page(browser, _open_view(launch, '-p', f'world:={world}'))
+    assert page.script('return view.world.robots.map(r => r.name)') == list(names)
+
+    Select(browser.find_element(By.ID, 'robot')).select_by_value('epuck1')
+    page.click('arena')
+    ActionChains(browser).key_down(Keys.ARROW_UP).key_down(Keys.ARROW_LEFT).perform()
+    test_node.spin_until(lambda: commands['epuck1'] and commands['epuck1'][-1].linear.x > 0.0
+                         and commands['epuck1'][-1].angular.z > 0.0, what='an arc cmd_vel for epuck1')
+    for _ in range(5):
+        stepped = page.step()
+        test_node.spin_until(lambda: all(_ns(stepped) in truths[n].poses for n in names), what='every ground_truth')
+        if truths['epuck1'].poses[_ns(stepped)][1] > 0.1:
+            break
+    assert truths['epuck1'].poses[_ns(stepped)][1] > 0.1  # epuck1 faces +y: forward is up
+    drawn = page.drawn()['robots']
+    for name in names:
+        assert drawn[name]['pose'] == pytest.approx(truths[name].poses[_ns(stepped)], abs=1e-12)
+    assert truths['epuck0'].poses[_ns(stepped)] == pytest.approx((-0.3, -0.34, 0.0), abs=1e-9)
+    assert commands['epuck0'] == [] and commands['epuck2'] == []
+
+    # For the README: let the selected robot drive an arc for two simulated seconds, then take the picture.
+    page.click('pause')
+    page.wait_until(lambda: (page.drawn().get('time') or 0.0) > stepped + 2.0, 'two simulated seconds')
+    page.click('pause')
+    page.wait_until(lambda: page.text('run-state') == 'paused', 'the page to show paused')
+    SCREENSHOT.parent.mkdir(parents=True, exist_ok=True)
+    assert browser.save_screenshot(str(SCREENSHOT))
+    ActionChains(browser).key_up(Keys.ARROW_UP).key_up(Keys.ARROW_LEFT).perform()
