@@ -1,7 +1,15 @@
-"""``bag plot``: a picture of a run — the trajectory over the arena it was recorded in."""
+"""``bag plot``: a picture of a run — every robot's path over the arena it was recorded in.
+
+The image is always 1200 x 1000 px with the same layout, whatever the run: the arena fully visible at equal
+aspect on the left (a corridor is wide and flat, a square is square), a short title, a legend below. One
+robot: its true path coloured by time (colorbar), heading arrows along it, the odometry redrawn in the world
+from the start pose (where its odom frame is), and the heading over time in a side panel (a spin in place
+shows there). Several robots: one colour each. Contacts are marked where they began.
+"""
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from pathlib import Path
 
 import matplotlib
@@ -11,12 +19,28 @@ matplotlib.use('Agg')  # files only: no display needed, works over ssh and in CI
 import matplotlib.pyplot as plt  # noqa: E402  (after choosing the backend)
 import numpy as np  # noqa: E402
 from matplotlib.collections import LineCollection  # noqa: E402
+from matplotlib.colors import BoundaryNorm, ListedColormap  # noqa: E402
+from matplotlib.lines import Line2D  # noqa: E402
 from matplotlib.patches import Circle, Rectangle  # noqa: E402
 
-from epuck_ros.bag.run_summary import RunData, RunSummary  # noqa: E402
+from epuck_ros.bag.run_summary import BagSummary, RunData, RunSummary, Trajectory, turn_direction  # noqa: E402
+from epuck_ros.model import RobotModel  # noqa: E402
 from epuck_ros.world import World  # noqa: E402
 
+FIGURE_INCHES = (10.0, 25.0 / 3.0)
+DPI = 120
+"""1200 x 1000 px."""
+ARENA_BOX = (0.07, 0.16, 0.64, 0.72)
+"""Figure fraction (left, bottom, width, height) the arena is drawn in, centred at equal aspect."""
+COLORBAR_BOX = (0.77, 0.50, 0.022, 0.38)
+SIDE_BOX = (0.77, 0.16, 0.20, 0.26)
+HEADING_ARROWS = 16
+"""Arrows along a one-robot path, evenly spaced in time."""
+MAX_NAMED_ROBOTS = 12
+"""Up to this many robots get a legend entry each; more share one colour scale labelled by name."""
+MAX_LISTED_CORNERS = 6
 OBSTACLE_STYLE = {'facecolor': '0.6', 'edgecolor': '0.2'}
+TIME_COLORMAP = 'viridis'
 
 
 def _draw_world(axes: plt.Axes, world: World) -> None:
@@ -29,43 +53,185 @@ def _draw_world(axes: plt.Axes, world: World) -> None:
         axes.add_patch(Circle((cylinder.x, cylinder.y), cylinder.radius, **OBSTACLE_STYLE))
 
 
-def _title(summary: RunSummary) -> str:
-    first = (f'{summary.distance:.3f} m in {summary.duration:.1f} s '
-             f'(mean {summary.mean_speed:.3f} m/s), collisions: '
-             f'{"?" if summary.collisions is None else summary.collisions}')
-    details = []
-    if summary.closest_approach is not None:
-        details.append(f'closest {summary.closest_approach:.3f} m')
+def _limits(world: World | None, paths: Sequence[Trajectory], body_radius: float) -> tuple[tuple, tuple]:
+    """The arena (all of it) and every path, with a margin; at least 0.3 m across without a world."""
+    xs = [v for p in paths for v in (float(p.x.min()), float(p.x.max()))]
+    ys = [v for p in paths for v in (float(p.y.min()), float(p.y.max()))]
+    if world is not None:
+        half_w, half_h = world.arena_size[0] / 2, world.arena_size[1] / 2
+        # odometry may drift far: never let it shrink the arena to a dot
+        xs = [min(max(v, -3 * half_w), 3 * half_w) for v in xs] + [-half_w, half_w]
+        ys = [min(max(v, -3 * half_h), 3 * half_h) for v in ys] + [-half_h, half_h]
+    low_x, high_x = min(xs) - body_radius, max(xs) + body_radius
+    low_y, high_y = min(ys) - body_radius, max(ys) + body_radius
+    margin = 0.04 * max(high_x - low_x, high_y - low_y, 0.3)
+    centre_x, centre_y = (low_x + high_x) / 2, (low_y + high_y) / 2
+    half_x = max(high_x - low_x, 0.3) / 2 + margin
+    half_y = max(high_y - low_y, 0.3) / 2 + margin
+    return (centre_x - half_x, centre_x + half_x), (centre_y - half_y, centre_y + half_y)
+
+
+def _shape_text(summary: RunSummary) -> str:
+    if summary.straight is not None:
+        return f'straight {summary.straight.length:.3f} m, max deviation {summary.straight.max_deviation:.4f} m'
+    if summary.spin is not None:
+        rate = summary.spin.heading_rate
+        return f'{abs(math.degrees(rate)):.0f}°/s {turn_direction(rate)}, {summary.spin.turns:.2f} turns'
     if summary.circle is not None:
-        details.append(f'circle radius {summary.circle.radius:.4f} m')
+        return f'radius {summary.circle.radius:.4f} m, {summary.circle.laps:.2f} laps'
     if summary.corners is not None:
-        details.append('corners ' + ', '.join(f'{a:.0f}°' for a in summary.corners.angles_deg))
-    robot = '' if summary.namespace == '/' else f' ({summary.namespace})'
-    return f'{Path(summary.bag).name}{robot}\n{first}' + (f'\n{", ".join(details)}' if details else '')
+        angles = summary.corners.angles_deg
+        listed = ', '.join(f'{a:.0f}°' for a in angles[:MAX_LISTED_CORNERS])
+        return f'{len(angles)} corners: {listed}' + (', ...' if len(angles) > MAX_LISTED_CORNERS else '')
+    return ''
 
 
-def plot_run(run: RunData, summary: RunSummary, output: str | Path, body_radius: float = 0.037) -> None:
-    """Write a PNG: world, odometry (dashed) if the truth is shown too, trajectory coloured by time."""
-    figure, axes = plt.subplots(figsize=(7.5, 7))
-    if run.world is not None:
-        _draw_world(axes, run.world)
-    if run.odom is not None and run.odom is not run.trajectory:
-        axes.plot(run.odom.x, run.odom.y, '--', color='0.5', linewidth=1, label=f'{run.odom.topic} (odometry)')
+def _title(summary: BagSummary) -> str:
+    robots = summary.robots
+    name = Path(summary.bag).name
+    if len(robots) == 1:
+        r = robots[0]
+        robot = '' if r.namespace == '/' else f' {r.namespace}'
+        contacts = '?' if r.collisions is None else r.collisions
+        figures = (f'{r.distance:.3f} m in {r.duration:.1f} s (mean {r.mean_speed:.3f} m/s), '
+                   f'{contacts} collisions')
+        if r.closest_approach is not None:
+            figures += f', closest {r.closest_approach:.3f} m'
+        shape = _shape_text(r)
+        return f'{name}{robot}: {r.motion}\n{figures}' + (f'\n{shape}' if shape else '')
+    walls = sum(r.collisions or 0 for r in robots)
+    return (f'{name}: {len(robots)} robots\n{sum(r.distance for r in robots):.3f} m in all in '
+            f'{max(r.duration for r in robots):.1f} s, {walls} contacts with walls/obstacles, '
+            f'{summary.robot_robot_contacts} between robots')
+
+
+def _robot_colours(count: int) -> list:
+    if count <= 10:
+        return [plt.get_cmap('tab10')(i) for i in range(count)]
+    if count <= 20:
+        return [plt.get_cmap('tab20')(i) for i in range(count)]
+    return [plt.get_cmap('turbo')(v) for v in np.linspace(0.05, 0.95, count)]
+
+
+def _end_pose(axes: plt.Axes, path: Trajectory, colour: object, body_radius: float) -> None:
+    """The body where the run ended, with a tick showing its heading."""
+    x, y, yaw = float(path.x[-1]), float(path.y[-1]), float(path.yaw[-1])
+    axes.add_patch(Circle((x, y), body_radius, fill=False, edgecolor=colour, linewidth=1.5, zorder=4))
+    axes.plot([x, x + body_radius * math.cos(yaw)], [y, y + body_radius * math.sin(yaw)], color=colour,
+              linewidth=1.5, zorder=4)
+
+
+def _heading_arrows(axes: plt.Axes, path: Trajectory, length: float) -> None:
+    times = np.linspace(path.t[0], path.t[-1], HEADING_ARROWS + 2)[1:-1]
+    index = np.searchsorted(path.t, times).clip(0, len(path.t) - 1)
+    axes.quiver(path.x[index], path.y[index], np.cos(path.yaw[index]), np.sin(path.yaw[index]),
+                angles='xy', scale_units='xy', scale=1.0 / length, width=0.005, headwidth=3.5, headlength=4.5,
+                headaxislength=4, pivot='middle', color='0.1', zorder=5)
+
+
+def _contacts(axes: plt.Axes, summary: BagSummary) -> list[Line2D]:
+    handles = []
+    for kind, marker, colour, label in (('world', 'X', 'tab:red', 'contact with a wall/obstacle'),
+                                        ('robot', 'P', 'tab:orange', 'contact with a robot')):
+        points = [(c.x, c.y) for c in summary.contacts if c.kind == kind]
+        if points:
+            xs, ys = zip(*points)
+            axes.plot(xs, ys, marker, color=colour, markeredgecolor='black', markersize=10, linestyle='none',
+                      zorder=7)
+            handles.append(Line2D([], [], marker=marker, color=colour, markeredgecolor='black', markersize=10,
+                                  linestyle='none', label=f'{label} ({len(points)})'))
+    return handles
+
+
+def _start_and_end_handles() -> list[Line2D]:
+    return [Line2D([], [], marker='o', color='tab:green', markeredgecolor='white', markersize=9,
+                   linestyle='none', label='start'),
+            Line2D([], [], marker='s', color='tab:red', markersize=11, linestyle='none', label='end')]
+
+
+def _plot_one(figure: plt.Figure, axes: plt.Axes, run: RunData, length: float, body_radius: float) -> list:
     path = run.trajectory
+    handles = []
+    odom = run.odom_in_world() if run.odom is not path else None
+    if odom is not None:
+        axes.plot(odom.x, odom.y, '--', color='0.45', linewidth=1.2, zorder=2)
+        handles.append(Line2D([], [], linestyle='--', color='0.45', label='odometry, from the start pose'))
     points = np.column_stack([path.x, path.y])
-    lines = LineCollection(np.stack([points[:-1], points[1:]], axis=1), cmap='viridis', linewidth=2)
+    # round caps: butt-ended segments leave antialiasing seams that make the line look dotted
+    lines = LineCollection(np.stack([points[:-1], points[1:]], axis=1), cmap=TIME_COLORMAP, linewidth=2.5,
+                           capstyle='round', zorder=3)
     lines.set_array(path.t[:-1])
     axes.add_collection(lines)
-    figure.colorbar(lines, ax=axes, label='time (s)', shrink=0.8)
-    axes.plot(path.x[0], path.y[0], 'o', color='tab:green', markersize=9, label='start')
-    axes.plot(path.x[-1], path.y[-1], 's', color='tab:red', markersize=8, label='end')
-    axes.add_patch(Circle((path.x[-1], path.y[-1]), body_radius, fill=False, edgecolor='tab:red'))
-    axes.set_aspect('equal')
-    axes.autoscale_view()
+    figure.colorbar(lines, cax=figure.add_axes(COLORBAR_BOX), label='time (s)')
+    what = 'ground truth' if path is run.truth else 'odometry'
+    handles.insert(0, Line2D([], [], color=plt.get_cmap(TIME_COLORMAP)(0.6), linewidth=2.5,
+                             label=f'{what}, colour = time (s)'))
+    _heading_arrows(axes, path, length)
+    handles.append(Line2D([], [], marker=r'$\rightarrow$', color='0.15', markersize=14, linestyle='none',
+                          label='heading'))
+    axes.plot(path.x[-1], path.y[-1], 's', color='tab:red', markersize=11, zorder=6)
+    axes.plot(path.x[0], path.y[0], 'o', color='tab:green', markeredgecolor='white', markersize=9, zorder=8)
+    _end_pose(axes, path, 'tab:red', body_radius)
+    heading = figure.add_axes(SIDE_BOX)
+    heading.plot(path.t, np.degrees(path.yaw), color='tab:blue', linewidth=1.5)
+    heading.set_title('heading (°, unwrapped)', fontsize=10)
+    heading.set_xlabel('time (s)', fontsize=9)
+    heading.tick_params(labelsize=8)
+    heading.grid(True, alpha=0.3)
+    return handles + _start_and_end_handles()
+
+
+def _plot_many(figure: plt.Figure, axes: plt.Axes, runs: Sequence[RunData], body_radius: float) -> list:
+    colours = _robot_colours(len(runs))
+    handles = []
+    for run, colour in zip(runs, colours):
+        path = run.trajectory
+        axes.plot(path.x, path.y, color=colour, linewidth=1.5, zorder=3)
+        axes.plot(path.x[0], path.y[0], 'o', color=colour, markeredgecolor='black', markersize=6, zorder=8)
+        _end_pose(axes, path, colour, body_radius)
+        if len(runs) <= MAX_NAMED_ROBOTS:
+            handles.append(Line2D([], [], color=colour, linewidth=2, label=run.name or run.namespace))
+    if len(runs) > MAX_NAMED_ROBOTS:
+        scale = plt.cm.ScalarMappable(norm=BoundaryNorm(np.arange(len(runs) + 1) - 0.5, len(runs)),
+                                      cmap=ListedColormap(colours))
+        bar = figure.colorbar(scale, cax=figure.add_axes(COLORBAR_BOX[:3] + (0.72,)), label='robot')
+        ticks = np.unique(np.linspace(0, len(runs) - 1, min(len(runs), 10)).round().astype(int))
+        bar.set_ticks(ticks, labels=[runs[i].name for i in ticks])
+        handles.append(Line2D([], [], color=colours[len(colours) // 2], linewidth=2,
+                              label=f'{len(runs)} robots, one colour each (scale on the right)'))
+    handles.append(Line2D([], [], marker='o', color='0.6', markeredgecolor='black', linestyle='none',
+                          label='start'))
+    handles.append(Line2D([], [], marker='o', fillstyle='none', color='0.3', markersize=11, linestyle='none',
+                          label='end (body and heading)'))
+    return handles
+
+
+def plot_runs(runs: Sequence[RunData], summary: BagSummary, output: str | Path,
+              body_radius: float = RobotModel().body_radius) -> None:
+    """Write the picture of a bag's robots (the format follows the output's extension)."""
+    figure = plt.figure(figsize=FIGURE_INCHES, dpi=DPI)
+    axes = figure.add_axes(ARENA_BOX)
+    world = runs[0].world
+    if world is not None:
+        _draw_world(axes, world)
+    paths = [run.trajectory for run in runs]
+    if len(runs) == 1:
+        odom = runs[0].odom_in_world()
+        paths += [odom] if odom is not None else []
+    (x0, x1), (y0, y1) = _limits(world, paths, body_radius)
+    if len(runs) == 1:
+        handles = _plot_one(figure, axes, runs[0], 0.03 * max(x1 - x0, y1 - y0), body_radius)
+    else:
+        handles = _plot_many(figure, axes, runs, body_radius)
+    handles += _contacts(axes, summary)
+    axes.set_xlim(x0, x1)
+    axes.set_ylim(y0, y1)
+    axes.set_aspect('equal', adjustable='box', anchor='C')
     axes.set_xlabel('x (m)')
     axes.set_ylabel('y (m)')
-    axes.set_title(_title(summary), fontsize=10)
-    axes.legend(loc='upper center', bbox_to_anchor=(0.5, -0.1), ncol=3, fontsize=8, frameon=False)
     axes.grid(True, alpha=0.3)
-    figure.savefig(output, dpi=120, bbox_inches='tight')
+    figure.suptitle(_title(summary), fontsize=12, y=0.975, va='top')
+    figure.legend(handles=handles, loc='lower center', bbox_to_anchor=(0.42, 0.005), ncol=min(len(handles), 4),
+                  fontsize=9, frameon=False)
+    figure.savefig(output, dpi=DPI)
     plt.close(figure)
