@@ -1,0 +1,86 @@
+"""The view node over DDS without a browser: it follows the sim's robots and relays the page's actions to them."""
+from __future__ import annotations
+
+import http.client
+import json
+import math
+import subprocess
+
+from geometry_msgs.msg import Twist
+from nav_msgs.msg import Odometry
+
+from conftest import BIN_DIR
+
+
+def _url(view) -> tuple[str, int]:
+    view.wait_for_output('view: http://')
+    line = next(line for line in view.output().splitlines() if line.startswith('view: http://'))
+    host, port = line[len('view: http://'):].rstrip('/').rsplit(':', 1)
+    return host, int(port)
+
+
+def _call(address: tuple[str, int], method: str, path: str, body: dict | None = None) -> tuple[int, dict]:
+    connection = http.client.HTTPConnection(*address, timeout=30)
+    connection.request(method, path, body=None if body is None else json.dumps(body),
+                       headers={'Content-Type': 'application/json'})
+    response = connection.getresponse()
+    result = response.status, json.loads(response.read())
+    connection.close()
+    return result
+
+
+def test_view_follows_placed_robots_and_relays_step_and_drive(launch, test_node) -> None:
+    names = ('epuck0', 'epuck1', 'epuck2')
+    truth: dict[str, dict[int, tuple[float, float, float]]] = {name: {} for name in names}
+
+    def keep(name: str, msg: Odometry) -> None:
+        q = msg.pose.pose.orientation
+        stamp = msg.header.stamp.sec * 10**9 + msg.header.stamp.nanosec
+        truth[name][stamp] = (msg.pose.pose.position.x, msg.pose.pose.position.y, 2 * math.atan2(q.z, q.w))
+    for name in names:
+        test_node.node.create_subscription(Odometry, f'{name}/ground_truth', lambda m, n=name: keep(n, m), 100)
+    driven = test_node.collect(Twist, 'epuck2/cmd_vel', 100)
+
+    launch('sim', '--ros-args', '-p', 'paused:=true', '-p', 'robots:=3', '-p', 'seed:=5')
+    address = _url(launch('view', '--ros-args', '-p', 'port:=0'))
+    test_node.spin_until(lambda: [r['name'] for r in _call(address, 'GET', '/world')[1].get('robots', [])]
+                         == list(names), what='the view to know the three placed robots')
+
+    test_node.spin_until(lambda: _call(address, 'GET', '/state')[1]['paused'] is True, what='the sim settings')
+    for _ in range(10):  # until the test node's own subscriptions have matched and received a step
+        status, answer = _call(address, 'POST', '/api/step', {})
+        assert status == 200, answer
+        stepped = round(float(answer['message'].split('t=')[1].split()[0]) * 1e9)
+        test_node.spin_until(lambda: all(robot['stamp'] is not None and round(robot['stamp'] * 1e9) == stepped
+                                         for robot in _call(address, 'GET', '/state')[1]['robots'].values()),
+                             what='the view to hold the step')
+        test_node.spin_for(0.2)
+        if all(stepped in truth[name] for name in names):
+            break
+    assert all(stepped in truth[name] for name in names), 'the test node never received ground_truth of a step'
+    robots = _call(address, 'GET', '/state')[1]['robots']
+    for name in names:
+        assert tuple(robots[name]['pose']) == truth[name][stepped]
+
+    status, answer = _call(address, 'POST', '/api/drive', {'robot': 'epuck2', 'linear': 0.05, 'angular': -0.5})
+    assert status == 200
+    test_node.spin_until(lambda: bool(driven), what='the Twist on epuck2/cmd_vel')
+    assert (driven[-1].linear.x, driven[-1].angular.z) == (0.05, -0.5)
+    status, answer = _call(address, 'POST', '/api/drive', {'robot': 'epuck7', 'linear': 0.0, 'angular': 0.0})
+    assert status == 400 and 'epuck7' in answer['error']
+
+
+def test_a_port_in_use_is_one_line_and_exit_code_2(launch) -> None:
+    address = _url(launch('view', '--ros-args', '-p', 'port:=0'))
+    result = subprocess.run([str(BIN_DIR / 'view'), '--ros-args', '-p', f'port:={address[1]}'],
+                            capture_output=True, text=True, timeout=60)
+    assert result.returncode == 2
+    assert f'cannot serve on 127.0.0.1:{address[1]}' in result.stderr + result.stdout
+    assert 'Traceback' not in result.stderr + result.stdout
+
+
+def test_help_lists_the_parameters() -> None:
+    result = subprocess.run([str(BIN_DIR / 'view'), '--help'], capture_output=True, text=True, timeout=60)
+    assert result.returncode == 0
+    for text in ('host', 'port', '8765', 'sim_node', 'example'):
+        assert text in result.stdout
