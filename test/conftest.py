@@ -52,6 +52,8 @@ def _claim_domain_id() -> tuple[int, str]:
 
 _DOMAIN, _DOMAIN_CHOICE = _claim_domain_id()
 os.environ['ROS_DOMAIN_ID'] = str(_DOMAIN)
+os.environ['EPUCK_ROS_TEST_RUN'] = str(os.getpid())
+"""Inherited by every process this test run starts, so it can tell them from anyone else's on the same domain."""
 
 
 def pytest_report_header() -> str:
@@ -168,8 +170,9 @@ def test_node(rclpy_context: None) -> Iterator[RosTestNode]:
 
 
 def processes_in_this_domain() -> list[tuple[int, str]]:
-    """(pid, command line) of every other process running with this test run's ROS_DOMAIN_ID."""
-    marker = f'ROS_DOMAIN_ID={os.environ["ROS_DOMAIN_ID"]}'.encode()
+    """(pid, command line) of every other ROS process this test run started (its ROS_DOMAIN_ID and run marker)."""
+    markers = (f'ROS_DOMAIN_ID={os.environ["ROS_DOMAIN_ID"]}'.encode(),
+               f'EPUCK_ROS_TEST_RUN={os.environ["EPUCK_ROS_TEST_RUN"]}'.encode())
     found = []
     for entry in Path('/proc').iterdir():
         if not entry.name.isdigit() or int(entry.name) == os.getpid():
@@ -179,6 +182,6 @@ def processes_in_this_domain() -> list[tuple[int, str]]:
             cmdline = (entry / 'cmdline').read_bytes().replace(b'\0', b' ').decode(errors='replace')
         except OSError:
             continue
-        if marker in environ:
+        if all(marker in environ for marker in markers):
             found.append((int(entry.name), cmdline))
     return found

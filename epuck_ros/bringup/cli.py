@@ -120,12 +120,17 @@ def make_plan(args: argparse.Namespace) -> Plan:
             validate_namespace('/' + args.namespace.strip('/'))
         except InvalidNamespaceException as error:
             raise ValueError(f'--namespace {args.namespace!r}: {str(error).splitlines()[0].rstrip(": ")}') from None
+    if args.controller and not Path(args.controller).is_file():
+        raise ValueError(f'--controller: no such file: {args.controller}')
     names = _robot_names(args)
     if args.robot and not args.controller:
         raise ValueError('--robot picks the robot of a --controller script; a behaviour drives every robot')
     if args.robot and names and args.robot not in names:
         raise ValueError(f'--robot {args.robot}: no such robot (robots: {", ".join(names)})')
     several = len(names) > 1 or (args.robots or 1) > 1
+    if several and args.controller and not args.robot and _is_webots(Path(args.controller)):
+        raise ValueError('--robot NAME: a Webots controller drives one robot; say which'
+                         + (f' (robots: {", ".join(names)})' if names else ''))
 
     plan = _controller_plan(args, several)
     if args.controller and args.robot:
@@ -165,16 +170,19 @@ def _controller_plan(args: argparse.Namespace, several: bool) -> Plan:
         return Plan(behaviour, 'behaviour', [behaviour, *(['--robots', 'all'] if several else [])],
                     'all')
     script = Path(args.controller)
-    if not script.is_file():
-        raise ValueError(f'--controller: no such file: {args.controller}')
-    try:
-        tree = ast.parse(script.read_bytes(), filename=str(script))
-    except (SyntaxError, ValueError) as error:
-        raise ValueError(f'--controller {args.controller}: not a Python script ({error})') from None
-    if imports_module(tree, WEBOTS_MODULE):
+    if _is_webots(script):
         command = ['webots_controller', str(script.resolve()), *(['--robot', args.robot] if args.robot else [])]
         return Plan(script.name, 'webots', command, 'any')
     return Plan(script.name, 'rclpy', [sys.executable, str(script.resolve())], 'any')
+
+
+def _is_webots(script: Path) -> bool:
+    """Whether the script is a Webots controller (it imports `controller`); ValueError if it is not Python."""
+    try:
+        tree = ast.parse(script.read_bytes(), filename=str(script))
+    except (SyntaxError, ValueError, OSError) as error:
+        raise ValueError(f'--controller {script}: not a readable Python script ({error})') from None
+    return imports_module(tree, WEBOTS_MODULE)
 
 
 def imports_module(tree: ast.AST, module: str) -> bool:

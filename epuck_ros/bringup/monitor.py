@@ -22,6 +22,7 @@ from rosgraph_msgs.msg import Clock
 from std_msgs.msg import String
 
 from epuck_ros.bag.cdr import odometry_fields
+from epuck_ros.nodes.robot_ports import topic_prefix
 from epuck_ros.world import World, WorldError, world_from_dict
 
 SIM_NODE = 'sim'
@@ -32,8 +33,8 @@ SAMPLE_DEPTH = 10_000
 
 
 def robot_topic(world: World, robot: str, topic: str) -> str:
-    """A robot's topic relative to the simulator's namespace: plain with one robot, `<name>/topic` with several."""
-    return topic if len(world.robots) == 1 else f'{robot}/{topic}'
+    """A robot's topic relative to the simulator's namespace (the simulator's own naming rule)."""
+    return topic_prefix(robot, len(world.robots) > 1) + topic
 
 
 @dataclass
