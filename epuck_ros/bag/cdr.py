@@ -4,6 +4,11 @@ and fast paths for the two types a run summary reads a lot of (Odometry and Rang
 The fast paths read a few fields with ``struct`` at offsets computed from the layout: CDR
 aligns each primitive to its size, counted from after the 4-byte encapsulation header, and
 the only variable-length parts before the numbers are the frame_id strings.
+
+Message data is untrusted: every read is checked against the message's end, sequence counts are
+bounded by the bytes left (every element takes at least one byte: an empty struct is serialised
+as one uint8, as rosidl does), and type nesting is bounded, so a corrupt or hostile bag gives a
+`CdrError` rather than a traceback, gigabytes of memory, or figures read from the next message.
 """
 from __future__ import annotations
 
@@ -25,6 +30,10 @@ _TIME_TYPES = ('builtin_interfaces/Time', 'builtin_interfaces/Duration')
 _BUILTIN_DEFINITIONS = {name: [('int32', 'sec', None), ('uint32', 'nanosec', None)] for name in _TIME_TYPES}
 _FIELD_TYPE = re.compile(r'^([A-Za-z0-9_/]+)(?:<=\d+)?(?:\[(<=)?(\d*)\])?$')
 _SEPARATOR = re.compile(r'^={3,}$', re.MULTILINE)
+MAX_DEPTH = 64
+"""Deepest nesting of message types accepted (ROS messages nest a handful of levels)."""
+_EMPTY_STRUCT = [('uint8', 'structure_needs_at_least_one_member', None)]
+"""What rosidl puts in an empty message, so that it serialises as one byte."""
 
 
 class CdrError(ValueError):
@@ -39,32 +48,47 @@ _FLOAT = struct.Struct('<f')
 _POSE_AND_COVARIANCE = 7 * 8 + 36 * 8
 
 
-def _little_endian_base(buffer: bytes, start: int) -> int:
+def _little_endian_base(buffer: bytes, start: int, end: int) -> int:
     """Where the CDR data starts (after the encapsulation header); only little-endian is read here."""
+    if end - start < ENCAPSULATION + _HEADER.size:
+        raise CdrError(f'message of {end - start} bytes is too short for a header')
     if buffer[start + 1] != CDR_LE:
         raise CdrError(f'encapsulation {bytes(buffer[start:start + 2]).hex()} is not little-endian CDR')
     return start + ENCAPSULATION
 
 
-def odometry_fields(buffer: bytes, start: int) -> tuple[int, float, float, float, float, float]:
-    """nav_msgs/Odometry -> (header stamp ns, x, y, yaw, linear.x, angular.z)."""
-    base = _little_endian_base(buffer, start)
+def _cut_short(type_name: str) -> CdrError:
+    return CdrError(f'{type_name}: message data ends before the message does')
+
+
+def odometry_fields(buffer: bytes, start: int, end: int | None = None) -> tuple[int, float, float, float, float, float]:
+    """nav_msgs/Odometry -> (header stamp ns, x, y, yaw, linear.x, angular.z); data ends at `end` (default: buffer's)."""
+    end = len(buffer) if end is None else min(end, len(buffer))
+    base = _little_endian_base(buffer, start, end)
     sec, nanosec, frame_length = _HEADER.unpack_from(buffer, base)
     child = base + ((12 + frame_length + 3) & -4)
+    if child + 4 > end:
+        raise _cut_short('nav_msgs/Odometry')
     (child_length,) = _LENGTH.unpack_from(buffer, child)
     pose = base + ((child - base + 4 + child_length + 7) & -8)
+    if pose + _POSE_AND_COVARIANCE + _TWIST.size > end:
+        raise _cut_short('nav_msgs/Odometry')
     x, y, _, qx, qy, qz, qw = _POSE.unpack_from(buffer, pose)
     vx, _, _, _, _, wz = _TWIST.unpack_from(buffer, pose + _POSE_AND_COVARIANCE)
     yaw = math.atan2(2.0 * (qw * qz + qx * qy), 1.0 - 2.0 * (qy * qy + qz * qz))
     return sec * 1_000_000_000 + nanosec, x, y, yaw, vx, wz
 
 
-def range_fields(buffer: bytes, start: int) -> tuple[int, float, bytes]:
-    """sensor_msgs/Range -> (header stamp ns, range, frame_id as UTF-8 bytes)."""
-    base = _little_endian_base(buffer, start)
+def range_fields(buffer: bytes, start: int, end: int | None = None) -> tuple[int, float, bytes]:
+    """sensor_msgs/Range -> (header stamp ns, range, frame_id as UTF-8 bytes); data ends at `end`."""
+    end = len(buffer) if end is None else min(end, len(buffer))
+    base = _little_endian_base(buffer, start, end)
     sec, nanosec, frame_length = _HEADER.unpack_from(buffer, base)
     # after frame_id: radiation_type (uint8), then 4-aligned field_of_view, min_range, max_range, range
-    (distance,) = _FLOAT.unpack_from(buffer, base + ((12 + frame_length + 4) & -4) + 12)
+    distance_at = base + ((12 + frame_length + 4) & -4) + 12
+    if distance_at + 4 > end:
+        raise _cut_short('sensor_msgs/Range')
+    (distance,) = _FLOAT.unpack_from(buffer, distance_at)
     return sec * 1_000_000_000 + nanosec, distance, bytes(buffer[base + 12:base + 11 + frame_length])
 
 
@@ -120,9 +144,11 @@ def parse_schema(type_name: str, text: str) -> dict[str, list[tuple[str, str, in
             base_type, bounded, length = match.groups()
             if base_type not in _PRIMITIVES and base_type not in ('string', 'wstring'):
                 base_type = _short_name(base_type if '/' in base_type else f'{package}/{base_type}')
+            if length and len(length) > 10:
+                raise CdrError(f'{type_name}: array length {length[:20]}... is not a size')
             array = None if '[' not in words[0] else (-1 if bounded or not length else int(length))
             fields.append((base_type, words[1], array))
-        definitions[name] = fields
+        definitions[name] = fields or _EMPTY_STRUCT
     return definitions
 
 
@@ -142,6 +168,8 @@ class CdrDecoder:
             raise CdrError(f'{self.type_name}: the schema has no definition for {name}')
         if name in path:
             raise CdrError(f'{self.type_name}: {name} contains itself')
+        if len(path) >= MAX_DEPTH:
+            raise CdrError(f'{self.type_name}: types nested more than {MAX_DEPTH} levels deep')
         for field_type, field_name, _ in self._definitions[name]:
             if field_type == 'wstring':
                 raise CdrError(f'{self.type_name}: field {field_name} is a wstring, which is not supported')
@@ -156,18 +184,21 @@ class CdrDecoder:
         return self._decode(buffer, start, None)[1] - start
 
     def _decode(self, buffer: bytes, start: int, end: int | None) -> tuple[dict, int]:
-        end = len(buffer) if end is None else end
+        end = len(buffer) if end is None else min(end, len(buffer))
+        if end - start < ENCAPSULATION:
+            raise CdrError(f'{self.type_name}: message of {max(end - start, 0)} bytes has no CDR header')
         kind = buffer[start + 1]
         if kind not in (CDR_LE, CDR_BE) or buffer[start] != 0:
             raise CdrError(f'encapsulation {bytes(buffer[start:start + 2]).hex()} is not plain CDR')
         self._order = '<' if kind == CDR_LE else '>'
         self._base = start + ENCAPSULATION
+        self._end = end
         try:
             value, position = self._read_message(buffer, self.type_name, self._base)
         except struct.error:
             position = end + 1
         if position > end:
-            raise CdrError(f'{self.type_name}: message data ends before the message does')
+            raise _cut_short(self.type_name)
         return value, position
 
     def _read_message(self, buffer: bytes, name: str, position: int) -> tuple[object, int]:
@@ -180,6 +211,8 @@ class CdrDecoder:
                 position = _aligned(position, self._base, 4)
                 (array,) = struct.unpack_from(self._order + 'I', buffer, position)
                 position += 4
+            if array > self._end - position:  # each element takes at least one byte
+                raise _cut_short(self.type_name)
             message[field_name], position = self._read_array(buffer, field_type, array, position)
         if name in _TIME_TYPES:
             return TimeValue(message['sec'] * 1_000_000_000 + message['nanosec']), position
@@ -210,6 +243,8 @@ class CdrDecoder:
         if field_type == 'string':
             position = _aligned(position, self._base, 4)
             (length,) = struct.unpack_from(self._order + 'I', buffer, position)
+            if length > self._end - position - 4:
+                raise _cut_short(self.type_name)
             text = bytes(buffer[position + 4:position + 4 + max(length - 1, 0)]).decode('utf-8', 'replace')
             return text, position + 4 + length
         return self._read_message(buffer, field_type, position)

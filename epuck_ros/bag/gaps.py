@@ -4,7 +4,9 @@ A topic published once per simulation step (or at any steady rate) has stamps on
 each shared by the same number of messages (8 Range messages per step on ``proximity``). A stamp
 step much longer than the usual period is a gap (whole steps missing); a stamp carried by fewer
 messages than usual is an incomplete step. The usual period and count are medians, so they hold
-as long as most of the topic arrived. Topics without a stamp first (no ``std_msgs/Header`` or
+as long as most of the topic arrived. Only periodic topics are judged (most stamp steps within
+`JITTER` of the usual period): event-driven ones such as ``rosout`` have no usual period. Topics
+without a stamp first (no ``std_msgs/Header`` or
 ``builtin_interfaces/Time`` as their first field) cannot be judged and are skipped. No ROS needed.
 """
 from __future__ import annotations
@@ -20,6 +22,12 @@ from epuck_ros.bag.reader import Bag, Topic
 
 GAP_FACTOR = 1.5
 """A stamp step longer than this many usual periods is a gap."""
+JITTER = 0.25
+"""A step within this fraction of the usual period is regular."""
+REGULAR_SHARE = 0.75
+"""A topic is periodic when at least this share of its stamp steps are regular."""
+MIN_STEPS = 10
+"""Fewer stamp steps than this say nothing about a period."""
 _STAMP_TYPES = ('Header', 'std_msgs/Header', 'std_msgs/msg/Header',
                 'builtin_interfaces/Time', 'builtin_interfaces/msg/Time')
 _FIRST_FIELD = re.compile(r'^\s*([A-Za-z0-9_/]+)\s+\w+\s*(?:#.*)?$', re.MULTILINE)
@@ -67,16 +75,18 @@ def is_stamped(topic: Topic) -> bool:
 
 
 def find_gaps(topic: str, stamps: np.ndarray) -> TopicGaps | None:
-    """Gaps in stamps given in arrival order; None when there are too few distinct stamps to judge."""
+    """Gaps in stamps given in arrival order; None when the topic is not periodic or too short to judge."""
     if len(stamps) < 3:
         return None
     starts = np.flatnonzero(np.concatenate(([True], stamps[1:] != stamps[:-1])))
     counts = np.diff(np.append(starts, len(stamps)))
     steps = np.diff(stamps[starts])
     forward = steps[steps > 0]  # a step back is a restart (reset, a new run), not a loss
-    if len(forward) < 2:
+    if len(forward) < MIN_STEPS:
         return None
     period = int(np.median(forward))
+    if np.count_nonzero(np.abs(forward - period) <= JITTER * period) < REGULAR_SHARE * len(forward):
+        return None  # not a periodic topic
     per_stamp = max(1, int(np.median(counts)))
     long_steps = forward[forward > GAP_FACTOR * period]
     missing_steps = int(np.sum(np.rint(long_steps / period) - 1)) if len(long_steps) else 0
@@ -97,12 +107,14 @@ def stamp_of(buffer: bytes, start: int, end: int) -> int | None:
 
 
 def bag_gaps(bag: Bag) -> tuple[list[str], list[TopicGaps]]:
-    """(stamped topics checked, those with gaps) of a bag, reading the 8 stamp bytes of each message."""
-    checked = sorted(name for name, topic in bag.topics.items() if topic.message_count >= 3 and is_stamped(topic))
-    stamps: dict[str, list[int]] = {name: [] for name in checked}
-    for name, _, _, buffer, start, end in bag.iter_raw(checked):
+    """(periodic topics judged, those with messages missing) of a bag, from the 8 stamp bytes of each message."""
+    stamped = sorted(name for name, topic in bag.topics.items()
+                     if topic.message_count > MIN_STEPS and topic.message_encoding == 'cdr' and is_stamped(topic))
+    stamps: dict[str, list[int]] = {name: [] for name in stamped}
+    for name, _, _, buffer, start, end in bag.iter_raw(stamped):
         stamp = stamp_of(buffer, start, end)
         if stamp is not None:
             stamps[name].append(stamp)
-    found = (find_gaps(name, np.array(values, dtype=np.int64)) for name, values in stamps.items())
-    return checked, [gaps for gaps in found if gaps is not None and gaps.missing_messages]
+    judged = [gaps for gaps in (find_gaps(name, np.array(values, dtype=np.int64)) for name, values in stamps.items())
+              if gaps is not None]
+    return [gaps.topic for gaps in judged], [gaps for gaps in judged if gaps.missing_messages]

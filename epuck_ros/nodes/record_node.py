@@ -218,8 +218,8 @@ class Recorder(Node):
             return [*lines, f'lost: cannot check the stamps of the bag: {error}']
         lines += [f'lost: {topic_gaps.describe()}' for topic_gaps in gaps]
         if not lines:
-            lines.append(f'no message lost: no DDS message-lost event, no gap in the stamps of {len(checked)} '
-                         'stamped topics')
+            lines.append(f'no message lost: no DDS message-lost event, no gap in the stamps of the {len(checked)} '
+                         'periodic stamped topics')
         return lines
 
 
