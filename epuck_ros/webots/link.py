@@ -22,7 +22,7 @@ from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray
 
-from epuck_ros.nodes.sim_node import JOINT_NAMES
+from epuck_ros.nodes.robot_ports import JOINT_NAMES
 
 QOS = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
 COMMAND_TOPIC = 'wheel_cmd'

@@ -1,0 +1,206 @@
+"""`webots_controller`: Webots controller scripts, unchanged, against the real `sim` process over DDS.
+
+Every run is the sim in lockstep at real_time_factor 0 (so what a controller sees does not depend on the load of
+the machine), started paused and resumed once the controller is in the graph, and pausing itself at exactly
+`pause_at`; the runner is a real process. Geometry is judged on `ground_truth` with the course's formulas; the
+device semantics (no DDS) against Webots' reference manual.
+"""
+from __future__ import annotations
+
+import json
+import math
+import textwrap
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+from nav_msgs.msg import Odometry
+from rclpy.parameter import Parameter
+from rclpy.parameter_client import AsyncParameterClient
+from rclpy.qos import DurabilityPolicy, QoSProfile
+from sensor_msgs.msg import JointState
+from std_msgs.msg import UInt32
+
+from conftest import ros_args
+from epuck_ros.ir_sensor import raw_from_distance
+from epuck_ros.model import IR_LOOKUP_TABLE, SENSOR_POSES, RobotModel
+from epuck_ros.webots.devices import DistanceSensor, Motor, PositionSensor
+from epuck_ros.webots.runner import EXAMPLES_DIR
+from test_behaviour_nodes import moving, trajectory
+from test_behaviours import fitted_circle
+
+COURSE_DIR = Path(__file__).parent / 'data' / 'course_controllers'
+SIM = 'sim'
+HISTORY = 20000
+TIMEOUT_PER_SIM_SECOND = 1.0
+"""Wall seconds allowed per simulated second (lockstep runs here reach 5x to 10x real time)."""
+MODEL = RobotModel()
+FAR_RAW = float(IR_LOOKUP_TABLE[-1, 1])
+
+
+# --- devices, no DDS ----------------------------------------------------------------------------------------------
+
+def test_motor_velocity_mode_clamps_with_webots_warning_and_refuses_nan(capsys: pytest.CaptureFixture) -> None:
+    motor = Motor('left wheel motor', 6.28)
+    assert motor.getVelocity() == 6.28 and not motor.in_velocity_mode  # Webots: position control, at maxVelocity
+    motor.setPosition(float('inf'))
+    motor.setVelocity(10.0)
+    assert "The requested velocity 10 exceeds 'maxVelocity' = 6.28." in capsys.readouterr().err
+    assert motor.command(0.0) == 6.28
+    motor.setVelocity(-3.0)
+    assert motor.command(123.0) == -3.0
+    motor.setVelocity(float('nan'))
+    assert "wb_motor_set_velocity() called with an invalid 'velocity' argument" in capsys.readouterr().err
+    assert motor.getVelocity() == -3.0 and motor.command(0.0) == -3.0
+
+
+def test_motor_position_control_is_webots_p_controller_limited_by_velocity(capsys: pytest.CaptureFixture) -> None:
+    motor = Motor('right wheel motor', 6.28)
+    assert motor.command(1.5) == 0.0  # holds the angle it starts at
+    motor.setPosition(2.0)
+    motor.setVelocity(1.0)
+    assert motor.command(1.5) == 1.0  # P = 10: 5 rad/s wanted, limited by the velocity
+    assert motor.command(1.95) == pytest.approx(0.5)
+    motor.setVelocity(-1.0)
+    assert 'negative \'velocity\' argument in position control mode' in capsys.readouterr().err
+    motor.setPosition(float('nan'))
+    assert motor.getTargetPosition() == 2.0
+
+
+def test_sensors_are_nan_until_one_sampling_period_then_sample_every_period(capsys: pytest.CaptureFixture) -> None:
+    now = [32_000_000]
+    sensor = DistanceSensor('ps0', lambda: now[0], IR_LOOKUP_TABLE, 0.1)
+    assert math.isnan(sensor.getValue())
+    assert 'called for a disabled device! Please use: wb_distance_sensor_enable().' in capsys.readouterr().err
+    sensor.enable(64)
+    assert sensor.getSamplingPeriod() == 64
+    readings = []
+    for step in range(1, 6):
+        now[0] = 32_000_000 * (1 + step)
+        sensor.sample(now[0], 100.0 + step)
+        readings.append(sensor.getValue())
+    assert math.isnan(readings[0]) and readings[1:] == [102.0, 102.0, 104.0, 104.0]
+    sensor.disable()
+    sensor.sample(now[0] + 64_000_000, 1.0)
+    assert sensor.getValue() == 104.0 and sensor.getSamplingPeriod() == 0
+    assert (sensor.getMinValue(), sensor.getMaxValue()) == (FAR_RAW, 4095.0)
+    encoder = PositionSensor('left wheel sensor', lambda: now[0])
+    encoder.enable(32)
+    encoder.sample_with_speed(now[0] + 32_000_000, 0.25, 3.14)
+    assert (encoder.getValue(), encoder.getVelocity()) == (0.25, 3.14)
+
+
+def test_unsupported_calls_name_what_is_supported() -> None:
+    motor = Motor('left wheel motor', 6.28)
+    with pytest.raises(AttributeError, match=r'Motor.setTorque is part of the Webots API but not supported.*'
+                                             r'setVelocity'):
+        motor.setTorque(1.0)
+
+
+# --- processes ----------------------------------------------------------------------------------------------------
+
+class ControllerRun:
+    """`sim` (lockstep, paused until the controller is in the graph, pausing at `duration`) and the runner."""
+
+    def __init__(self, launch: object, test_node: object, script: Path | str, duration: float, *,
+                 noise: bool = False, world: Path | None = None, sim_params: dict | None = None,
+                 joints: bool = False) -> None:
+        self.test_node = test_node
+        self.duration = duration
+        self.truth: list[Odometry] = test_node.collect(Odometry, 'ground_truth', HISTORY)
+        self.joints: list[JointState] = test_node.collect(JointState, 'joint_states', HISTORY) if joints else []
+        latched = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+        self.collisions: list[UInt32] = test_node.collect(UInt32, 'collisions', latched)
+        params = {'real_time_factor': 0.0, 'lockstep': True, 'paused': True, 'pause_at': float(duration),
+                  'noise': noise, **({'world': str(world)} if world else {}), **(sim_params or {})}
+        self.sim = launch(SIM, *ros_args(params))
+        self.sim.wait_for_output('sim ready')
+        self.controller = launch('webots_controller', str(script))
+        node = test_node.node
+        # In the graph = connected enough: the sim re-sends an unanswered first step, so a late match costs no step.
+        test_node.spin_until(lambda: node.count_publishers('wheel_cmd') > 0 and node.count_subscribers('ir_raw') > 0
+                             or self.controller.proc.poll() is not None, timeout=30.0, what='the controller')
+        assert self.controller.proc.poll() is None, self.controller.output()
+        self._resume()
+
+    def _resume(self) -> None:
+        client = AsyncParameterClient(self.test_node.node, 'sim')
+        assert client.wait_for_services(20.0)
+        future = client.set_parameters([Parameter('paused', value=False)])
+        self.test_node.spin_until(future.done, what='sim to resume')
+
+    def sim_time(self) -> float:
+        stamp = self.truth[-1].header.stamp if self.truth else None
+        return stamp.sec + 1e-9 * stamp.nanosec if stamp else 0.0
+
+    def finish(self) -> np.ndarray:
+        """Spin until the sim paused itself at `duration`; the ground truth as rows (t, x, y, yaw)."""
+        self.test_node.spin_until(lambda: self.sim_time() >= self.duration - 1e-6,
+                                  timeout=30.0 + TIMEOUT_PER_SIM_SECOND * self.duration,
+                                  what=f'{self.duration} simulated s')
+        return trajectory(self.truth)
+
+    def stop_controller(self) -> int:
+        """Ctrl-C: step() returns -1, the script's loop ends, the runner exits 0."""
+        return self.controller.stop()
+
+
+def example(name: str) -> Path:
+    return EXAMPLES_DIR / f'{name}.py'
+
+
+def test_straight_line_example_drives_at_the_course_speed(launch: object, test_node: object) -> None:
+    run = ControllerRun(launch, test_node, example('straight_line'), 4.0)
+    rows = moving(run.finish())[3:]
+    speed = np.polyfit(rows[:, 0], rows[:, 1], 1)[0]
+    print(f'straight_line: {speed:.5f} m/s, heading change {math.degrees(rows[-1, 3] - rows[0, 3]):.4f} deg')
+    assert speed == pytest.approx(0.5 * 6.28 * 0.02, rel=0.005)  # 0.0628 m/s
+    assert abs(rows[-1, 3] - rows[0, 3]) < 1e-6 and abs(rows[-1, 2]) < 1e-6
+    assert run.stop_controller() == 0, run.controller.output()
+
+
+def test_spin_example_turns_on_the_spot(launch: object, test_node: object) -> None:
+    run = ControllerRun(launch, test_node, example('spin'), 4.0)
+    rows = moving(run.finish())[3:]
+    rate = np.polyfit(rows[:, 0], rows[:, 3], 1)[0]
+    drift = float(np.hypot(*(rows[:, 1:3] - rows[0, 1:3]).T).max())
+    print(f'spin: {rate:.4f} rad/s, largest drift {drift * 1000:.4f} mm')
+    assert rate == pytest.approx(-0.02 / 0.052 * 6.28, rel=0.005)  # -2.415 rad/s
+    assert drift < 1e-6
+    # The simulator goes away: step() returns -1 and the script ends by itself, cleanly.
+    assert run.sim.stop() == 0
+    assert run.controller.proc.wait(timeout=20.0) == 0, run.controller.output()
+    assert 'the simulator is gone' in run.controller.output()
+
+
+def test_circle_example_has_the_course_radius(launch: object, test_node: object) -> None:
+    run = ControllerRun(launch, test_node, example('circle'), 8.0)
+    _, _, radius = fitted_circle(moving(run.finish())[3:, 1:3])
+    print(f'circle: fitted radius {radius:.5f} m')
+    assert radius == pytest.approx(0.026 * 0.9 / 0.3, rel=0.005)  # 0.078 m
+    assert run.stop_controller() == 0, run.controller.output()
+
+
+def corner_angles(rows: np.ndarray) -> np.ndarray:
+    """Degrees turned in each stretch where the yaw changes."""
+    turning = np.abs(np.diff(rows[:, 3])) > 1e-9
+    edges = np.diff(turning.astype(int))
+    starts, ends = np.flatnonzero(edges == 1) + 1, np.flatnonzero(edges == -1) + 1
+    return np.degrees(rows[ends, 3] - rows[starts, 3])
+
+
+def test_timed_rectangle_example_and_the_course_controller_4(launch: object, test_node: object) -> None:
+    """Ours ends each phase on the nearest step, as the rectangle node: 31 steps of turning, 82.4 degrees. The
+    course's program, unchanged, keeps turning while `elapsed_time < TURN_TIME`: in Webots that is 32 steps."""
+    turn_rate = 0.02 / 0.052 * 0.6 * 6.28  # rad/s, R/L x (wR - wL)
+    expected = {'timed_rectangle': math.degrees(31 * 0.032 * turn_rate),  # 82.4
+                'controller_4': math.degrees(32 * 0.032 * turn_rate)}  # 85.0
+    for script in (example('timed_rectangle'), COURSE_DIR / 'controller_4.py'):
+        run = ControllerRun(launch, test_node, script, 25.0)
+        angles = corner_angles(run.finish())
+        assert run.stop_controller() == 0, run.controller.output()
+        print(f'{script.name}: corners {np.round(angles, 3)} deg')
+        assert len(angles) == 4
+        assert np.allclose(angles, expected[script.stem], atol=0.01)
+        run.sim.stop()
