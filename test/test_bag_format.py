@@ -6,13 +6,16 @@ The reference schema texts in test/data/ are rosbag2's algorithm applied to the 
 """
 from __future__ import annotations
 
+import importlib.metadata
 import math
 import re
 import signal
+import struct
 import subprocess
 import sys
 import textwrap
 from pathlib import Path
+from xml.etree import ElementTree
 
 import numpy as np
 import pytest
@@ -304,3 +307,106 @@ def test_background_writer_reports_a_failure_on_close(tmp_path):
     background.write('/never_added', b'\x00\x01\x00\x00', 1)
     with pytest.raises(RuntimeError, match='never_added'):
         background.close()
+
+
+# --- package.xml: rosdep must be able to resolve every key ---------------------------------------------------
+
+def test_package_xml_names_only_rosdep_keys_that_exist_and_every_ros_import():
+    """Each dependency is a ROS package or a key ros/rosdistro defines (test/data/rosdep_keys.txt, with its
+    commit); mcap, zstandard and lz4, which have no key, come with mcap-ros2-support's pip requirements."""
+    root = Path(__file__).parent.parent
+    known = {line for line in (DATA / 'rosdep_keys.txt').read_text().splitlines() if line and line[0] != '#'}
+    package = ElementTree.parse(root / 'package.xml').getroot()
+    named = {element.text for element in package if element.tag.endswith('depend')}
+    ros_packages = {name for name in named if (Path(sys.prefix) / 'share' / name / 'package.xml').is_file()}
+    assert sorted(named - ros_packages - known) == []
+    pip_requirements = {re.split(r'[<>=; ]', r)[0] for r in importlib.metadata.requires('mcap-ros2-support')}
+    pip_requirements |= {re.split(r'[<>=; ]', r)[0] for r in importlib.metadata.requires('mcap')}
+    assert 'mcap-ros2-support' in named and {'mcap', 'zstandard', 'lz4'} <= pip_requirements
+    imported = set()
+    for source in (root / 'epuck_ros').rglob('*.py'):
+        imported |= set(re.findall(r'^(?:from|import) (\w+_(?:msgs|srvs|interfaces)|rclpy)\b', source.read_text(),
+                                   re.MULTILINE))
+    assert sorted(imported - named) == []
+
+
+# --- bag info: encodings, empty bags, stamp gaps, a summary that fails its CRC -------------------------------
+
+def test_info_gives_each_channel_its_own_message_encoding(tmp_path):
+    from mcap.writer import Writer
+    with open(tmp_path / 'mixed.mcap', 'wb') as stream:
+        writer = Writer(stream)
+        writer.start(profile='ros2', library='test')
+        json_schema = writer.register_schema('Pose', 'jsonschema', b'{"type": "object"}')
+        cdr_schema = writer.register_schema('std_msgs/msg/String', 'ros2msg', b'string data\n')
+        channels = {'/json': writer.register_channel('/json', 'json', json_schema),
+                    '/schemaless': writer.register_channel('/schemaless', 'json', 0),
+                    '/chatter': writer.register_channel('/chatter', 'cdr', cdr_schema)}
+        for topic, channel in channels.items():
+            data = serialize_message(String(data='hi')) if topic == '/chatter' else b'{"x": 1}'
+            writer.add_message(channel, 5, data, 5)
+        writer.finish()
+    with Bag(tmp_path / 'mixed.mcap') as bag:
+        info = format_info(bag)
+        assert bag.topics_of_type('Pose') == []  # not CDR: never handed to the CDR decoders
+    assert 'Topic: /json | Type: Pose | Count: 1 | Serialization Format: json' in info
+    assert 'Topic: /schemaless | Type:  | Count: 1 | Serialization Format: json' in info
+    assert 'Topic: /chatter | Type: std_msgs/msg/String | Count: 1 | Serialization Format: cdr' in info
+
+
+def test_info_of_an_empty_bag_has_no_start_or_end(tmp_path):
+    writer = BagWriter(tmp_path / 'empty')
+    writer.add_topic('/odom', 'nav_msgs/msg/Odometry', [QosProfile()])
+    writer.close()
+    with Bag(tmp_path / 'empty') as bag:
+        info = format_info(bag)
+    assert 'Start:             none (no messages)\nEnd:               none (no messages)\n' in info
+    assert '2262' not in info and 'Messages:          0' in info
+
+
+def test_info_lists_stamp_gaps_and_incomplete_steps(tmp_path):
+    writer = BagWriter(tmp_path / 'lossy')
+    writer.add_topic('/odom', 'nav_msgs/msg/Odometry', [QosProfile()])
+    writer.add_topic('/proximity', 'sensor_msgs/msg/Range', [QosProfile()])
+    writer.add_topic('/world', 'std_msgs/msg/String', [QosProfile()])
+    topics = dict(sample_messages_by_topic())
+    for step, (odom, rays) in enumerate(zip(topics['/odom'], topics['/proximity'])):
+        t = 10**9 + step * 32_000_000
+        if step not in (10, 11, 12):
+            writer.write('/odom', cdr('/odom', odom), t)
+        for i, ray in enumerate(rays):
+            if not (step == 20 and i in (3, 5)):
+                writer.write('/proximity', cdr('/proximity', ray), t)
+    writer.write('/world', cdr('/world', String(data='{}')), 10**9)
+    writer.close()
+    with Bag(tmp_path / 'lossy') as bag:
+        info = format_info(bag)
+    assert ('Stamp gaps:        /odom: ~3 of 40 messages missing: 1 stamp gap (3 periods missing, longest 0.128 s) '
+            '(usual period 0.032 s, 1 per stamp)\n') in info
+    assert ('/proximity: ~2 of 320 messages missing: 1 stamp with fewer than 8 messages (usual period 0.032 s, '
+            '8 per stamp)') in info
+
+
+def sample_messages_by_topic() -> dict[str, list]:
+    """The sample messages per topic; proximity grouped by step (8 rays)."""
+    by_topic: dict[str, list] = {}
+    for topic, message, _ in sample_messages():
+        by_topic.setdefault(topic, []).append(message)
+    rays = by_topic['/proximity']
+    by_topic['/proximity'] = [rays[i:i + 8] for i in range(0, len(rays), 8)]
+    return by_topic
+
+
+def test_a_summary_that_fails_its_crc_is_not_believed(tmp_path):
+    write_bag(tmp_path / 'run')
+    path = tmp_path / 'run' / 'run_0.mcap'
+    data = bytearray(path.read_bytes())
+    with open(path, 'rb') as stream:
+        summary = make_reader(stream).get_summary()
+    total = summary.statistics.message_count
+    statistics_at = bytes(data).rindex(struct.pack('<Q', total))  # the Statistics record's message count
+    data[statistics_at:statistics_at + 8] = struct.pack('<Q', total + 1000)
+    path.write_bytes(bytes(data))
+    with Bag(tmp_path / 'run') as bag:
+        assert bag.message_count == total == len(list(bag.messages()))
+        assert 'run_0.mcap: summary section fails its CRC: counted from its complete chunks' in format_info(bag)
