@@ -23,13 +23,14 @@ from std_msgs.msg import String
 from epuck_ros.bag.export import export_csv
 from epuck_ros.bag.qos import QosProfile
 from epuck_ros.bag.reader import Bag
-from epuck_ros.bag.run_summary import load_run, summarise
+from epuck_ros.bag.run_summary import RunTally, format_figures, load_run, load_runs, summarise, summarise_runs
 from epuck_ros.bag.writer import BagWriter
 from epuck_ros.kinematics import integrate_arc, twist_from_wheels
 from epuck_ros.model import MAX_WHEEL_SPEED, RobotModel
 from epuck_ros.world import default_world
 
 BAG = str(Path(sys.executable).parent / 'bag')
+REPO = Path(__file__).resolve().parents[1]
 STEP = 0.032
 START_NS = 1_700_000_000 * 10**9
 MODEL = RobotModel()
@@ -157,11 +158,63 @@ def test_summary_of_the_course_rectangle(tmp_path, turn_seconds, corner_deg):
     side = [(0.5, 0.5, 5.0), (-0.3, 0.3, turn_seconds)]
     path = write_run(tmp_path / 'rect', drive(side * 4 + [(0.5, 0.5, 1.0)]))
     summary = summary_of(path)
-    assert summary.circle is None
+    assert summary.motion == 'rectangle' and summary.circle is None
     assert len(summary.corners.angles_deg) == 4
     # turns last whole steps: 31 or 34 steps of 1.449 rad/s
     assert summary.corners.angles_deg == pytest.approx([corner_deg] * 4, abs=1.5)
     assert summary.corners.side_lengths[:4] == pytest.approx([0.314] * 4, abs=0.005)
+
+
+def test_a_rectangle_that_ends_on_its_last_turn_has_four_corners(tmp_path):
+    """Four sides and four turns, as the rectangle behaviour drives it: the closing turn is the 4th corner."""
+    path = write_run(tmp_path / 'rect', drive([(0.5, 0.5, 5.0), (0.3, -0.3, 1.084)] * 4 + [(0.0, 0.0, 2.0)]))
+    summary = summary_of(path)
+    assert summary.motion == 'rectangle'
+    assert summary.corners.angles_deg == pytest.approx([-90.0] * 4, abs=1.5)
+    assert summary.corners.side_lengths == pytest.approx([0.314] * 4, abs=0.005)
+
+
+@pytest.mark.parametrize('segments, motion', [
+    ([(0.0, 0.0, 3.0)], 'standing'),
+    ([(0.5, 0.5, 6.0)], 'straight line'),
+    ([(-0.5, 0.5, 4.0)], 'spin in place'),
+    ([(0.3, 0.6, 10.0)], 'circle'),
+    # avoid-like: straight runs broken by turns of assorted sizes, both ways
+    ([(0.5, 0.5, 4.0), (0.5, -0.5, 0.4), (0.5, 0.5, 3.0), (-0.5, 0.5, 1.3), (0.5, 0.5, 0.6),
+      (0.5, -0.5, 0.9), (0.5, 0.5, 2.0)], 'free motion'),
+])
+def test_summary_gives_only_the_figures_of_the_run_s_shape(tmp_path, segments, motion):
+    summary = summary_of(write_run(tmp_path / 'run', drive(segments)))
+    assert summary.motion == motion
+    shapes = {'straight line': 'straight', 'spin in place': 'spin', 'circle': 'circle', 'rectangle': 'corners'}
+    for kind, name in shapes.items():
+        assert (getattr(summary, name) is not None) == (kind == motion), name
+    if motion == 'spin in place':
+        _, w = twist(-0.5, 0.5)  # w = R/L (wR - wL)
+        assert summary.spin.heading_rate == pytest.approx(w, rel=1e-6)
+        assert summary.spin.turns == pytest.approx(w * 4.0 / (2 * math.pi), rel=0.01)
+    if motion == 'straight line':
+        v, _ = twist(0.5, 0.5)
+        assert summary.straight.length == pytest.approx(v * round(6.0 / STEP) * STEP, rel=1e-9)
+        assert summary.straight.heading_deg == pytest.approx(0.0) and summary.straight.max_deviation < 1e-9
+
+
+@pytest.mark.parametrize('bag, motion, label, absent', [
+    ('forward', 'straight line', 'Straight line:', ('Corners', 'Circle fit', 'Heading rate')),
+    ('spin', 'spin in place', 'Heading rate:', ('Corners', 'Circle fit', 'Straight line')),
+    ('circle', 'circle', 'Circle fit:        radius 0.0780 m', ('Corners', 'Heading rate')),
+    ('rectangle', 'rectangle', 'Corners:           4: ', ('Circle fit', 'Heading rate')),
+    ('avoid', 'free motion', 'Closest approach:', ('Corners', 'Circle fit', 'Heading rate', 'Straight line')),
+])
+def test_summary_of_the_sample_bags(bag, motion, label, absent):
+    result = run_bag('summary', str(REPO / 'bags' / bag))
+    assert result.returncode == 0, result.stderr
+    assert f'Motion:            {motion}\n' in result.stdout and label in result.stdout
+    for word in absent:
+        assert word not in result.stdout
+    if bag == 'rectangle':
+        corners = result.stdout.split('Corners:')[1].split('(')[0]
+        assert [float(a) for a in corners.split(':')[1].replace('°', '').split(',')] == pytest.approx([90] * 4, abs=2)
 
 
 def into_the_wall() -> tuple[list, list]:
@@ -254,3 +307,137 @@ def test_unusable_input_is_one_line_and_exit_code_2(tmp_path, case, command, mes
     assert result.returncode == 2
     assert result.stdout == ''
     assert result.stderr.count('\n') == 1 and message in result.stderr and str(path) in result.stderr
+
+
+# --- several robots ----------------------------------------------------------------------------------------
+
+SWARM_STARTS = {'epuck0': (-0.2, 0.0, 0.0), 'epuck1': (0.2, 0.0, math.pi), 'epuck2': (0.0, 0.3, math.pi / 2)}
+SPEED_PER_STEP = 0.0016
+"""m per 32 ms step (0.05 m/s)."""
+
+
+def ramp(start: float, end: float) -> list[float]:
+    steps = max(1, round(abs(end - start) / SPEED_PER_STEP))
+    return [start + (end - start) * k / steps for k in range(1, steps + 1)]
+
+
+def swarm_motion() -> dict[str, list[float]]:
+    """How far each robot has driven ahead along its heading, per step.
+
+    epuck0 and epuck1 drive at each other until their bodies touch, back off, and touch again: 2 contacts
+    between robots. epuck2 drives into the +y wall and stays there: 1 contact with a wall.
+    """
+    touch = 0.2 - MODEL.body_radius  # each drives this far: centres 2 body radii apart
+    ahead = [0.0] + ramp(0.0, touch) + [touch] * 10 + ramp(touch, 0.1) + ramp(0.1, touch) + [touch] * 10
+    to_wall = 0.5 - MODEL.body_radius - 0.3
+    wall = [0.0] + [min(k * SPEED_PER_STEP, to_wall) for k in range(1, len(ahead))]
+    return {'epuck0': ahead, 'epuck1': ahead, 'epuck2': wall}
+
+
+def swarm_pose(name: str, ahead: float) -> tuple[float, float, float]:
+    x, y, yaw = SWARM_STARTS[name]
+    return x + ahead * math.cos(yaw), y + ahead * math.sin(yaw), yaw
+
+
+def write_swarm(path: Path, starts: dict[str, tuple[float, float, float]] | None = None,
+                motion: dict[str, list[float]] | None = None) -> Path:
+    """A bag as the multi-robot sim records it: the world (robots list), then per step each robot's
+    <name>/odom (in its odom frame: from (0, 0, 0) at its start pose) and <name>/ground_truth."""
+    starts = starts or SWARM_STARTS
+    motion = motion or swarm_motion()
+    writer = BagWriter(path)
+    writer.add_topic('/world', 'std_msgs/msg/String', [QosProfile(depth=1, durability='transient_local')])
+    world = {'arena': {'size': [1.0, 1.0]},
+             'robots': [{'name': name, 'start': list(pose)} for name, pose in starts.items()]}
+    writer.write('/world', serialize_message(String(data=yaml.safe_dump(world))), START_NS)
+    for name in starts:
+        for topic in ('odom', 'ground_truth'):
+            writer.add_topic(f'/{name}/{topic}', 'nav_msgs/msg/Odometry', [QosProfile()])
+    for step in range(len(next(iter(motion.values())))):
+        stamp = START_NS + step * 32_000_000
+        for name, (x, y, yaw) in starts.items():
+            ahead = motion[name][step]
+            truth = (x + ahead * math.cos(yaw), y + ahead * math.sin(yaw), yaw)
+            writer.write(f'/{name}/odom', odometry((ahead, 0.0, 0.0), step, f'{name}/odom'), stamp)
+            writer.write(f'/{name}/ground_truth', odometry(truth, step, 'world'), stamp)
+    writer.close()
+    return path
+
+
+def test_summary_reports_each_robot_and_contacts_between_robots(tmp_path):
+    path = write_swarm(tmp_path / 'swarm')
+    motion = swarm_motion()
+    with Bag(path) as bag:
+        runs = load_runs(bag)
+    summary = summarise_runs(runs)
+    assert [r.namespace for r in summary.robots] == ['/epuck0', '/epuck1', '/epuck2']
+    assert [(r.collisions, r.robot_collisions) for r in summary.robots] == [(0, 2), (0, 2), (1, 0)]
+    assert summary.robot_robot_contacts == 2
+    for robot in summary.robots:
+        ahead = motion[robot.namespace[1:]]
+        assert robot.distance == pytest.approx(sum(abs(b - a) for a, b in zip(ahead, ahead[1:])), rel=1e-9)
+    for run in runs:  # odometry from the start pose in the world file lands on the true path
+        odom = run.odom_in_world()
+        assert odom.x == pytest.approx(run.truth.x, abs=1e-12) and odom.y == pytest.approx(run.truth.y, abs=1e-12)
+    contact = next(c for c in summary.contacts if c.kind == 'robot')
+    assert (contact.robot, contact.other) == ('epuck0', 'epuck1')
+    assert contact.x == pytest.approx(-MODEL.body_radius, abs=SPEED_PER_STEP)
+
+    result = run_bag('summary', str(path))
+    assert result.returncode == 0, result.stderr
+    assert 'Robots:            3\n' in result.stdout
+    assert '1 with walls/obstacles (from world), 2 between robots' in result.stdout
+    rows = [line.split() for line in result.stdout.split('\n') if line.startswith('/epuck')]
+    assert [(row[0], row[3], row[4]) for row in rows] == [('/epuck0', '0', '2'), ('/epuck1', '0', '2'),
+                                                          ('/epuck2', '1', '0')]
+    data = json.loads(run_bag('summary', '--json', str(path)).stdout)
+    assert data['robot_robot_contacts'] == 2 and len(data['robots']) == 3
+    one = run_bag('summary', str(path), '--namespace', 'epuck2')
+    assert 'Robot:             /epuck2' in one.stdout and '1 with walls/obstacles, 0 with robots' in one.stdout
+
+
+def test_the_tally_fed_live_agrees_with_the_bag_summary(tmp_path):
+    """bringup feeds RunTally the ground truth as it arrives; the figures must be the bag summary's."""
+    path = write_swarm(tmp_path / 'swarm')
+    with Bag(path) as bag:
+        runs = load_runs(bag)
+        summary = summarise_runs(runs)
+    live = RunTally(list(SWARM_STARTS), runs[0].world, MODEL.body_radius)
+    samples = [(int(stamp), run.name, float(x), float(y)) for run in runs
+               for stamp, x, y in zip(run.truth.stamps_ns, run.truth.x, run.truth.y)]
+    lost = samples.pop(40)  # a sample lost on the way: that stamp is skipped for robot-robot contacts
+    for stamp, name, x, y in sorted(samples, key=lambda s: s[0]):
+        live.add(name, stamp, x, y)
+    for figures, robot in zip(live.figures, summary.robots):
+        assert figures.world_contacts == robot.collisions and figures.robot_contacts == robot.robot_collisions
+        if figures.name != lost[1]:
+            assert figures.distance == robot.distance
+    assert live.robot_robot_contacts == 2
+    assert format_figures(live.figures).split('\n')[2].startswith('epuck2: ')
+
+
+def test_csv_takes_any_robot_s_topic(tmp_path):
+    path = write_swarm(tmp_path / 'swarm')
+    steps = len(swarm_motion()['epuck2'])
+    for topic in ('/epuck2/ground_truth', 'epuck2/ground_truth'):
+        result = run_bag('csv', str(path), topic)
+        assert result.returncode == 0, result.stderr
+        rows = list(csv.DictReader(io.StringIO(result.stdout)))
+        assert len(rows) == steps
+        assert float(rows[-1]['pose.pose.position.y']) == pytest.approx(0.5 - MODEL.body_radius)
+
+
+# --- help and arguments ------------------------------------------------------------------------------------
+
+@pytest.mark.parametrize('command', ['info', 'summary', 'plot', 'csv', 'play'])
+def test_every_subcommand_s_help_shows_an_example(command):
+    result = run_bag(command, '--help')
+    assert result.returncode == 0
+    assert 'example' in result.stdout and f'bag {command} bags/' in result.stdout
+
+
+def test_plot_to_an_unsupported_format_is_one_line_and_exit_2(tmp_path):
+    result = run_bag('plot', str(REPO / 'bags' / 'forward'), '-o', str(tmp_path / 'out.txt'))
+    assert result.returncode == 2 and result.stdout == ''
+    assert result.stderr.count('\n') == 1 and 'out.txt' in result.stderr and '.png' in result.stderr
+    assert not (tmp_path / 'out.txt').exists()

@@ -34,6 +34,7 @@ ARENA_BOX = (0.07, 0.16, 0.64, 0.72)
 """Figure fraction (left, bottom, width, height) the arena is drawn in, centred at equal aspect."""
 COLORBAR_BOX = (0.77, 0.50, 0.022, 0.38)
 SIDE_BOX = (0.77, 0.16, 0.20, 0.26)
+ROBOT_SCALE_BOX = (0.77, 0.16, 0.022, 0.72)
 HEADING_ARROWS = 16
 """Arrows along a one-robot path, evenly spaced in time."""
 MAX_NAMED_ROBOTS = 12
@@ -94,14 +95,14 @@ def _title(summary: BagSummary) -> str:
         robot = '' if r.namespace == '/' else f' {r.namespace}'
         contacts = '?' if r.collisions is None else r.collisions
         figures = (f'{r.distance:.3f} m in {r.duration:.1f} s (mean {r.mean_speed:.3f} m/s), '
-                   f'{contacts} collisions')
+                   f'collisions: {contacts}')
         if r.closest_approach is not None:
             figures += f', closest {r.closest_approach:.3f} m'
         shape = _shape_text(r)
         return f'{name}{robot}: {r.motion}\n{figures}' + (f'\n{shape}' if shape else '')
     walls = sum(r.collisions or 0 for r in robots)
     return (f'{name}: {len(robots)} robots\n{sum(r.distance for r in robots):.3f} m in all in '
-            f'{max(r.duration for r in robots):.1f} s, {walls} contacts with walls/obstacles, '
+            f'{max(r.duration for r in robots):.1f} s; contacts: {walls} with walls/obstacles, '
             f'{summary.robot_robot_contacts} between robots')
 
 
@@ -131,15 +132,16 @@ def _heading_arrows(axes: plt.Axes, path: Trajectory, length: float) -> None:
 
 def _contacts(axes: plt.Axes, summary: BagSummary) -> list[Line2D]:
     handles = []
-    for kind, marker, colour, label in (('world', 'X', 'tab:red', 'contact with a wall/obstacle'),
-                                        ('robot', 'P', 'tab:orange', 'contact with a robot')):
+    for kind, marker, colour, label in (('world', 'X', 'tab:red', 'contacts with walls/obstacles'),
+                                        ('robot', 'P', 'tab:orange', 'contacts between robots, on both')):
         points = [(c.x, c.y) for c in summary.contacts if c.kind == kind]
+        count = len(points) // 2 if kind == 'robot' else len(points)
         if points:
             xs, ys = zip(*points)
             axes.plot(xs, ys, marker, color=colour, markeredgecolor='black', markersize=10, linestyle='none',
-                      zorder=7)
+                      zorder=7, gid=f'contacts-{kind}')
             handles.append(Line2D([], [], marker=marker, color=colour, markeredgecolor='black', markersize=10,
-                                  linestyle='none', label=f'{label} ({len(points)})'))
+                                  linestyle='none', label=f'{label} ({count})'))
     return handles
 
 
@@ -154,13 +156,14 @@ def _plot_one(figure: plt.Figure, axes: plt.Axes, run: RunData, length: float, b
     handles = []
     odom = run.odom_in_world() if run.odom is not path else None
     if odom is not None:
-        axes.plot(odom.x, odom.y, '--', color='0.45', linewidth=1.2, zorder=2)
+        axes.plot(odom.x, odom.y, '--', color='0.45', linewidth=1.2, zorder=2, gid='odometry')
         handles.append(Line2D([], [], linestyle='--', color='0.45', label='odometry, from the start pose'))
     points = np.column_stack([path.x, path.y])
     # round caps: butt-ended segments leave antialiasing seams that make the line look dotted
     lines = LineCollection(np.stack([points[:-1], points[1:]], axis=1), cmap=TIME_COLORMAP, linewidth=2.5,
                            capstyle='round', zorder=3)
     lines.set_array(path.t[:-1])
+    lines.set_gid('trajectory')
     axes.add_collection(lines)
     figure.colorbar(lines, cax=figure.add_axes(COLORBAR_BOX), label='time (s)')
     what = 'ground truth' if path is run.truth else 'odometry'
@@ -169,10 +172,12 @@ def _plot_one(figure: plt.Figure, axes: plt.Axes, run: RunData, length: float, b
     _heading_arrows(axes, path, length)
     handles.append(Line2D([], [], marker=r'$\rightarrow$', color='0.15', markersize=14, linestyle='none',
                           label='heading'))
-    axes.plot(path.x[-1], path.y[-1], 's', color='tab:red', markersize=11, zorder=6)
-    axes.plot(path.x[0], path.y[0], 'o', color='tab:green', markeredgecolor='white', markersize=9, zorder=8)
+    axes.plot(path.x[-1], path.y[-1], 's', color='tab:red', markersize=11, zorder=6, gid='end')
+    # the start over the end: on a closed path it stays visible
+    axes.plot(path.x[0], path.y[0], 'o', color='tab:green', markeredgecolor='white', markersize=9, zorder=8,
+              gid='start')
     _end_pose(axes, path, 'tab:red', body_radius)
-    heading = figure.add_axes(SIDE_BOX)
+    heading = figure.add_axes(SIDE_BOX, gid='heading')
     heading.plot(path.t, np.degrees(path.yaw), color='tab:blue', linewidth=1.5)
     heading.set_title('heading (°, unwrapped)', fontsize=10)
     heading.set_xlabel('time (s)', fontsize=9)
@@ -181,20 +186,23 @@ def _plot_one(figure: plt.Figure, axes: plt.Axes, run: RunData, length: float, b
     return handles + _start_and_end_handles()
 
 
-def _plot_many(figure: plt.Figure, axes: plt.Axes, runs: Sequence[RunData], body_radius: float) -> list:
+def _plot_many(figure: plt.Figure, axes: plt.Axes, runs: Sequence[RunData], summary: BagSummary,
+               body_radius: float) -> list:
     colours = _robot_colours(len(runs))
     handles = []
     for run, colour in zip(runs, colours):
         path = run.trajectory
-        axes.plot(path.x, path.y, color=colour, linewidth=1.5, zorder=3)
+        axes.plot(path.x, path.y, color=colour, linewidth=1.5, zorder=3, gid=f'trajectory {run.namespace}')
         axes.plot(path.x[0], path.y[0], 'o', color=colour, markeredgecolor='black', markersize=6, zorder=8)
         _end_pose(axes, path, colour, body_radius)
         if len(runs) <= MAX_NAMED_ROBOTS:
             handles.append(Line2D([], [], color=colour, linewidth=2, label=run.name or run.namespace))
-    if len(runs) > MAX_NAMED_ROBOTS:
+    if len(runs) <= MAX_NAMED_ROBOTS:
+        _figures_table(figure, summary)
+    else:
         scale = plt.cm.ScalarMappable(norm=BoundaryNorm(np.arange(len(runs) + 1) - 0.5, len(runs)),
                                       cmap=ListedColormap(colours))
-        bar = figure.colorbar(scale, cax=figure.add_axes(COLORBAR_BOX[:3] + (0.72,)), label='robot')
+        bar = figure.colorbar(scale, cax=figure.add_axes(ROBOT_SCALE_BOX), label='robot')
         ticks = np.unique(np.linspace(0, len(runs) - 1, min(len(runs), 10)).round().astype(int))
         bar.set_ticks(ticks, labels=[runs[i].name for i in ticks])
         handles.append(Line2D([], [], color=colours[len(colours) // 2], linewidth=2,
@@ -206,11 +214,34 @@ def _plot_many(figure: plt.Figure, axes: plt.Axes, runs: Sequence[RunData], body
     return handles
 
 
+def _figures_table(figure: plt.Figure, summary: BagSummary) -> None:
+    """Each robot's distance and contacts, in the right-hand column."""
+    rows = ['contacts with', f'{"robot":<9}{"dist. m":>8}{"walls":>6}{"robots":>7}']
+    for r in summary.robots:
+        walls = '?' if r.collisions is None else r.collisions
+        robots = '?' if r.robot_collisions is None else r.robot_collisions
+        rows.append(f'{(r.namespace.rsplit("/", 1)[-1] or r.namespace)[:9]:<9}{r.distance:>8.3f}{walls:>6}{robots:>7}')
+    rows[0] = rows[0].rjust(len(rows[1]))
+    figure.text(0.745, COLORBAR_BOX[1] + COLORBAR_BOX[3], '\n'.join(rows), va='top', ha='left',
+                family='monospace', fontsize=9)
+
+
 def plot_runs(runs: Sequence[RunData], summary: BagSummary, output: str | Path,
               body_radius: float = RobotModel().body_radius) -> None:
     """Write the picture of a bag's robots (the format follows the output's extension)."""
+    figure = draw_runs(runs, summary, body_radius)
+    try:
+        figure.savefig(output, dpi=DPI)
+    finally:
+        plt.close(figure)
+
+
+def draw_runs(runs: Sequence[RunData], summary: BagSummary,
+              body_radius: float = RobotModel().body_radius) -> plt.Figure:
+    """The picture as a matplotlib Figure; its parts carry gids ('start', 'end', 'odometry', 'trajectory',
+    'contacts-world', 'contacts-robot', 'heading') so they can be found again."""
     figure = plt.figure(figsize=FIGURE_INCHES, dpi=DPI)
-    axes = figure.add_axes(ARENA_BOX)
+    axes = figure.add_axes(ARENA_BOX, gid='arena')
     world = runs[0].world
     if world is not None:
         _draw_world(axes, world)
@@ -222,7 +253,7 @@ def plot_runs(runs: Sequence[RunData], summary: BagSummary, output: str | Path,
     if len(runs) == 1:
         handles = _plot_one(figure, axes, runs[0], 0.03 * max(x1 - x0, y1 - y0), body_radius)
     else:
-        handles = _plot_many(figure, axes, runs, body_radius)
+        handles = _plot_many(figure, axes, runs, summary, body_radius)
     handles += _contacts(axes, summary)
     axes.set_xlim(x0, x1)
     axes.set_ylim(y0, y1)
@@ -233,5 +264,4 @@ def plot_runs(runs: Sequence[RunData], summary: BagSummary, output: str | Path,
     figure.suptitle(_title(summary), fontsize=12, y=0.975, va='top')
     figure.legend(handles=handles, loc='lower center', bbox_to_anchor=(0.42, 0.005), ncol=min(len(handles), 4),
                   fontsize=9, frameon=False)
-    figure.savefig(output, dpi=DPI)
-    plt.close(figure)
+    return figure

@@ -100,6 +100,8 @@ class RunData:
     closed_properly: bool
     start_pose: tuple[float, float, float] | None = None
     """The robot's start pose in the world (where its odometry frame is), when the bag says."""
+    world_problem: str | None = None
+    """Why the bag's world topic could not be used, if it could not."""
 
     @property
     def name(self) -> str:
@@ -323,7 +325,7 @@ def load_runs(bag: Bag, namespaces: Sequence[str] | None = None) -> list[RunData
         if not topics:
             raise BagError(f'{bag.path}: no odometry: the odometry topics of {ns} have no messages')
     origin = min(row[0] for topics in recorded.values() for topic in topics.values() for row in rows[topic])
-    world = _world(bag, world_topic, world_messages[-1]) if world_messages else None
+    world, world_problem = _world(bag, world_topic, world_messages[-1]) if world_messages else (None, None)
     runs = []
     for ns in namespaces:
         trajectories = {name: _trajectory(topic, rows[topic], origin) for name, topic in recorded[ns].items()}
@@ -332,7 +334,8 @@ def load_runs(bag: Bag, namespaces: Sequence[str] | None = None) -> list[RunData
             stamps, values, frames = zip(*rows[proximity[ns]])
             ranges = ((np.array(stamps, dtype=np.int64) - origin) * 1e-9, np.array(values), frames)
         truth, odom = trajectories.get('ground_truth'), trajectories.get('odom')
-        run = RunData(str(bag.path), ns, truth or odom, truth, odom, ranges, world, bag.closed_properly)
+        run = RunData(str(bag.path), ns, truth or odom, truth, odom, ranges, world, bag.closed_properly,
+                      world_problem=world_problem)
         run.start_pose = start_pose(world, run.name, len(namespaces)) if world is not None else None
         runs.append(run)
     return runs
@@ -370,14 +373,14 @@ def _find_world_topic(bag: Bag, namespace: str) -> str | None:
     return min(others, key=len) if others else None
 
 
-def _world(bag: Bag, topic: str, message: bytes) -> World | None:
-    """The world the sim published as YAML; None when it cannot be read (collisions then come from slip)."""
+def _world(bag: Bag, topic: str, message: bytes) -> tuple[World | None, str | None]:
+    """The world the sim published as YAML, or None and why it cannot be used (collisions then come from slip)."""
     schema = bag.topics[topic]
     try:
         text = CdrDecoder(schema.type_name, schema.schema_text).decode(message)['data']
-        return world_from_dict(yaml.safe_load(text) or {}, source=f'{bag.path} topic {topic}')
-    except (ValueError, yaml.YAMLError, KeyError):
-        return None
+        return world_from_dict(yaml.safe_load(text) or {}, source=f'{bag.path} topic {topic}'), None
+    except (ValueError, yaml.YAMLError, KeyError) as error:
+        return None, f'world not used: {" ".join(str(error).split())[:200]}'
 
 
 def _trajectory(topic: str, rows: list[tuple], origin_ns: int) -> Trajectory:
@@ -625,6 +628,7 @@ def summarise_runs(runs: Sequence[RunData], model: RobotModel = RobotModel()) ->
     for run in runs:
         trajectory = run.trajectory
         notes = [] if run.closed_properly else ['bag not closed properly: figures from its complete chunks']
+        notes += [run.world_problem] if run.world_problem else []
         robot_collisions = None
         if run.world is not None and run.truth is not None:
             collisions, source = figures[run.name].world_contacts, 'world'
@@ -728,8 +732,8 @@ def format_bag_summary(summary: BagSummary) -> str:
     head = [('Bag', summary.bag), ('Robots', str(len(robots))),
             ('Duration', f'{max(r.duration for r in robots):.3f} s'),
             ('Distance', f'{sum(r.distance for r in robots):.4f} m in total'),
-            ('Collisions', f'{sum(world)} with walls/obstacles, {summary.robot_robot_contacts} between robots '
-                           f'(from {robots[0].collisions_from} and ground_truth poses)')]
+            ('Collisions', f'{sum(world)} with walls/obstacles (from {robots[0].collisions_from}), '
+                           f'{summary.robot_robot_contacts} between robots (from ground_truth poses)')]
     notes = sorted({note for r in robots for note in r.notes})
     head += [('Note', note) for note in notes]
     header = ('robot', 'distance m', 'speed m/s', 'walls/obst.', 'robots', 'closest m', 'motion')
