@@ -9,10 +9,9 @@ are `epuck3/odom`, `epuck3/base_link`, `epuck3/ps0`... (stage_ros2's convention)
 from __future__ import annotations
 
 import math
-from array import array
 from collections.abc import Callable
 
-from builtin_interfaces.msg import Time
+import numpy as np
 from geometry_msgs.msg import Twist, TwistStamped
 from nav_msgs.msg import Odometry
 from rclpy.node import Node
@@ -21,6 +20,7 @@ from sensor_msgs.msg import JointState, Range
 from std_msgs.msg import Float64MultiArray, UInt32
 
 from epuck_ros.model import SENSOR_NAMES, RobotModel
+from epuck_ros.nodes.serialized import Patch
 from epuck_ros.simulation import Simulation
 
 JOINT_NAMES = ['left_wheel_joint', 'right_wheel_joint']
@@ -35,6 +35,12 @@ TWIST_COVARIANCE = [1e-5, 1e-5, _UNKNOWN, _UNKNOWN, _UNKNOWN, 1e-4]
 
 WARN_PERIOD = 1.0
 """Seconds between two warnings about refused commands."""
+STAMP_FIELDS = [('header.stamp.sec', 'i'), ('header.stamp.nanosec', 'I')]
+ODOMETRY_FIELDS = STAMP_FIELDS + [
+    ('pose.pose.position.x', 'd'), ('pose.pose.position.y', 'd'), ('pose.pose.orientation.z', 'd'),
+    ('pose.pose.orientation.w', 'd'), ('twist.twist.linear.x', 'd'), ('twist.twist.angular.z', 'd')]
+"""What changes in an Odometry from one step to the next (the rest is serialised once)."""
+
 CommandHandler = Callable[[int, str, str, float, float], None]
 """(robot index, topic, 'wheels' or 'twist', first value, second value): what the node does with a command."""
 
@@ -85,15 +91,17 @@ class RobotPorts:
         self._wheels_sub = node.create_subscription(Float64MultiArray, topics + 'wheel_cmd', self._wheels, 10)
 
     def _make_messages(self, frames: str, world_frame: str, model: RobotModel) -> None:
-        """Messages are built once and refilled every step: it halves the cost of publishing."""
-        self._odom = Odometry()
-        self._odom.header.frame_id = self.odom_frame
-        self._odom.child_frame_id = self.base_frame
-        self._odom.pose.covariance = _diagonal(POSE_COVARIANCE)
-        self._odom.twist.covariance = _diagonal(TWIST_COVARIANCE)
-        self._truth = Odometry()
-        self._truth.header.frame_id = world_frame
-        self._truth.child_frame_id = self.base_frame
+        """Each step message is serialised once; a step only patches its numbers in (see `serialized`)."""
+        odom = Odometry()
+        odom.header.frame_id = self.odom_frame
+        odom.child_frame_id = self.base_frame
+        odom.pose.covariance = _diagonal(POSE_COVARIANCE)
+        odom.twist.covariance = _diagonal(TWIST_COVARIANCE)
+        self._odom = Patch(odom, ODOMETRY_FIELDS)
+        truth = Odometry()
+        truth.header.frame_id = world_frame
+        truth.child_frame_id = self.base_frame
+        self._truth = Patch(truth, ODOMETRY_FIELDS)
         self._ranges = []
         for sensor in SENSOR_NAMES:
             msg = Range()
@@ -102,10 +110,12 @@ class RobotPorts:
             msg.field_of_view = model.ir_aperture
             msg.min_range = 0.0
             msg.max_range = model.ir_range
-            self._ranges.append(msg)
-        self._joints = JointState()
-        self._joints.name = JOINT_NAMES
-        self._raw = Float64MultiArray()
+            self._ranges.append(Patch(msg, STAMP_FIELDS + [('range', 'f')]))
+        joints = JointState(name=JOINT_NAMES, position=[0.0, 0.0], velocity=[0.0, 0.0])
+        self._joints = Patch(joints, STAMP_FIELDS + [('position[0]', 'd'), ('position[1]', 'd'),
+                                                     ('velocity[0]', 'd'), ('velocity[1]', 'd')])
+        self._raw = Patch(Float64MultiArray(data=[0.0] * len(SENSOR_NAMES)),
+                          [(f'data[{i}]', 'd') for i in range(len(SENSOR_NAMES))])
 
     # --- commands ---------------------------------------------------------------------------------------
 
@@ -126,28 +136,23 @@ class RobotPorts:
 
     # --- publishing -------------------------------------------------------------------------------------
 
-    def publish(self, sim: Simulation, stamp: Time) -> None:
-        """This robot's step messages (not `/clock`, which the node sends last); topics nobody reads are skipped."""
+    def publish(self, sim: Simulation, stamp: tuple[int, int]) -> None:
+        """This robot's step messages (not `/clock`, which the node sends last); topics nobody reads are skipped.
+
+        `stamp` is (sec, nanosec) of the step."""
         robot = self.index
         if self._odom_pub.get_subscription_count():
-            _fill_odometry(self._odom, stamp, sim.odom_pose[robot], sim.odom_twist[robot])
-            self._odom_pub.publish(self._odom)
+            self._odom_pub.publish(self._odom.bytes(_odometry(stamp, sim.odom_pose[robot], sim.odom_twist[robot])))
         if self._truth_pub.get_subscription_count():
-            _fill_odometry(self._truth, stamp, sim.true_pose[robot], sim.true_twist[robot])
-            self._truth_pub.publish(self._truth)
+            self._truth_pub.publish(self._truth.bytes(_odometry(stamp, sim.true_pose[robot], sim.true_twist[robot])))
         if self._raw_pub.get_subscription_count():
-            self._raw.data = array('d', sim.ir_raw[robot].tolist())
-            self._raw_pub.publish(self._raw)
+            self._raw_pub.publish(self._raw.bytes(sim.ir_raw[robot].tolist()))
         if self._range_pub.get_subscription_count():
-            for msg, value in zip(self._ranges, sim.ir_range[robot].tolist()):
-                msg.header.stamp = stamp
-                msg.range = value
-                self._range_pub.publish(msg)
+            for patch, value in zip(self._ranges, sim.ir_range[robot].tolist()):
+                self._range_pub.publish(patch.bytes((*stamp, value)))
         if self._joints_pub.get_subscription_count():
-            self._joints.header.stamp = stamp
-            self._joints.position = array('d', sim.wheel_angles[robot].tolist())
-            self._joints.velocity = array('d', sim.wheel_speeds[robot].tolist())
-            self._joints_pub.publish(self._joints)
+            self._joints_pub.publish(self._joints.bytes(
+                (*stamp, *sim.wheel_angles[robot].tolist(), *sim.wheel_speeds[robot].tolist())))
 
     def publish_collisions(self, count: int) -> None:
         self._collisions_pub.publish(UInt32(data=count))
@@ -166,13 +171,7 @@ def _diagonal(values: list[float]) -> list[float]:
     return matrix
 
 
-def _fill_odometry(msg: Odometry, stamp: Time, pose: object, twist: object) -> None:
+def _odometry(stamp: tuple[int, int], pose: np.ndarray, twist: np.ndarray) -> tuple[float | int, ...]:
+    """The values of ODOMETRY_FIELDS: a planar pose's quaternion is a rotation about z."""
     x, y, yaw = pose.tolist()
-    msg.header.stamp = stamp
-    msg.pose.pose.position.x = x
-    msg.pose.pose.position.y = y
-    msg.pose.pose.orientation.z = math.sin(yaw / 2.0)
-    msg.pose.pose.orientation.w = math.cos(yaw / 2.0)
-    v, w = twist.tolist()
-    msg.twist.twist.linear.x = v
-    msg.twist.twist.angular.z = w
+    return (*stamp, x, y, math.sin(yaw / 2.0), math.cos(yaw / 2.0), *twist.tolist())

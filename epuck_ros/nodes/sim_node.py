@@ -16,7 +16,6 @@ from collections.abc import Callable
 
 import rclpy
 import yaml
-from builtin_interfaces.msg import Time
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.exceptions import ParameterException
 from rclpy.node import Node
@@ -32,6 +31,7 @@ from epuck_ros.model import RobotModel
 from epuck_ros.nodes.ack_window import AckWindow
 from epuck_ros.nodes.params import ParamSpec, Usage, declare_parameters, prepare_arguments
 from epuck_ros.nodes.robot_ports import JOINT_NAMES, WARN_PERIOD, RobotPorts
+from epuck_ros.nodes.serialized import Patch
 from epuck_ros.nodes.spinning import spin_until_shutdown
 from epuck_ros.simulation import CommandError, Simulation, StepEvents
 from epuck_ros.world import World, WorldError, default_world, load_world, place_robots
@@ -204,7 +204,7 @@ class SimNode(Node):
         self.create_service(Empty, 'reset', self._on_reset)
         self.create_service(Trigger, 'step', self._on_step)
         self._clock_pub = self.create_publisher(Clock, '/clock', stream)
-        self._clock_msg = Clock()
+        self._clock = Patch(Clock(), [('clock.sec', 'i'), ('clock.nanosec', 'I')])
         self._acks = AckWindow(self._stream_publishers, ACK_WINDOW_STEPS, self._on_ack_stall)
         robots = f'{len(world.robots)} robots ({", ".join(world.names[:5])}{", ..." if len(world.robots) > 5 else ""})' \
             if several else 'one robot'
@@ -359,8 +359,7 @@ class SimNode(Node):
         stamp = _stamp(self._sim.time)
         for ports in self.ports:
             ports.publish(self._sim, stamp)
-        self._clock_msg.clock = stamp
-        self._clock_pub.publish(self._clock_msg)
+        self._clock_pub.publish(self._clock.bytes(stamp))
 
     def _after_step(self, events: StepEvents, now_sim: float) -> None:
         names = self._sim.names
@@ -404,9 +403,9 @@ class SimNode(Node):
         return False
 
 
-def _stamp(seconds: float) -> Time:
-    nanoseconds = round(seconds * 1e9)
-    return Time(sec=nanoseconds // 1_000_000_000, nanosec=nanoseconds % 1_000_000_000)
+def _stamp(seconds: float) -> tuple[int, int]:
+    """(sec, nanosec) of a simulated time."""
+    return divmod(round(seconds * 1e9), 1_000_000_000)
 
 
 def main(args: list[str] | None = None) -> None:
