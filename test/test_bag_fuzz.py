@@ -14,6 +14,8 @@ import json
 import random
 import shutil
 import struct
+import subprocess
+import sys
 from pathlib import Path
 
 import pytest
@@ -23,10 +25,11 @@ from std_msgs.msg import String
 
 from epuck_ros.bag.cli import main
 from epuck_ros.bag.qos import QosProfile
-from epuck_ros.bag.reader import MAX_METADATA_BYTES
+from epuck_ros.bag.reader import MAX_METADATA_BYTES, Bag
 from epuck_ros.bag.writer import BagWriter
 
 SAMPLES = Path(__file__).parent.parent / 'bags'
+BIN_DIR = Path(sys.executable).parent
 BAGS = sorted(p.name for p in SAMPLES.iterdir() if p.is_dir())
 CASES_PER_BAG = 60
 PLOT_EVERY = 15
@@ -266,3 +269,23 @@ def test_a_sequence_of_empty_structs_cannot_allocate_gigabytes(tmp_path):
     assert (tmp_path / 'bomb.mcap').stat().st_size < 1024
     code, out, err = run_bag('csv', str(tmp_path / 'bomb.mcap'), '/bomb')
     assert code == 2 and 'pkg/Bomb: message data ends before the message does' in err
+
+
+def test_a_world_alias_bomb_inside_a_bag_costs_nothing(tmp_path):
+    """The `world` topic holds YAML whose aliases stand for 10^9 values: the world is refused (summary goes on
+    without it); under a 2 GB address-space limit a loader that expands it fails instead of swapping."""
+    shutil.copytree(SAMPLES / 'spin', tmp_path / 'spin')
+    writer = BagWriter(tmp_path / 'bomb')
+    with Bag(tmp_path / 'spin') as sample:
+        for name, topic in sample.topics.items():
+            writer.add_topic(name, topic.type_name, [QosProfile()])
+        for message in sample.messages():
+            data = message.data
+            if message.topic == '/world':
+                data = serialize_message(String(data=alias_bomb().replace('rosbag2_bagfile_information', 'arena')))
+            writer.write(message.topic, data, message.log_time)
+    writer.close()
+    result = subprocess.run(['bash', '-c', f'ulimit -v 2000000; exec "{BIN_DIR / "bag"}" summary "{tmp_path / "bomb"}"'],
+                            capture_output=True, text=True, timeout=120)
+    assert result.returncode == 0, result.stderr
+    assert 'world not used' in result.stdout and 'aliases' in result.stdout
