@@ -113,7 +113,7 @@ def test_info_prints_ros2_bag_info_fields_and_rates(tmp_path):
     lines = result.stdout.split('\n')
     labels = [line.split(':')[0] for line in lines if line[:1].strip()]
     assert labels == ['Files', 'Bag size', 'Storage id', 'ROS Distro', 'Duration', 'Start', 'End',
-                      'Messages', 'Topic information', 'Service', 'Service information']
+                      'Messages', 'Topic information', 'Stamp gaps', 'Service', 'Service information']
     steps = round(8.0 / STEP) + 1
     fields = {line[:19].rstrip(': '): line[19:] for line in lines if line[:1].strip()}
     assert fields['Files'] == 'circle_0.mcap' and fields['Storage id'] == 'mcap'
