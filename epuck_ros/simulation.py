@@ -20,10 +20,12 @@ from epuck_ros import ir_sensor
 from epuck_ros.kinematics import clamp_wheels, integrate_arc, quantise, twist_from_wheels, wheels_from_twist
 from epuck_ros.model import RobotModel
 from epuck_ros.spatial import close_pairs
-from epuck_ros.world import CONTACT_TOLERANCE, World
+from epuck_ros.world import CONTACT_TOLERANCE, World, ray_circle
 
 _SEPARATION_PASSES = 8
 """Passes of pushing overlapping robots apart per substep before the stuck ones go back (see _separate_robots)."""
+_PAIR_SLACK = 0.01
+"""m a robot may be pushed in a step before the robot pairs are searched again (see Simulation._cover_pairs)."""
 _OVERLAP_TOLERANCE = 1e-9
 """m; robots closer than a diameter by less than this are touching, not overlapping (rounding of the push)."""
 
@@ -66,9 +68,9 @@ class Simulation:
         fastest = model.max_wheel_speed * model.wheel_radius * self.time_step
         self._substeps = max(1, math.ceil(fastest / (0.5 * model.body_radius)))
         self._sensor_poses = np.asarray(model.sensor_poses, dtype=float)
-        # Sensor positions on the body as x-axis and y-axis parts: origin = xy + cos(yaw) a + sin(yaw) b.
+        # Sensor positions and directions on the body, turned by the robot's yaw each step.
         self._sensor_offsets = self._sensor_poses[:, :2].copy()
-        self._sensor_offsets_left = np.column_stack([-self._sensor_poses[:, 1], self._sensor_poses[:, 0]])
+        self._sensor_cos, self._sensor_sin = np.cos(self._sensor_poses[:, 2]), np.sin(self._sensor_poses[:, 2])
         # Beyond this distance from the body's centre no IR ray can reach anything: the sensor farthest out plus
         # the ray. Farther from every surface, a step casts no rays at all.
         self._sensing_reach = float(np.hypot(*self._sensor_poses[:, :2].T).max()) + model.ir_range
@@ -85,6 +87,12 @@ class Simulation:
         self._collisions, self._robot_collisions = np.zeros(n, dtype=int), np.zeros(n, dtype=int)
         self._last_command_time = np.zeros(n)
         self._commanded = np.zeros(n, dtype=bool)
+        # Robot pairs that can touch or see each other this step (see _cover_pairs): found within the sensing
+        # reach plus a body, plus room for each robot to travel a step and be pushed a little.
+        self._slack = fastest + _PAIR_SLACK
+        self._pair_reach = self._sensing_reach + model.body_radius + 2.0 * self._slack
+        self._pairs = (np.empty(0, dtype=np.int64), np.empty(0, dtype=np.int64))
+        self._pairs_origin = self._start[:, :2].copy()
         self.reset()
 
     @property
@@ -120,34 +128,21 @@ class Simulation:
     # --- stepping -----------------------------------------------------------------------------------------
 
     def step(self) -> StepEvents:
-        """Advance the world by one `time_step`."""
+        """Advance the world by one `time_step`.
+
+        One robot moves on plain floats (NumPy's per-call overhead would cost more than its few dozen
+        operations: about 2x slower, measured with benchmarks/bench_core.py); several robots move together in
+        NumPy, with cell lists for which robots can touch or see each other.
+        """
         events = StepEvents()
         self._expire_commands(events)
         self._wheel_speeds[:] = self._command
-        start = self._true.copy()
-        obstacle = np.zeros(len(start), dtype=bool)
-        robot = np.zeros(len(start), dtype=bool)
-        v, w = twist_from_wheels(self._command[:, 0], self._command[:, 1], self.model)
-        substep = self.time_step / self._substeps
-        for _ in range(self._substeps):
-            clear = self._true[:, :2].copy()
-            for index, (x, y, yaw) in enumerate(self._true.tolist()):
-                x, y, yaw = integrate_arc(x, y, yaw, float(v[index]), float(w[index]), substep)
-                x, y, hit = self.world.push_disc_out(x, y, self.model.body_radius, tuple(clear[index]))
-                self._true[index] = (x, y, yaw)
-                obstacle[index] |= hit
-            if len(start) > 1:
-                robot |= self._separate_robots(clear)
-        self._true_twist[:, 0], self._true_twist[:, 1] = v, w
-        moved = obstacle | robot
-        if moved.any():
-            heading = start[:, 2] + 0.5 * w * self.time_step
-            along = ((self._true[:, 0] - start[:, 0]) * np.cos(heading)
-                     + (self._true[:, 1] - start[:, 1]) * np.sin(heading)) / self.time_step
-            self._true_twist[moved, 0] = along[moved]
+        if len(self._true) == 1:
+            obstacle, robot = self._move_one(), False   # plain bools: _count_contacts' fast path
+        else:
+            obstacle, robot = self._move_many()
         self._count_contacts(obstacle, robot, events)
-        for index, (left, right) in enumerate(self._command.tolist()):
-            self._update_odometry(index, left, right)
+        self._update_odometry()
         self._steps += 1
         self._sense()
         return events
@@ -162,49 +157,124 @@ class Simulation:
             self._command[expired] = 0.0
             self._commanded[expired] = False
 
-    def _separate_robots(self, clear: np.ndarray) -> np.ndarray:
-        """Push overlapping robots apart; a robot that cannot be freed goes back to `clear`. Which robots touch.
+    def _move_one(self) -> bool:
+        """The only robot along its exact arc, pushed out of obstacles after each substep; whether it touched.
 
-        Each overlapping pair moves apart by half the overlap each along the line between the centres, then out
-        of walls and obstacles again, a few passes. Whatever still overlaps after that (a robot squeezed
-        between another and a wall) returns to its clear position of the last substep, and so on until nothing
-        overlaps: every robot's clear position was clear, so this ends, with no overlap and nobody tunnelled.
+        The true twist is the commanded one unless the body touched something; then its forward speed is what
+        the body really covered along its heading (zero when blocked head-on).
         """
-        xy = self._true[:, :2]
+        (left, right), = self._command.tolist()
+        v, w = twist_from_wheels(left, right, self.model)
+        (start_x, start_y, start_yaw), = self._true.tolist()
+        x, y, yaw = start_x, start_y, start_yaw
+        touching = False
+        substep = self.time_step / self._substeps
+        for _ in range(self._substeps):
+            clear = (x, y)
+            x, y, yaw = integrate_arc(x, y, yaw, v, w, substep)
+            x, y, hit = self.world.push_disc_out(x, y, self.model.body_radius, clear)
+            touching = touching or hit
+        self._true[0] = (x, y, yaw)
+        forward = v
+        if touching:
+            heading = start_yaw + 0.5 * w * self.time_step
+            forward = ((x - start_x) * math.cos(heading) + (y - start_y) * math.sin(heading)) / self.time_step
+        self._true_twist[0] = (forward, w)
+        return touching
+
+    def _move_many(self) -> tuple[np.ndarray, np.ndarray]:
+        """All robots along their arcs, out of obstacles and apart, per substep; (touching obstacle, robot) (N,)."""
+        radius = self.model.body_radius
+        v, w = twist_from_wheels(self._command[:, 0], self._command[:, 1], self.model)
+        start = self._true.copy()
+        self._cover_pairs(start[:, :2], refresh=True)
+        obstacle = np.zeros(len(start), dtype=bool)
+        robot = np.zeros(len(start), dtype=bool)
+        x, y, yaw = start[:, 0], start[:, 1], start[:, 2]
+        substep = self.time_step / self._substeps
+        for _ in range(self._substeps):
+            clear = np.column_stack([x, y])
+            x, y, yaw = integrate_arc(x, y, yaw, v, w, substep)
+            xy, hit = self.world.resolve_collision(np.column_stack([x, y]), radius, clear)
+            obstacle |= hit
+            robot |= self._separate_robots(xy, clear, obstacle)
+            x, y = xy[:, 0], xy[:, 1]
+        self._true[:, 0], self._true[:, 1], self._true[:, 2] = x, y, yaw
+        self._true_twist[:, 0], self._true_twist[:, 1] = v, w
+        moved = obstacle | robot
+        if moved.any():
+            heading = start[moved, 2] + 0.5 * w[moved] * self.time_step
+            self._true_twist[moved, 0] = ((x[moved] - start[moved, 0]) * np.cos(heading)
+                                          + (y[moved] - start[moved, 1]) * np.sin(heading)) / self.time_step
+        return obstacle, robot
+
+    def _cover_pairs(self, xy: np.ndarray, refresh: bool = False) -> None:
+        """Make `_pairs` hold every pair of robots that can touch or see each other at positions `xy`.
+
+        The pairs are found at the start of a step within `_pair_reach`, which leaves `_PAIR_SLACK` plus a
+        step's travel of room per robot; only if some robot has been pushed farther than that since (a long
+        chain of pushes) are they found again. So one cell-list query per step serves contacts and sensing.
+        """
+        if len(xy) == 1:
+            return
+        if not refresh:
+            moved = xy - self._pairs_origin
+            refresh = float(np.einsum('ij,ij->i', moved, moved).max()) > self._slack ** 2
+        if refresh:
+            self._pairs = close_pairs(xy, self._pair_reach)
+            self._pairs_origin = xy.copy()
+
+    def _separate_robots(self, xy: np.ndarray, clear: np.ndarray, obstacle: np.ndarray) -> np.ndarray:
+        """Push overlapping robots (xy, in place) apart; one that cannot be freed goes back to `clear`. Which touch.
+
+        Each overlapping pair moves apart by half the overlap each along the line between the centres (so a
+        robot driving into a free one pushes it at half speed), then out of walls and obstacles again
+        (`obstacle` records those contacts), a few passes. Whatever still overlaps after that (a robot squeezed
+        between another and a wall) returns to its clear position of this substep, and so on until nothing
+        overlaps: every clear position was clear, so this ends with no overlap and nobody tunnelled.
+        """
         diameter = 2.0 * self.model.body_radius
+        first, second = self._pairs
         for _ in range(_SEPARATION_PASSES):
-            first, second = close_pairs(xy, diameter - _OVERLAP_TOLERANCE)
-            if not len(first):
-                break
             delta = xy[first] - xy[second]
             distance = np.hypot(delta[:, 0], delta[:, 1])
-            delta[distance == 0.0] = (1.0, 0.0)   # one robot on top of another: part them along x
+            over = np.flatnonzero(distance < diameter - _OVERLAP_TOLERANCE)
+            if not len(over):
+                break
+            delta, distance = delta[over], distance[over]
+            delta[distance == 0.0] = (1.0, 0.0)   # one robot right on top of another: part them along x
             distance[distance == 0.0] = 1.0
             push = delta * (0.5 * (diameter - distance) / distance)[:, None]
             shift = np.zeros_like(xy)
-            np.add.at(shift, first, push)
-            np.add.at(shift, second, -push)
-            xy += shift
-            for index in np.unique(np.concatenate([first, second])).tolist():
-                x, y, _ = self.world.push_disc_out(*xy[index], self.model.body_radius, tuple(clear[index]))
-                xy[index] = (x, y)
+            np.add.at(shift, first[over], push)
+            np.add.at(shift, second[over], -push)
+            moved = np.unique(np.concatenate([first[over], second[over]]))
+            xy[moved], hit = self.world.resolve_collision(xy[moved] + shift[moved], self.model.body_radius,
+                                                          clear[moved])
+            obstacle[moved] |= hit
         reverted = np.zeros(len(xy), dtype=bool)
         while True:
-            first, second = close_pairs(xy, diameter - _OVERLAP_TOLERANCE)
+            self._cover_pairs(xy)
+            first, second = self._pairs
+            delta = xy[first] - xy[second]
+            distance = np.hypot(delta[:, 0], delta[:, 1])
+            over = distance < diameter - _OVERLAP_TOLERANCE
             stuck = np.zeros(len(xy), dtype=bool)
-            stuck[first] = stuck[second] = True
+            stuck[first[over]] = stuck[second[over]] = True
             stuck &= ~reverted
             if not stuck.any():
                 break
             xy[stuck] = clear[stuck]
             reverted |= stuck
-        first, second = close_pairs(xy, diameter + CONTACT_TOLERANCE)
         touching = np.zeros(len(xy), dtype=bool)
-        touching[first] = touching[second] = True
+        close = distance < diameter + CONTACT_TOLERANCE
+        touching[first[close]] = touching[second[close]] = True
         return touching
 
     def _count_contacts(self, obstacle: np.ndarray, robot: np.ndarray, events: StepEvents) -> None:
         """A contact is counted once, when it begins: with a wall or obstacle, and with another robot apart."""
+        if obstacle is False and robot is False and not self._in_contact[0]:
+            return   # the one robot touches nothing, as before: nothing begins or ends (no array work)
         new_obstacle = obstacle & ~self._touching_obstacle
         new_robot = robot & ~self._touching_robot
         self._collisions += new_obstacle.astype(int) + new_robot.astype(int)
@@ -213,50 +283,88 @@ class Simulation:
         self._touching_obstacle[:], self._touching_robot[:] = obstacle, robot
         self._in_contact[:] = obstacle | robot
 
-    def _update_odometry(self, robot: int, left: float, right: float) -> None:
-        """Wheels turn at the applied speed even when the body is blocked; odometry sees only the encoders."""
-        rotation_left, rotation_right = self._wheel_rotation[robot].tolist()
-        rotation_left += left * self.time_step
-        rotation_right += right * self.time_step
-        self._wheel_rotation[robot] = (rotation_left, rotation_right)
-        resolution = self.model.encoder_resolution
+    def _update_odometry(self) -> None:
+        """Wheels turn at the applied speed even when the body is blocked; odometry sees only the encoders.
+
+        The same formulas on floats for one robot and on columns for many (kinematics takes either).
+        """
+        resolution, dt = self.model.encoder_resolution, self.time_step
+        if len(self._odom) == 1:
+            (rotation_left, rotation_right), = self._wheel_rotation.tolist()
+            (left, right), = self._command.tolist()
+            (last_left, last_right), = self._encoders.tolist()
+            (x, y, yaw), = self._odom.tolist()
+        else:
+            rotation_left, rotation_right = self._wheel_rotation.T
+            left, right = self._command.T
+            last_left, last_right = self._encoders.T.copy()
+            x, y, yaw = self._odom.T
+        rotation_left, rotation_right = rotation_left + left * dt, rotation_right + right * dt
         encoder_left, encoder_right = quantise(rotation_left, resolution), quantise(rotation_right, resolution)
-        last_left, last_right = self._encoders[robot].tolist()
-        self._encoders[robot] = (encoder_left, encoder_right)
         distance, turn = twist_from_wheels(encoder_left - last_left, encoder_right - last_right, self.model)
-        self._odom[robot] = integrate_arc(*self._odom[robot].tolist(), distance, turn, 1.0)
-        self._odom_twist[robot] = (distance / self.time_step, turn / self.time_step)
+        self._wheel_rotation[:, 0], self._wheel_rotation[:, 1] = rotation_left, rotation_right
+        self._encoders[:, 0], self._encoders[:, 1] = encoder_left, encoder_right
+        self._odom[:, 0], self._odom[:, 1], self._odom[:, 2] = integrate_arc(x, y, yaw, distance, turn, 1.0)
+        self._odom_twist[:, 0], self._odom_twist[:, 1] = distance / dt, turn / dt
 
     def _sense(self) -> None:
-        """Cast one ray per IR sensor from its pose on the true body: walls, obstacles and the other robots."""
-        n = len(self._true)
-        near_robots = close_pairs(self._true[:, :2], self._sensing_reach + self.model.body_radius) if n > 1 else ((), ())
-        if len(near_robots[0]) or any(self.world.anything_within(x, y, self._sensing_reach)
-                                      for x, y, _ in self._true.tolist()):
-            yaw = self._true[:, 2:3]
-            cos, sin = np.cos(yaw)[:, :, None], np.sin(yaw)[:, :, None]
-            origins = self._true[:, None, :2] + cos * self._sensor_offsets + sin * self._sensor_offsets_left
-            yaws = yaw + self._sensor_poses[:, 2]
-            distance = self.world.cast_rays(origins.reshape(-1, 2), yaws.ravel(), self.model.ir_range)
-            if len(near_robots[0]):
-                distance = distance.reshape(n, -1)
-                owner = np.concatenate(near_robots)
-                target = np.concatenate(near_robots[::-1])
-                hits = _ray_circle(origins[owner], yaws[owner], self._true[target, None, :2], self.model.body_radius)
-                np.minimum.at(distance, owner, hits)
-                distance = distance.ravel()
-                distance[distance > self.model.ir_range] = np.inf
-        else:
+        """Cast one ray per IR sensor from its pose on the true body: walls, obstacles and the other robots.
+
+        With one robot far from everything no ray is cast at all (a cheap float test). Otherwise every ray is
+        cast against walls and the obstacles near its robot (World.ray_distances) and against the bodies of the
+        robots within reach (the step's pairs), each robot's own body excepted.
+        """
+        count = len(self._true)
+        xy = self._true[:, :2]
+        if count == 1 and not self.world.anything_within(*xy[0].tolist(), self._sensing_reach):
             distance = self._no_hits
+        else:
+            cos, sin = np.cos(self._true[:, 2:3]), np.sin(self._true[:, 2:3])
+            origin_x = xy[:, 0:1] + cos * self._sensor_offsets[:, 0] - sin * self._sensor_offsets[:, 1]
+            origin_y = xy[:, 1:2] + sin * self._sensor_offsets[:, 0] + cos * self._sensor_offsets[:, 1]
+            dir_x = cos * self._sensor_cos - sin * self._sensor_sin
+            dir_y = sin * self._sensor_cos + cos * self._sensor_sin
+            distance = self.world.ray_distances(np.stack([origin_x, origin_y], axis=-1), dir_x, dir_y,
+                                                self.model.ir_range, xy, self._sensing_reach - self.model.ir_range)
+            if count > 1:
+                self._see_robots(distance, origin_x, origin_y, dir_x, dir_y)
+            distance = distance.ravel()
         table = self.model.ir_table
         raw = ir_sensor.noisy_raw(distance, table, self._rng if self.noise else None)
         self._ir_raw[:] = raw.reshape(self._ir_raw.shape)
         self._ir_range[:] = ir_sensor.range_from_raw(raw, distance < np.inf, table).reshape(self._ir_range.shape)
 
+    def _see_robots(self, distance: np.ndarray, origin_x: np.ndarray, origin_y: np.ndarray, dir_x: np.ndarray,
+                    dir_y: np.ndarray) -> None:
+        """Lower `distance` (N, 8) where a ray meets another robot's body first (the pairs within sensing reach).
+
+        Each close pair gives two owners (each robot looks at the other); the owners' rays are tested against
+        the other body, sorted by owner, and each owner's nearest hit per ray kept (one reduceat, no Python loop).
+        """
+        xy = self._true[:, :2]
+        self._cover_pairs(xy)
+        first, second = self._pairs
+        delta = xy[first] - xy[second]
+        near = np.einsum('ij,ij->i', delta, delta) < (self._sensing_reach + self.model.body_radius) ** 2
+        if not near.any():
+            return
+        owner = np.concatenate([first[near], second[near]])
+        target = np.concatenate([second[near], first[near]])
+        order = np.argsort(owner, kind='stable')
+        owner, target = owner[order], target[order]
+        hits = ray_circle(origin_x[owner], origin_y[owner], dir_x[owner], dir_y[owner], xy[target, 0:1],
+                          xy[target, 1:2], self.model.body_radius)
+        starts = np.flatnonzero(np.diff(owner, prepend=-1))
+        seen = owner[starts]
+        nearest = np.minimum(distance[seen], np.minimum.reduceat(hits, starts, axis=0))
+        nearest[nearest > self.model.ir_range] = np.inf
+        distance[seen] = nearest
+
     def reset(self) -> None:
         """Every robot back to its start pose with odometry, wheel angles and command zeroed; time and collision
         counts go on."""
         self._true[:] = self._start
+        self._cover_pairs(self._true[:, :2], refresh=True)
         for state in (self._odom, self._true_twist, self._odom_twist, self._wheel_rotation, self._encoders,
                       self._wheel_speeds, self._command):
             state.fill(0.0)
@@ -329,20 +437,6 @@ class Simulation:
     def in_contact(self) -> np.ndarray:
         """(N,) whether the body touches a wall, an obstacle or another robot now."""
         return self._in_contact
-
-
-def _ray_circle(origins: np.ndarray, yaws: np.ndarray, centres: np.ndarray, radius: float) -> np.ndarray:
-    """Distance along each ray (origins (..., 2), yaws (...)) to a circle (centres broadcastable); inf if it misses.
-
-    Only the near crossing counts, and only ahead of the origin: a ray starting inside the circle sees nothing.
-    """
-    dir_x, dir_y = np.cos(yaws), np.sin(yaws)
-    from_x, from_y = origins[..., 0] - centres[..., 0], origins[..., 1] - centres[..., 1]
-    half_b = from_x * dir_x + from_y * dir_y
-    discriminant = half_b * half_b - (from_x * from_x + from_y * from_y - radius * radius)
-    root = -half_b - np.sqrt(np.maximum(discriminant, 0.0))
-    root[(discriminant < 0.0) | (root < 0.0)] = np.inf
-    return root
 
 
 def _require_finite(**values: ArrayLike) -> None:

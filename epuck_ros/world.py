@@ -42,6 +42,9 @@ CONTACT_TOLERANCE = 1e-6
 _PUSH_ITERATIONS = 4
 """Push-out passes per step; two obstacles meeting at a corner need more than one."""
 
+_ALL_OBSTACLES_UP_TO = 4096
+"""Rays x obstacles up to which every ray is tested against every obstacle: cheaper than the grid's lookups."""
+
 MAX_FILE_BYTES = 8 * 2 ** 20
 """A world file larger than this is refused unread (10,000 robots take about 0.6 MB)."""
 MAX_NESTING = 16
@@ -132,43 +135,111 @@ class World:
         return World(self.arena_size, self.boxes, self.cylinders, tuple(robots))
 
     def cast_rays(self, origins: np.ndarray, yaws: np.ndarray, max_range: float) -> np.ndarray:
-        """Distance (K,) from each origin (K, 2) along its yaw (K,) to the first wall or obstacle; inf beyond max_range.
+        """Distance (K,) from each origin (K, 2) inside the arena along its yaw (K,) to the first wall or obstacle;
+        inf beyond max_range."""
+        yaws = np.asarray(yaws, dtype=float).ravel()
+        return self.ray_distances(np.asarray(origins, dtype=float).reshape(-1, 1, 2), np.cos(yaws)[:, None],
+                                  np.sin(yaws)[:, None], max_range).ravel()
 
-        All rays against all segments (walls and box edges) and circles at once: (K, S) arrays, no Python loop.
+    def ray_distances(self, origins: np.ndarray, dir_x: np.ndarray, dir_y: np.ndarray, max_range: float,
+                      centres: np.ndarray | None = None, spread: float = 0.0) -> np.ndarray:
+        """Distance (G, S) along rays in G groups of S (origins (G, S, 2), unit directions (G, S)) to the first
+        wall or obstacle; inf beyond max_range. `centres` (G, 2): each group's rays start within `spread` of it
+        (a robot's sensors), so obstacles are looked up once per group; without, once per ray.
+
+        Walls and box edges are segments, cylinders circles, in NumPy over all rays at once. A few rays or
+        obstacles: every ray against every one. Many: a grid of cells (see _ObstacleGrid) gives each group only
+        the obstacles near it, and only groups near a wall or obstacle are computed at all, so the cost per ray
+        does not grow with the number of obstacles.
         """
         g = self._geometry
-        dir_x, dir_y = np.cos(yaws)[:, None], np.sin(yaws)[:, None]
-        to_x, to_y = g.seg_x - origins[:, 0:1], g.seg_y - origins[:, 1:2]
-        with np.errstate(divide='ignore', invalid='ignore'):  # parallel ray and segment: no hit
-            inv_denom = 1.0 / (dir_x * g.edge_y - dir_y * g.edge_x)
-            along_ray = (to_x * g.edge_y - to_y * g.edge_x) * inv_denom
-            along_edge = (to_x * dir_y - to_y * dir_x) * inv_denom
-        along_ray[(along_ray < 0.0) | (along_edge < 0.0) | (along_edge > 1.0)] = np.inf
-        nearest = along_ray.min(axis=1)
-        if len(g.cyl_x):
-            from_x, from_y = origins[:, 0:1] - g.cyl_x, origins[:, 1:2] - g.cyl_y
-            half_b = from_x * dir_x + from_y * dir_y
-            discriminant = half_b * half_b - (from_x * from_x + from_y * from_y - g.cyl_radius_sq)
-            root = -half_b - np.sqrt(np.maximum(discriminant, 0.0))  # the nearer of |o + s d - c| = r
-            root[(discriminant < 0.0) | (root < 0.0)] = np.inf
-            nearest = np.minimum(nearest, root.min(axis=1))
-        nearest[nearest > max_range] = np.inf
+        ox, oy = origins[..., 0], origins[..., 1]
+        with np.errstate(divide='ignore', invalid='ignore'):   # parallel to an edge: +-inf, or NaN = a miss
+            if dir_x.size * (g.edge_total + g.cylinder_count) <= _ALL_OBSTACLES_UP_TO:
+                at = (ox[..., None], oy[..., None], dir_x[..., None], dir_y[..., None])
+                nearest = g.rays_to_edges(*at, slice(0, g.edge_total)).min(axis=-1)   # walls and boxes
+                if g.cylinder_count:
+                    nearest = np.minimum(nearest, g.rays_to_cylinders(*at, slice(0, g.cylinder_count)).min(axis=-1))
+            else:
+                if centres is None:
+                    centres, spread = origins.reshape(-1, 2), 0.0
+                    ox, oy, dir_x, dir_y = (a.reshape(-1, 1) for a in (ox, oy, dir_x, dir_y))
+                nearest = self._nearest_on_grid(ox, oy, dir_x, dir_y, centres, max_range + spread)
+        nearest[~(nearest <= max_range)] = np.inf
+        return nearest.reshape(dir_x.shape)
+
+    def _nearest_on_grid(self, ox: np.ndarray, oy: np.ndarray, dir_x: np.ndarray, dir_y: np.ndarray,
+                         centres: np.ndarray, reach: float) -> np.ndarray:
+        """Distance (G, S) along each group's rays to the walls and to the box edges and cylinders the grid lists
+        for the group's cell, computed only for groups within `reach` of a wall or one of those obstacles."""
+        g = self._geometry
+        nearest = np.full(ox.shape, np.inf)
+        cx, cy = centres[:, 0], centres[:, 1]
+        rows = np.flatnonzero((np.abs(cx) > g.half_x - reach) | (np.abs(cy) > g.half_y - reach))
+        if len(rows):
+            x, y, dx, dy = ox[rows], oy[rows], dir_x[rows], dir_y[rows]
+            nearest[rows] = np.minimum((np.copysign(g.half_x, dx) - x) / dx, (np.copysign(g.half_y, dy) - y) / dy)
+        grid = g.grid(reach)
+        cells = grid.cell_of(cx, cy)
+        for within, ids, distances in ((grid.boxes_within, grid.edge_ids, g.rays_to_edges),
+                                       (grid.cylinders_within, grid.cylinder_ids, g.rays_to_cylinders)):
+            rows = np.flatnonzero(within(cx, cy, cells, reach))
+            if len(rows):
+                found = distances(ox[rows, :, None], oy[rows, :, None], dir_x[rows, :, None], dir_y[rows, :, None],
+                                  ids[cells[rows]][:, None, :])
+                nearest[rows] = np.minimum(nearest[rows], found.min(axis=2))
         return nearest
 
     def resolve_collision(self, xy: np.ndarray, radius: float,
                           previous: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
-        """Each disc (N, 2) moved out of every wall and obstacle it overlaps; (xy (N, 2), contact (N,) bool).
+        """Each disc (N, 2) moved out of every wall and obstacle it overlaps; (xy (N, 2), touching (N,) bool).
 
+        The same rule as `push_disc_out`, for all discs at once in NumPy (the simulator's path for many robots);
         `previous` (N, 2), the discs' last clear positions, is where a disc goes back to if it cannot be freed.
         """
-        moved = [self.push_disc_out(x, y, radius, None if previous is None else tuple(previous[i]))
-                 for i, (x, y) in enumerate(np.asarray(xy, dtype=float).tolist())]
-        return (np.array([(x, y) for x, y, _ in moved]).reshape(-1, 2),
-                np.array([contact for _, _, contact in moved], dtype=bool))
+        g = self._geometry
+        xy = np.array(xy, dtype=float).reshape(-1, 2)
+        touching = np.zeros(len(xy), dtype=bool)
+        # Candidates within a diameter (not just a radius) of the cell: a disc pushed by up to its radius
+        # still finds every obstacle it may meet on the way.
+        grid = g.grid(2.0 * radius + CONTACT_TOLERANCE)
+        cells = grid.cell_of(xy[:, 0], xy[:, 1])
+        reach = radius + CONTACT_TOLERANCE
+        near = ((np.abs(xy[:, 0]) > g.half_x - reach) | (np.abs(xy[:, 1]) > g.half_y - reach)
+                | grid.boxes_within(xy[:, 0], xy[:, 1], cells, reach)
+                | grid.cylinders_within(xy[:, 0], xy[:, 1], cells, reach))
+        rows = np.flatnonzero(near)
+        if not len(rows):
+            return xy, touching
+        box_ids, cylinder_ids = grid.box_ids[cells[rows]], grid.cylinder_ids[cells[rows]]
+        x, y = xy[rows, 0:1].copy(), xy[rows, 1:2].copy()
+        distance, normal_x, normal_y = g.surfaces(x, y, box_ids, cylinder_ids)
+        touching[rows] = (distance < radius + CONTACT_TOLERANCE).any(axis=1)
+        active = np.arange(len(rows))
+        limit = radius
+        for _ in range(_PUSH_ITERATIONS):
+            overlap = np.where(distance < limit, radius - distance, 0.0)
+            pushed = overlap.any(axis=1)
+            active, overlap = active[pushed], overlap[pushed]
+            if not len(active):
+                break
+            x[active, 0] += (overlap * normal_x[pushed]).sum(axis=1)
+            y[active, 0] += (overlap * normal_y[pushed]).sum(axis=1)
+            distance, normal_x, normal_y = g.surfaces(x[active], y[active], box_ids[active], cylinder_ids[active])
+            limit = radius - CONTACT_TOLERANCE
+        else:
+            stuck = active[(distance < limit).any(axis=1)]
+            if previous is not None and len(stuck):
+                x[stuck, 0], y[stuck, 0] = previous[rows[stuck], 0], previous[rows[stuck], 1]
+        xy[rows, 0], xy[rows, 1] = x[:, 0], y[:, 0]
+        return xy, touching
 
     def push_disc_out(self, x: float, y: float, radius: float,
                       previous: tuple[float, float] | None = None) -> tuple[float, float, bool]:
         """One disc moved out of what it overlaps, along each penetration normal; (x, y, touching).
+
+        Plain floats: for one robot this is several times cheaper than the NumPy `resolve_collision`, which
+        follows the same rule (a test checks they agree).
 
         A disc driven into a wall ends touching it, so it slides along. A few passes settle a disc pushed into
         a corner by two obstacles; if they cannot (a gap narrower than the disc), it goes back to `previous`.
@@ -218,27 +289,84 @@ class World:
 
 
 class _Geometry:
-    """A World's walls and obstacles prepared once: NumPy segment arrays for rays, float tuples for discs.
+    """A World's walls and obstacles prepared once: float tuples for one disc, NumPy arrays for many.
 
-    Rays are many (8 per robot) and cheap to batch, so they go to NumPy. A disc query is one point against a
-    few obstacles, where NumPy's per-call overhead would cost more than the arithmetic: plain floats, with a
-    bounding-circle test that skips every obstacle out of reach.
+    A one-disc query is one point against a few obstacles, where NumPy's per-call overhead would cost more
+    than the arithmetic: plain floats, with a bounding-circle test that skips every obstacle out of reach.
+    Rays and many discs go to NumPy, each against the obstacles a grid lists near it. The obstacle arrays end
+    with one dummy obstacle far away, which pads the grid's rows.
     """
 
     def __init__(self, world: World) -> None:
         self.half_x, self.half_y = world.arena_size[0] / 2.0, world.arena_size[1] / 2.0
-        hx, hy = self.half_x, self.half_y
-        polygons = [[(hx, hy), (-hx, hy), (-hx, -hy), (hx, -hy)]] + [_box_corners(box) for box in world.boxes]
-        starts = np.array([corner for polygon in polygons for corner in polygon])
-        ends = np.array([corner for polygon in polygons for corner in polygon[1:] + polygon[:1]])
-        self.seg_x, self.seg_y = starts[:, 0].copy(), starts[:, 1].copy()
-        self.edge_x, self.edge_y = ends[:, 0] - starts[:, 0], ends[:, 1] - starts[:, 1]
-        self.cyl_x = np.array([c.x for c in world.cylinders])
-        self.cyl_y = np.array([c.y for c in world.cylinders])
-        self.cyl_radius_sq = np.array([c.radius ** 2 for c in world.cylinders])
         self.boxes = [(b.x, b.y, math.cos(b.yaw), math.sin(b.yaw), b.size_x / 2, b.size_y / 2,
                        math.hypot(b.size_x, b.size_y) / 2) for b in world.boxes]
         self.cylinders = [(c.x, c.y, c.radius) for c in world.cylinders]
+        self.box_count, self.cylinder_count = len(self.boxes), len(self.cylinders)
+        far = 1e9
+        (self.box_x, self.box_y, self.box_cos, self.box_sin, self.box_half_x, self.box_half_y,
+         self.box_bound) = np.array(self.boxes + [(far, far, 1.0, 0.0, 1.0, 1.0, 1.0)]).T.copy()
+        self.cyl_x, self.cyl_y, self.cyl_radius = np.array(self.cylinders + [(far, far, 1.0)]).T.copy()
+        # Edges as segments (start, start-to-end vector) for rays: the 4 walls, 4 per box, a far dummy edge.
+        hx, hy = self.half_x, self.half_y
+        corners = [[(hx, hy), (-hx, hy), (-hx, -hy), (hx, -hy)]] + [_box_corners(box) for box in world.boxes]
+        starts = [corner for box in corners for corner in box] + [(far, far)]
+        ends = [corner for box in corners for corner in box[1:] + box[:1]] + [(far + 1.0, far)]
+        self.edge_start_x, self.edge_start_y = np.array(starts).T.copy()
+        self.edge_x, self.edge_y = (np.array(ends) - np.array(starts)).T.copy()
+        self.edge_total = len(starts) - 1
+        self._grids: dict[float, _ObstacleGrid] = {}
+
+    def grid(self, reach: float) -> _ObstacleGrid:
+        """The obstacle grid for queries that reach `reach` from a point (built on first use, then kept)."""
+        if reach not in self._grids:
+            self._grids[reach] = _ObstacleGrid(self, reach)
+        return self._grids[reach]
+
+    def surfaces(self, x: np.ndarray, y: np.ndarray, box_ids: np.ndarray,
+                 cylinder_ids: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Signed distance and outward normal (each (K, 4 + B + C)) from points (K, 1) to the four walls, the boxes
+        `box_ids` (K, B) and the cylinders `cylinder_ids` (K, C): `surfaces_within` for many points at once."""
+        walls = np.concatenate([x + self.half_x, y + self.half_y, self.half_x - x, self.half_y - y], axis=1)
+        wall_x = np.broadcast_to(np.array([1.0, 0.0, -1.0, 0.0]), walls.shape)
+        wall_y = np.broadcast_to(np.array([0.0, 1.0, 0.0, -1.0]), walls.shape)
+        cos, sin = self.box_cos[box_ids], self.box_sin[box_ids]
+        dx, dy = x - self.box_x[box_ids], y - self.box_y[box_ids]
+        local_x, local_y = dx * cos + dy * sin, dy * cos - dx * sin
+        gap_x, gap_y = np.abs(local_x) - self.box_half_x[box_ids], np.abs(local_y) - self.box_half_y[box_ids]
+        sign_x, sign_y = np.copysign(1.0, local_x), np.copysign(1.0, local_y)
+        inside, through_x = (gap_x <= 0.0) & (gap_y <= 0.0), gap_x > gap_y
+        out_x, out_y = np.maximum(gap_x, 0.0), np.maximum(gap_y, 0.0)
+        outside = np.hypot(out_x, out_y)
+        with np.errstate(invalid='ignore', divide='ignore'):   # 0/0 inside a box, where the other branch is taken
+            local_nx = np.where(inside, np.where(through_x, sign_x, 0.0), sign_x * out_x / outside)
+            local_ny = np.where(inside, np.where(through_x, 0.0, sign_y), sign_y * out_y / outside)
+        box = np.where(inside, np.where(through_x, gap_x, gap_y), outside)
+        dx, dy = x - self.cyl_x[cylinder_ids], y - self.cyl_y[cylinder_ids]
+        centre = np.hypot(dx, dy)
+        away = centre > 0.0
+        safe = np.where(away, centre, 1.0)
+        return (np.concatenate([walls, box, centre - self.cyl_radius[cylinder_ids]], axis=1),
+                np.concatenate([wall_x, local_nx * cos - local_ny * sin, np.where(away, dx / safe, 1.0)], axis=1),
+                np.concatenate([wall_y, local_nx * sin + local_ny * cos, np.where(away, dy / safe, 0.0)], axis=1))
+
+    def rays_to_edges(self, ox: np.ndarray, oy: np.ndarray, dir_x: np.ndarray, dir_y: np.ndarray,
+                      ids: np.ndarray | slice) -> np.ndarray:
+        """Distance (K, E) along rays (origins, directions (K, 1)) to the box edges `ids` (K, E, or a slice); inf
+        where the ray misses. A ray parallel to an edge divides by zero: call under
+        np.errstate(divide='ignore', invalid='ignore') (the NaN or inf it gives is a miss)."""
+        edge_x, edge_y = self.edge_x[ids], self.edge_y[ids]
+        to_x, to_y = self.edge_start_x[ids] - ox, self.edge_start_y[ids] - oy
+        inverse = 1.0 / (dir_x * edge_y - dir_y * edge_x)
+        along_ray = (to_x * edge_y - to_y * edge_x) * inverse
+        along_edge = (to_x * dir_y - to_y * dir_x) * inverse
+        along_ray[~((along_ray >= 0.0) & (along_edge >= 0.0) & (along_edge <= 1.0))] = np.inf
+        return along_ray
+
+    def rays_to_cylinders(self, ox: np.ndarray, oy: np.ndarray, dir_x: np.ndarray, dir_y: np.ndarray,
+                          ids: np.ndarray) -> np.ndarray:
+        """Distance (K, C) along rays (K, 1) to cylinders `ids` (K, C, or a slice); inf where the ray misses."""
+        return ray_circle(ox, oy, dir_x, dir_y, self.cyl_x[ids], self.cyl_y[ids], self.cyl_radius[ids])
 
     def surfaces_within(self, x: float, y: float, reach: float) -> list[tuple[int, float, float, float]]:
         """(index, signed distance, normal x, normal y) of each surface closer than `reach` to the point (x, y).
@@ -275,6 +403,89 @@ def _box_distance(local_x: float, local_y: float, half_x: float, half_y: float) 
     out_x, out_y = max(gap_x, 0.0), max(gap_y, 0.0)
     distance = math.hypot(out_x, out_y)
     return distance, sign_x * out_x / distance, sign_y * out_y / distance
+
+
+class _ObstacleGrid:
+    """Square cells over the arena, each listing the boxes and cylinders within `reach` of any point in it.
+
+    A query from a point then tests only its cell's few obstacles: the cost per robot or ray stays flat as a
+    world grows to thousands of obstacles. Rows are padded with the dummy obstacle (index B or C).
+    """
+
+    def __init__(self, geometry: _Geometry, reach: float) -> None:
+        self.geometry = geometry
+        self.cell = max(reach, 0.05)
+        self.columns = max(1, math.ceil(2.0 * geometry.half_x / self.cell))
+        self.rows = max(1, math.ceil(2.0 * geometry.half_y / self.cell))
+        self.left, self.bottom = -geometry.half_x, -geometry.half_y
+        bounds = ([(x, y, bound) for x, y, *_, bound in geometry.boxes],
+                  [(x, y, radius) for x, y, radius in geometry.cylinders])
+        (self.box_count, self.box_ids), (self.cylinder_count, self.cylinder_ids) = (
+            self._lists(shapes, reach) for shapes in bounds)
+        # A box's four edges go wherever the box goes (edge 4 + 4 b + k is edge k of box b; 0-3 are the walls).
+        self.edge_count = 4 * self.box_count
+        edges = 4 + 4 * self.box_ids[:, :, None] + np.arange(4)
+        self.edge_ids = np.where(self.box_ids[:, :, None] < len(geometry.boxes), edges,
+                                 geometry.edge_total).reshape(len(self.box_ids), -1)
+
+    def cell_of(self, x: np.ndarray, y: np.ndarray) -> np.ndarray:
+        """Flat cell index of each point (points off the arena count in the nearest border cell)."""
+        column = np.minimum(np.maximum(((x - self.left) / self.cell).astype(np.int64), 0), self.columns - 1)
+        row = np.minimum(np.maximum(((y - self.bottom) / self.cell).astype(np.int64), 0), self.rows - 1)
+        return row * self.columns + column
+
+    def boxes_within(self, x: np.ndarray, y: np.ndarray, cells: np.ndarray, reach: float) -> np.ndarray:
+        """(K,) whether a box listed for each point's cell may be within `reach` (its bounding circle is)."""
+        g = self.geometry
+        if not g.box_count:
+            return np.zeros(len(x), dtype=bool)
+        ids = self.box_ids[cells]
+        dx, dy = x[:, None] - g.box_x[ids], y[:, None] - g.box_y[ids]
+        return (dx * dx + dy * dy < (g.box_bound[ids] + reach) ** 2).any(axis=1)
+
+    def cylinders_within(self, x: np.ndarray, y: np.ndarray, cells: np.ndarray, reach: float) -> np.ndarray:
+        """(K,) whether a cylinder listed for each point's cell is within `reach`."""
+        g = self.geometry
+        if not g.cylinder_count:
+            return np.zeros(len(x), dtype=bool)
+        ids = self.cylinder_ids[cells]
+        dx, dy = x[:, None] - g.cyl_x[ids], y[:, None] - g.cyl_y[ids]
+        return (dx * dx + dy * dy < (g.cyl_radius[ids] + reach) ** 2).any(axis=1)
+
+    def _lists(self, shapes: list[tuple[float, float, float]], reach: float) -> tuple[np.ndarray, np.ndarray]:
+        """(count per cell, ids per cell padded with len(shapes)) for shapes given as bounding circles."""
+        members: list[list[int]] = [[] for _ in range(self.columns * self.rows)]
+        for index, (x, y, bound) in enumerate(shapes):
+            span = bound + reach
+            first_column, last_column = (int(np.clip(math.floor((v - self.left) / self.cell), 0, self.columns - 1))
+                                         for v in (x - span, x + span))
+            first_row, last_row = (int(np.clip(math.floor((v - self.bottom) / self.cell), 0, self.rows - 1))
+                                   for v in (y - span, y + span))
+            for row in range(first_row, last_row + 1):
+                for column in range(first_column, last_column + 1):
+                    low_x, low_y = self.left + column * self.cell, self.bottom + row * self.cell
+                    gap_x = max(low_x - x, 0.0, x - low_x - self.cell)
+                    gap_y = max(low_y - y, 0.0, y - low_y - self.cell)
+                    if math.hypot(gap_x, gap_y) < span:
+                        members[row * self.columns + column].append(index)
+        counts = np.array([len(m) for m in members], dtype=np.int64)
+        ids = np.full((len(members), max(1, int(counts.max(initial=0)))), len(shapes), dtype=np.int64)
+        for cell, m in enumerate(members):
+            ids[cell, :len(m)] = m
+        return counts, ids
+
+
+def ray_circle(ox: np.ndarray, oy: np.ndarray, dir_x: np.ndarray, dir_y: np.ndarray, centre_x: np.ndarray,
+               centre_y: np.ndarray, radius: np.ndarray | float) -> np.ndarray:
+    """Distance along each ray (origin, unit direction) to a circle, broadcast; inf where it misses.
+
+    Only the near crossing counts, and only ahead of the origin: a ray starting inside the circle sees nothing.
+    """
+    from_x, from_y = ox - centre_x, oy - centre_y
+    half_b = from_x * dir_x + from_y * dir_y
+    discriminant = half_b * half_b - (from_x * from_x + from_y * from_y - radius * radius)
+    root = -half_b - np.sqrt(np.maximum(discriminant, 0.0))
+    return np.where((discriminant < 0.0) | (root < 0.0), np.inf, root)
 
 
 def _box_corners(box: Box) -> list[tuple[float, float]]:
