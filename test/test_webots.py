@@ -204,3 +204,223 @@ def test_timed_rectangle_example_and_the_course_controller_4(launch: object, tes
         assert len(angles) == 4
         assert np.allclose(angles, expected[script.stem], atol=0.01)
         run.sim.stop()
+
+
+def test_avoid_example_runs_five_minutes_without_a_collision(launch: object, test_node: object) -> None:
+    run = ControllerRun(launch, test_node, example('avoid_obstacles'), 300.0, noise=True)
+    rows = run.finish()
+    distance = float(np.hypot(*np.diff(rows[:, 1:3], axis=0).T).sum())
+    collisions = max(m.data for m in run.collisions)
+    print(f'avoid_obstacles: {collisions} collisions, {distance:.2f} m in 300 simulated s')
+    assert collisions == 0
+    assert distance > 0.5 * 0.0628 * 300.0
+    assert run.stop_controller() == 0, run.controller.output()
+
+
+def test_the_course_obstacle_avoidance_runs_unchanged_and_deterministically(launch: object, test_node: object) -> None:
+    """Noise on, same seed, lockstep: two runs of the course's program are the same to the bit."""
+    runs = []
+    for _ in range(2):
+        run = ControllerRun(launch, test_node, COURSE_DIR / 'obstacle_avoidance.py', 15.0, noise=True,
+                            sim_params={'seed': 3})
+        runs.append(run.finish())
+        assert run.stop_controller() == 0, run.controller.output()
+        run.sim.stop()
+    first, second = runs
+    turned = float(np.abs(np.diff(first[:, 3])).sum())
+    print(f'course obstacle avoidance: turned {math.degrees(turned):.1f} deg in 15 s; runs identical: '
+          f'{np.array_equal(first, second)}')
+    assert turned > 1.0  # it saw the walls (NaN readings would never exceed the threshold)
+    assert len(first) == len(second) and np.array_equal(first, second)
+
+
+def expected_raw(pose: np.ndarray, face_x: float, half_width: float) -> np.ndarray:
+    """Noise-free raw values of ps0..ps7 for a wall x = face_x (|y| <= half_width) in front of the robot."""
+    x, y, yaw = pose
+    values = []
+    for sx, sy, syaw in SENSOR_POSES:
+        px, py = x + sx * math.cos(yaw) - sy * math.sin(yaw), y + sx * math.sin(yaw) + sy * math.cos(yaw)
+        heading = yaw + syaw
+        distance = (face_x - px) / math.cos(heading) if math.cos(heading) > 1e-9 else math.inf
+        if abs(py + distance * math.sin(heading)) > half_width or distance > MODEL.ir_range:
+            distance = math.inf
+        values.append(float(raw_from_distance(distance, IR_LOOKUP_TABLE)))
+    return np.array(values)
+
+
+PROBE = '''
+import json
+from controller import Robot
+
+robot = Robot()
+step = int(robot.getBasicTimeStep())
+sensors = [robot.getDevice(f'ps{i}') for i in range(8)]
+encoders = [robot.getDevice('left wheel sensor'), robot.getDevice('right wheel sensor')]
+for device in sensors + encoders:
+    device.enable(step)
+for name in ('left wheel motor', 'right wheel motor'):
+    robot.getDevice(name).setPosition(float('inf'))
+    robot.getDevice(name).setVelocity(-1.0)
+def show():
+    print('PROBE', json.dumps({'t': robot.getTime(), 'ps': [s.getValue() for s in sensors],
+                               'wheels': [e.getValue() for e in encoders]}), flush=True)
+show()
+while robot.step(step) != -1:
+    show()
+'''
+
+
+def test_distance_sensors_read_the_lookup_table_of_the_step_they_asked_for(
+        launch: object, test_node: object, tmp_path: Path) -> None:
+    """Backing away from a wall at 0.02 m/s, noise off: every step's getValue() is the table's value for the
+    distance at that very step's ground-truth pose (a reading one step late would be off by up to 60 raw)."""
+    face_x, half_width = 0.045, 0.3
+    world = tmp_path / 'wall.yaml'
+    world.write_text(yaml.safe_dump({'arena': {'size': [1.0, 1.0]}, 'robot': {'start': [0.0, 0.0, 0.0]},
+                                     'boxes': [{'position': [face_x + 0.05, 0.0], 'size': [0.1, 2 * half_width]}]}))
+    script = tmp_path / 'probe.py'
+    script.write_text(textwrap.dedent(PROBE))
+    run = ControllerRun(launch, test_node, script, 4.0, world=world)
+    rows = run.finish()
+    assert run.stop_controller() == 0, run.controller.output()
+    probes = [json.loads(line.split(' ', 1)[1]) for line in run.controller.output().splitlines()
+              if line.startswith('PROBE ')]
+    poses = {round(t * 1000): row for t, *row in rows}
+    assert all(math.isnan(v) for v in probes[0]['ps'])  # before the first sampling period: NaN
+    checked = distances = 0
+    for probe in probes[1:]:
+        pose = np.array(poses[round(probe['t'] * 1000)])
+        expected = expected_raw(pose, face_x, half_width)
+        assert probe['ps'] == pytest.approx(expected, rel=1e-9, abs=1e-9), probe
+        assert -MODEL.wheel_radius * probe['wheels'][0] == pytest.approx(pose[0], abs=2e-4)  # encoder, radians
+        checked += 1
+        distances += expected[0] > FAR_RAW
+    print(f'lookup table: {checked} steps checked, {distances} with ps0 seeing the wall '
+          f'({probes[1]["ps"][0]:.2f} .. {FAR_RAW} raw)')
+    assert checked >= 120 and distances >= 100
+
+
+MISUSE = '''
+import json
+import math
+from controller import Robot
+
+robot = Robot()
+again = Robot()  # Webots prints an error and goes on
+step = int(robot.getBasicTimeStep())
+report = {'basic_time_step': robot.getBasicTimeStep(), 'name': robot.getName(),
+          'unknown_is_none': robot.getDevice('ps9') is None, 'camera_is_none': robot.getDevice('camera') is None}
+left = robot.getMotor('left wheel motor')  # deprecated, forwards to getDevice
+right = robot.getDevice('right wheel motor')
+led = robot.getLED('led8')
+led.set(1)
+report['led'] = led.get()
+report['disabled_is_nan'] = math.isnan(robot.getDevice('ps0').getValue())
+try:
+    robot.getKeyboard()
+except AttributeError as error:
+    report['keyboard'] = str(error)
+try:
+    from controller import Camera
+except ImportError as error:
+    report['camera_import'] = str(error)
+left.setPosition(float('inf'))
+right.setPosition(float('inf'))
+left.setVelocity(2.0)
+right.setVelocity(10.0)  # above maxVelocity: Webots warns and clamps to 6.28
+left.setVelocity(float('nan'))  # refused: the motor keeps 2.0
+print('REPORT', json.dumps(report), flush=True)
+while again.step(step) != -1:  # the second instance steps the one robot there is
+    pass
+'''
+
+
+def test_misuse_gets_webots_messages_and_the_run_goes_on(launch: object, test_node: object, tmp_path: Path) -> None:
+    script = tmp_path / 'misuse.py'
+    script.write_text(textwrap.dedent(MISUSE))
+    run = ControllerRun(launch, test_node, script, 2.0, joints=True)
+    run.finish()
+    assert run.stop_controller() == 0, run.controller.output()
+    output = run.controller.output()
+    report = json.loads(next(line for line in output.splitlines() if line.startswith('REPORT '))[7:])
+    print(output)
+    assert report['basic_time_step'] == 32.0 and report['name'] == 'epuck'
+    assert report['unknown_is_none'] and report['camera_is_none'] and report['disabled_is_nan']
+    assert report['led'] == 1
+    assert 'Robot.getKeyboard is part of the Webots API but not supported' in report['keyboard']
+    assert 'controller.Camera is part of the Webots API but not supported' in report['camera_import']
+    for message in ('Error: only one Robot instance can be created per controller process.',
+                    'Device "ps9" was not found on robot "epuck"',
+                    'Device "camera" exists on Webots\' e-puck but is not simulated by epuck_ros',
+                    'DEPRECATION: Robot.getMotor is deprecated, please use Robot.getDevice instead.',
+                    'wb_distance_sensor_get_value() called for a disabled device!',
+                    'WARNING: RotationalMotor "right wheel motor": The requested velocity 10 exceeds '
+                    "'maxVelocity' = 6.28.",
+                    "Error: wb_motor_set_velocity() called with an invalid 'velocity' argument.(NaN)"):
+        assert message in output
+    assert list(run.joints[-1].velocity) == [2.0, 6.28]
+
+
+def test_a_script_that_raises_shows_its_traceback_and_the_sim_goes_on(
+        launch: object, test_node: object, tmp_path: Path) -> None:
+    script = tmp_path / 'raises.py'
+    script.write_text(textwrap.dedent('''
+        from controller import Robot
+
+        def act():
+            raise ValueError('the script failed here')
+
+        robot = Robot()
+        robot.step(int(robot.getBasicTimeStep()))
+        act()
+    '''))
+    run = ControllerRun(launch, test_node, script, 2.0, sim_params={'lockstep_timeout': 0.01})
+    assert run.controller.proc.wait(timeout=30.0) == 1
+    output = run.controller.output()
+    print(output)
+    assert 'Traceback (most recent call last):' in output
+    assert f'File "{script}", line 9, in <module>' in output and 'in act' in output
+    assert output.rstrip().endswith('ValueError: the script failed here')
+    assert 'runpy' not in output and 'runner.py' not in output
+    run.finish()  # the simulator did not wait for the dead controller forever: it reached pause_at
+    assert run.sim.proc.poll() is None
+
+
+def test_a_script_that_stops_stepping_leaves_the_robot_stopped_after_cmd_timeout(
+        launch: object, test_node: object, tmp_path: Path) -> None:
+    script = tmp_path / 'stalls.py'
+    script.write_text(textwrap.dedent('''
+        import threading
+        from controller import Robot
+
+        robot = Robot()
+        for name in ('left wheel motor', 'right wheel motor'):
+            robot.getDevice(name).setPosition(float('inf'))
+            robot.getDevice(name).setVelocity(3.0)
+        for _ in range(10):
+            robot.step(int(robot.getBasicTimeStep()))
+        print('LAST STEP', robot.getTime(), flush=True)
+        threading.Event().wait()  # busy with something else, for ever
+    '''))
+    run = ControllerRun(launch, test_node, script, 3.0, sim_params={'lockstep_timeout': 0.01, 'cmd_timeout': 0.5})
+    rows = run.finish()
+    last_step = float(run.controller.output().split('LAST STEP ')[1].split()[0])
+    moving_until = rows[np.flatnonzero(np.diff(rows[:, 1]) > 0)[-1] + 1, 0]
+    print(f'last step at {last_step:.3f} s, the robot moved until {moving_until:.3f} s')
+    assert rows[-1, 1] > 0.01  # it drove while the script stepped
+    assert moving_until == pytest.approx(last_step + 0.5, abs=0.04)  # then cmd_timeout stopped it
+    assert run.stop_controller() == 0  # Ctrl-C outside step(): KeyboardInterrupt, a clean end
+
+
+def test_bad_command_lines_get_one_line_and_exit_2(launch: object, test_node: object) -> None:
+    missing = launch('webots_controller', '/nowhere/my_controller.py')
+    assert missing.proc.wait(timeout=30.0) == 2
+    assert missing.output().strip() == 'webots_controller: no such controller script: /nowhere/my_controller.py'
+    sim = launch(SIM, *ros_args({'real_time_factor': 1.0}))
+    sim.wait_for_output('sim ready')
+    wrong = launch('webots_controller', str(example('spin')), '--robot', 'epuck7')
+    assert wrong.proc.wait(timeout=30.0) == 2
+    assert wrong.output().strip().splitlines()[-1] == (
+        'webots_controller: --robot epuck7: the simulator has a single robot (its topics carry no robot name); '
+        'leave --robot out')
+    assert 'Traceback' not in wrong.output()
