@@ -204,7 +204,7 @@ class SimNode(Node):
         self.create_service(Empty, 'reset', self._on_reset)
         self.create_service(Trigger, 'step', self._on_step)
         self._clock_pub = self.create_publisher(Clock, '/clock', stream)
-        self._clock = Patch(Clock(), [('clock.sec', 'i'), ('clock.nanosec', 'I')])
+        self._clock_message = Patch(Clock(), [('clock.sec', 'i'), ('clock.nanosec', 'I')])
         self._acks = AckWindow(self._stream_publishers, ACK_WINDOW_STEPS, self._on_ack_stall)
         robots = f'{len(world.robots)} robots ({", ".join(world.names[:5])}{", ..." if len(world.robots) > 5 else ""})' \
             if several else 'one robot'
@@ -359,7 +359,7 @@ class SimNode(Node):
         stamp = _stamp(self._sim.time)
         for ports in self.ports:
             ports.publish(self._sim, stamp)
-        self._clock_pub.publish(self._clock.bytes(stamp))
+        self._clock_pub.publish(self._clock_message.bytes(stamp))
 
     def _after_step(self, events: StepEvents, now_sim: float) -> None:
         names = self._sim.names
