@@ -27,7 +27,7 @@ from epuck_ros.bag.run_summary import RunTally, format_figures, load_run, load_r
 from epuck_ros.bag.writer import BagWriter
 from epuck_ros.kinematics import integrate_arc, twist_from_wheels
 from epuck_ros.model import MAX_WHEEL_SPEED, RobotModel
-from epuck_ros.world import default_world
+from epuck_ros.world import World, default_world
 
 BAG = str(Path(sys.executable).parent / 'bag')
 REPO = Path(__file__).resolve().parents[1]
@@ -75,12 +75,13 @@ def ranges(step: int, nearest: dict[int, float]) -> list[bytes]:
 
 
 def write_run(path: Path, truth: list, odom: list | None = None, with_world: bool = True,
-              proximity: dict[int, dict[int, float]] | None = None) -> Path:
-    """A bag like the sim's: world (latched), then per step odom, ground_truth, eight ranges."""
+              proximity: dict[int, dict[int, float]] | None = None, world: World | None = None) -> Path:
+    """A bag like the sim's: world (latched; the default one unless given), then per step odom, ground_truth,
+    eight ranges."""
     writer = BagWriter(path)
     if with_world:
         writer.add_topic('/world', 'std_msgs/msg/String', [QosProfile(depth=1, durability='transient_local')])
-        world = serialize_message(String(data=yaml.safe_dump(default_world().to_dict())))
+        world = serialize_message(String(data=yaml.safe_dump((world or default_world()).to_dict())))
         writer.write('/world', world, START_NS)
     for topic in ('/odom', '/ground_truth'):
         writer.add_topic(topic, 'nav_msgs/msg/Odometry', [QosProfile()])

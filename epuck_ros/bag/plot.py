@@ -36,7 +36,7 @@ COLORBAR_BOX = (0.77, 0.50, 0.022, 0.38)
 SIDE_BOX = (0.77, 0.16, 0.20, 0.26)
 ROBOT_SCALE_BOX = (0.77, 0.16, 0.022, 0.72)
 HEADING_ARROWS = 16
-"""Arrows along a one-robot path, evenly spaced in time."""
+"""Arrows along a one-robot path at most (a spin in place gets this many, spaced in time)."""
 MAX_NAMED_ROBOTS = 12
 """Up to this many robots get a legend entry each; more share one colour scale labelled by name."""
 MAX_LISTED_CORNERS = 6
@@ -123,8 +123,16 @@ def _end_pose(axes: plt.Axes, path: Trajectory, colour: object, body_radius: flo
 
 
 def _heading_arrows(axes: plt.Axes, path: Trajectory, length: float) -> None:
-    times = np.linspace(path.t[0], path.t[-1], HEADING_ARROWS + 2)[1:-1]
-    index = np.searchsorted(path.t, times).clip(0, len(path.t) - 1)
+    """Arrows spaced along the path (5 arrow lengths apart at most 16), or in time when it turned on the spot."""
+    travelled = np.concatenate([[0.0], np.cumsum(np.hypot(np.diff(path.x), np.diff(path.y)))])
+    if travelled[-1] > 2 * length:  # smaller arrows on a small path (a circle of 0.078 m)
+        extent = max(np.ptp(path.x), np.ptp(path.y))
+        length = min(length, max(0.15 * extent, 0.4 * length))
+        count = min(HEADING_ARROWS, max(2, int(travelled[-1] / (5 * length))))
+        index = np.searchsorted(travelled, np.linspace(0.0, travelled[-1], count + 2)[1:-1])
+    else:
+        index = np.searchsorted(path.t, np.linspace(path.t[0], path.t[-1], HEADING_ARROWS + 2)[1:-1])
+    index = index.clip(0, len(path.t) - 1)
     axes.quiver(path.x[index], path.y[index], np.cos(path.yaw[index]), np.sin(path.yaw[index]),
                 angles='xy', scale_units='xy', scale=1.0 / length, width=0.005, headwidth=3.5, headlength=4.5,
                 headaxislength=4, pivot='middle', color='0.1', zorder=5)

@@ -18,12 +18,11 @@ from contextlib import contextmanager
 from dataclasses import asdict, dataclass, field
 
 import numpy as np
-import yaml
 
 from epuck_ros.bag.cdr import CdrDecoder, odometry_fields, range_fields
 from epuck_ros.bag.reader import Bag, BagError
 from epuck_ros.model import RobotModel
-from epuck_ros.world import World, world_from_dict
+from epuck_ros.world import World, world_from_yaml
 
 ODOMETRY = 'nav_msgs/msg/Odometry'
 RANGE = 'sensor_msgs/msg/Range'
@@ -342,14 +341,11 @@ def load_runs(bag: Bag, namespaces: Sequence[str] | None = None) -> list[RunData
 
 
 def start_pose(world: World, name: str, robots: int) -> tuple[float, float, float] | None:
-    """Where robot `name` started in `world` (the only robot of a one-robot world); None if the world does not say."""
-    starts = getattr(world, 'robots', None)  # several robots: World.robots (issue 9); one: World.start_pose
-    if starts is None:
-        return tuple(world.start_pose) if robots == 1 else None
-    by_name = {robot.name: (robot.x, robot.y, robot.yaw) for robot in starts}
-    if name in by_name:
-        return by_name[name]
-    return (starts[0].x, starts[0].y, starts[0].yaw) if robots == 1 and len(starts) == 1 else None
+    """Where robot `name` started in `world` (a one-robot bag's robot: the world's only one); None if not said."""
+    for robot in world.robots:
+        if robot.name == name:
+            return robot.pose
+    return world.robots[0].pose if robots == 1 and len(world.robots) == 1 else None
 
 
 @contextmanager
@@ -378,8 +374,8 @@ def _world(bag: Bag, topic: str, message: bytes) -> tuple[World | None, str | No
     schema = bag.topics[topic]
     try:
         text = CdrDecoder(schema.type_name, schema.schema_text).decode(message)['data']
-        return world_from_dict(yaml.safe_load(text) or {}, source=f'{bag.path} topic {topic}'), None
-    except (ValueError, yaml.YAMLError, KeyError) as error:
+        return world_from_yaml(text, source=f'{bag.path} topic {topic}'), None
+    except (ValueError, KeyError) as error:
         return None, f'world not used: {" ".join(str(error).split())[:200]}'
 
 
