@@ -1,0 +1,291 @@
+"""Several robots in one `sim` process, each driven by its own client over DDS, in lockstep (no timing assumed)."""
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+from conftest import ros_args
+from geometry_msgs.msg import Twist, Vector3
+from nav_msgs.msg import Odometry
+from rcl_interfaces.msg import Parameter as ParameterMsg, ParameterType, ParameterValue
+from rcl_interfaces.srv import SetParameters
+from rclpy.qos import DurabilityPolicy, QoSProfile
+from rosgraph_msgs.msg import Clock
+from sensor_msgs.msg import JointState, Range
+from std_msgs.msg import Float64MultiArray, String
+from std_srvs.srv import Trigger
+
+STEP = 0.032
+HALF_SPEED = 3.14
+WHEEL_RADIUS, BODY_RADIUS = 0.02, 0.037
+LATCHED = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+EVERY_STEP = 10000
+"""Subscription depth that keeps every message of a test run."""
+ROBOT_TOPICS = ('cmd_vel', 'wheel_cmd', 'odom', 'ground_truth', 'proximity', 'joint_states', 'collisions', 'ir_raw')
+# Webots E-puckDistanceSensor lookupTable (distance m, raw value), from the course's e-puck PROTO.
+IR_TABLE = [(0.0, 4095.0), (0.005, 2133.33), (0.01, 1465.73), (0.015, 601.46), (0.02, 383.84), (0.03, 234.93),
+            (0.04, 158.03), (0.05, 120.0), (0.06, 104.09), (0.07, 67.19)]
+PS0 = (0.030, -0.010, -0.3008)
+"""ps0's pose on the body (x, y, yaw), from the E-puck PROTO."""
+
+
+def write_world(tmp_path: Path, robots: list[tuple[str, float, float, float]], boxes: bool = False) -> str:
+    world = {'arena': {'size': [1.0, 1.0]},
+             'robots': [{'name': name, 'start': [x, y, yaw]} for name, x, y, yaw in robots]}
+    if boxes:
+        world['boxes'] = [{'position': [0.0, 0.0], 'size': [0.15, 0.15]}]
+    path = tmp_path / 'robots.yaml'
+    path.write_text(yaml.safe_dump(world))
+    return str(path)
+
+
+def seconds(stamp: object) -> float:
+    return stamp.sec + stamp.nanosec * 1e-9
+
+
+def pose(msg: Odometry) -> tuple[float, float, float]:
+    q = msg.pose.pose.orientation
+    return msg.pose.pose.position.x, msg.pose.pose.position.y, 2.0 * math.atan2(q.z, q.w)
+
+
+def set_parameter(test_node, name: str, value: ParameterValue) -> None:
+    """Set one of the sim's parameters; the request is sent again if no answer comes (setting is idempotent, and
+    on a loaded machine the first request of a new client is occasionally lost before the service matched it)."""
+    client = test_node.node.create_client(SetParameters, '/sim/set_parameters')
+    assert client.wait_for_service(timeout_sec=20.0)
+    request = SetParameters.Request(parameters=[ParameterMsg(name=name, value=value)])
+    for _ in range(6):
+        future = client.call_async(request)
+        try:
+            test_node.spin_until(future.done, timeout=5.0, what=f'setting {name}')
+            break
+        except AssertionError:
+            client.remove_pending_request(future)
+    assert future.done(), f'no answer to setting {name}'
+    assert future.result().results[0].successful, future.result().results[0].reason
+    test_node.node.destroy_client(client)
+
+
+def boolean(value: bool) -> ParameterValue:
+    return ParameterValue(type=ParameterType.PARAMETER_BOOL, bool_value=value)
+
+
+def subscribe(test_node, msg_type: type, topic: str, qos: object = EVERY_STEP) -> tuple[list, object]:
+    """The list received messages go to, and the subscription (to see when it matched the sim)."""
+    received: list = []
+    return received, test_node.node.create_subscription(msg_type, topic, received.append, qos)
+
+
+class LockstepClients:
+    """Answers each step of a lockstep sim for some robots, once that step's `/clock` and every robot's `ir_raw` are
+    in: `command(robot, step, ir_raw)` gives the message to publish on that robot's topic (None: no answer)."""
+
+    def __init__(self, test_node, names: list[str], topics: dict[str, tuple[type, str]],
+                 command: Callable[[str, int, list[float]], object]) -> None:
+        self.node = test_node.node
+        self.clocks: list[float] = []
+        self.raw: dict[str, list[list[float]]] = {name: [] for name in names}
+        self.truth: dict[str, list[Odometry]] = {name: [] for name in names}
+        self.publishers = {name: self.node.create_publisher(msg_type, f'/{name}/{topic}', 10)
+                           for name, (msg_type, topic) in topics.items()}
+        self._command = command
+        self.answered = 0
+        self._subscriptions = [self.node.create_subscription(Clock, '/clock', self._on_clock, EVERY_STEP)]
+        for name in names:
+            self._subscriptions += [
+                self.node.create_subscription(Float64MultiArray, f'/{name}/ir_raw',
+                                              lambda msg, name=name: self._on_raw(name, msg), EVERY_STEP),
+                self.node.create_subscription(Odometry, f'/{name}/ground_truth', self.truth[name].append, EVERY_STEP)]
+
+    def ready(self) -> bool:
+        """Every command publisher and every subscription matched the sim."""
+        return all(pub.get_subscription_count() for pub in self.publishers.values()) and \
+            all(sub.get_publisher_count() for sub in self._subscriptions)
+
+    def _on_clock(self, msg: Clock) -> None:
+        self.clocks.append(seconds(msg.clock))
+        self._answer()
+
+    def _on_raw(self, name: str, msg: Float64MultiArray) -> None:
+        self.raw[name].append(list(msg.data))
+        self._answer()
+
+    def _answer(self) -> None:
+        while self.answered < len(self.clocks) and all(len(raw) > self.answered for raw in self.raw.values()):
+            step = self.answered
+            for name, publisher in list(self.publishers.items()):
+                msg = self._command(name, step, self.raw[name][step])
+                if msg is not None:
+                    publisher.publish(msg)
+            self.answered += 1
+
+
+def start_lockstep_sim(launch, test_node, world: str, **params):
+    """A paused lockstep sim; `run` resumes it once the clients are connected, so every step is seen."""
+    sim = launch('sim', *ros_args({'world': world, 'lockstep': True, 'lockstep_timeout': 10.0, 'paused': True,
+                                   'real_time_factor': 0, 'noise': False, **params}))
+    sim.wait_for_output('sim ready', timeout=30)
+    return sim
+
+
+def run(test_node, clients: LockstepClients, steps: int) -> None:
+    test_node.spin_until(clients.ready, what='the clients and the sim to match')
+    set_parameter(test_node, 'paused', boolean(False))
+    test_node.spin_until(lambda: len(clients.clocks) >= steps and
+                         all(len(t) >= steps for t in clients.truth.values()), timeout=120, what=f'{steps} steps')
+
+
+def test_each_robot_follows_its_own_client_and_times_out_alone(launch, test_node, tmp_path):
+    world = write_world(tmp_path, [('epuck0', -0.3, 0.3, 0.0), ('epuck1', 0.2, -0.3, 0.0), ('epuck2', 0.3, 0.3, 1.0)])
+    sim = start_lockstep_sim(launch, test_node, world, cmd_timeout=0.3)
+    last_wheel_command = 30
+
+    def command(name: str, step: int, raw: list[float]) -> object:
+        if name == 'epuck1':
+            return Twist(angular=Vector3(z=1.0))
+        if step == last_wheel_command:  # epuck0's client goes away: epuck0 times out, epuck1 goes on
+            test_node.node.destroy_publisher(clients.publishers.pop('epuck0'))
+            return None
+        return Float64MultiArray(data=[HALF_SPEED, HALF_SPEED])
+
+    names = ['epuck0', 'epuck1', 'epuck2']
+    clients = LockstepClients(test_node, names, {'epuck0': (Float64MultiArray, 'wheel_cmd'),
+                                                 'epuck1': (Twist, 'cmd_vel')}, command)
+    odom1 = test_node.collect(Odometry, '/epuck1/odom', EVERY_STEP)
+    ranges1 = test_node.collect(Range, '/epuck1/proximity', EVERY_STEP)
+    joints1 = test_node.collect(JointState, '/epuck1/joint_states', EVERY_STEP)
+    run(test_node, clients, 80)
+
+    truth = {name: clients.truth[name][:80] for name in names}
+    assert [seconds(m.header.stamp) for m in truth['epuck0']] == pytest.approx([STEP * (k + 1) for k in range(80)])
+    # epuck0: straight ahead at 0.0628 m/s from the first answered step until cmd_timeout after its last command
+    x0 = [pose(m)[0] for m in truth['epuck0']]
+    moving = [k for k in range(1, 80) if x0[k] - x0[k - 1] > 1e-9]
+    per_step = HALF_SPEED * WHEEL_RADIUS * STEP
+    assert all(x0[k] - x0[k - 1] == pytest.approx(per_step, abs=1e-9) for k in moving)
+    # The answer to step k (sent at its time, (k + 1) steps) drives step k + 1; the last one answered step 29.
+    last_command_time = STEP * last_wheel_command
+    stopped_at = min(k for k in range(80) if STEP * k - last_command_time > 0.3)
+    assert moving == list(range(1, stopped_at))
+    assert all(pose(m)[1] == pytest.approx(0.3, abs=1e-12) for m in truth['epuck0'])
+    assert truth['epuck0'][-1].twist.twist.linear.x == 0.0
+    # epuck1: turns on the spot at 1 rad/s for as long as it is answered (every step)
+    x1, y1, yaw1 = zip(*(pose(m) for m in truth['epuck1']))
+    assert max(map(abs, np.diff(x1))) < 1e-12 and max(map(abs, np.diff(y1))) < 1e-12
+    assert truth['epuck1'][-1].twist.twist.angular.z == pytest.approx(1.0)
+    assert yaw1[-1] - yaw1[0] == pytest.approx(1.0 * STEP * 79, abs=1e-6)
+    # epuck2: nobody drives it, it does not move and does not hold the others up
+    assert all(pose(m) == pytest.approx((0.3, 0.3, 1.0), abs=1e-12) for m in truth['epuck2'])
+    # each robot's frames and topics under its name; ground truth in the shared world frame
+    assert (truth['epuck1'][0].header.frame_id, truth['epuck1'][0].child_frame_id) == ('world', 'epuck1/base_link')
+    assert (odom1[0].header.frame_id, odom1[0].child_frame_id) == ('epuck1/odom', 'epuck1/base_link')
+    assert [m.header.frame_id for m in ranges1[:8]] == [f'epuck1/ps{i}' for i in range(8)]
+    assert joints1[-1].velocity[1] - joints1[-1].velocity[0] == pytest.approx(2 * 1.0 * 0.026 / WHEEL_RADIUS)
+    topics = {name for name, _ in test_node.node.get_topic_names_and_types()}
+    assert {f'/{name}/{topic}' for name in names for topic in ROBOT_TOPICS} <= topics
+    assert not {f'/{topic}' for topic in ROBOT_TOPICS} & topics
+    assert {'/clock', '/world', '/world_markers'} <= topics
+    # the timeout is logged once, for epuck0 only
+    output = sim.output()
+    assert output.count('epuck0: no command for 0.3 s') == 1
+    assert 'epuck1: no command' not in output and 'epuck2: no command' not in output
+
+
+def test_lockstep_runs_of_three_reactive_robots_are_identical(launch, test_node, tmp_path):
+    """Noise on, robots that react to their own ir_raw and meet each other and a box: the same seed, the same run."""
+    world = write_world(tmp_path, [('a', -0.3, 0.05, 0.0), ('b', 0.0, 0.3, -1.5), ('c', 0.3, -0.2, 2.5)], boxes=True)
+
+    def braitenberg(name: str, step: int, raw: list[float]) -> Float64MultiArray:
+        left, right = sum(raw[5:8]), sum(raw[0:3])  # the sensors on each side; more light, turn away
+        return Float64MultiArray(data=[4.0 + 0.01 * (right - left), 4.0 + 0.01 * (left - right)])
+
+    runs = []
+    for _ in range(2):
+        sim = start_lockstep_sim(launch, test_node, world, noise=True, seed=3)
+        clients = LockstepClients(test_node, ['a', 'b', 'c'], {n: (Float64MultiArray, 'wheel_cmd') for n in 'abc'},
+                                  braitenberg)
+        run(test_node, clients, 150)
+        runs.append({name: [pose(m) for m in clients.truth[name][:150]] for name in 'abc'})
+        runs[-1]['raw'] = [clients.raw[name][:150] for name in 'abc']
+        sim.stop()
+        for name in list(clients.publishers):
+            test_node.node.destroy_publisher(clients.publishers.pop(name))
+    assert runs[0] == runs[1]
+    travelled = [sum(math.dist(p[:2], q[:2]) for p, q in zip(path, path[1:])) for path in map(runs[0].get, 'abc')]
+    assert min(travelled) > 0.05  # they did drive
+    assert max(max(raw) for robot in runs[0]['raw'] for raw in robot) > 300  # and saw something close
+
+
+def test_ir_raw_is_the_lookup_table_at_a_known_distance(launch, test_node, tmp_path):
+    """epuck1 faces the +x wall with ps0 0.02 m from it along the body's axis; noise off gives the table value."""
+    gap = 0.02
+    x = 0.5 - PS0[0] - gap
+    world = write_world(tmp_path, [('epuck0', -0.2, 0.0, 0.0), ('epuck1', x, 0.0, 0.0)])
+    sim = launch('sim', *ros_args({'world': world, 'noise': False, 'real_time_factor': 0}))
+    sim.wait_for_output('sim ready', timeout=30)
+    raw = test_node.collect(Float64MultiArray, '/epuck1/ir_raw', 10)
+    test_node.spin_until(lambda: raw, what='epuck1/ir_raw')
+    distance = gap / math.cos(PS0[2])  # along the ps0 ray, from the sensor to the wall
+    expected = np.interp(distance, *zip(*IR_TABLE))
+    assert len(raw[-1].data) == 8
+    assert raw[-1].data[0] == pytest.approx(expected, rel=1e-9)
+    assert raw[-1].data[7] == pytest.approx(np.interp(gap / math.cos(0.2992), *zip(*IR_TABLE)), rel=1e-9)
+
+
+def test_robots_parameter_places_robots_and_the_step_service_steps_once(launch, test_node):
+    sim = launch('sim', *ros_args({'robots': 5, 'seed': 7, 'paused': True, 'noise': False}))
+    sim.wait_for_output('sim ready', timeout=30)
+    worlds = test_node.collect(String, '/world', LATCHED)
+    clocks, clock_sub = subscribe(test_node, Clock, '/clock')
+    truth, truth_subs = {}, []
+    for i in range(5):
+        truth[i], subscription = subscribe(test_node, Odometry, f'/epuck{i}/ground_truth')
+        truth_subs.append(subscription)
+    test_node.spin_until(lambda: worlds, what='the world')
+    robots = yaml.safe_load(worlds[0].data)['robots']
+    assert [r['name'] for r in robots] == [f'epuck{i}' for i in range(5)]
+    starts = np.array([r['start'] for r in robots])
+    assert np.all(np.abs(starts[:, :2]) <= 0.5 - BODY_RADIUS)
+    gaps = [math.dist(a, b) for i, a in enumerate(starts[:, :2]) for b in starts[i + 1:, :2]]
+    assert min(gaps) >= 2 * BODY_RADIUS
+
+    client = test_node.node.create_client(Trigger, '/step')
+    assert client.wait_for_service(timeout_sec=20.0)
+    test_node.spin_until(lambda: all(sub.get_publisher_count() for sub in [clock_sub, *truth_subs]),
+                         what='the sim topics to match')
+    for step in range(1, 4):
+        future = client.call_async(Trigger.Request())
+        test_node.spin_until(future.done, what='the step service')
+        assert future.result().success
+        test_node.spin_until(lambda: len(clocks) >= step and all(len(t) >= step for t in truth.values()),
+                             what=f'step {step}')
+    test_node.spin_for(0.3)
+    assert [seconds(c.clock) for c in clocks] == pytest.approx([STEP, 2 * STEP, 3 * STEP], abs=1e-9)
+    for i in range(5):
+        assert len(truth[i]) == 3
+        assert pose(truth[i][-1]) == pytest.approx(tuple(starts[i]), abs=1e-9)
+
+    set_parameter(test_node, 'paused', boolean(False))
+    future = client.call_async(Trigger.Request())
+    test_node.spin_until(future.done, what='the step service while running')
+    assert not future.result().success and 'not paused' in future.result().message
+
+
+def test_real_time_factor_changes_take_effect_at_once_whatever_the_value(launch, test_node):
+    sim = launch('sim', *ros_args({'real_time_factor': 1.0}))
+    sim.wait_for_output('sim ready', timeout=30)
+    clocks = test_node.collect(Clock, '/clock', EVERY_STEP)
+    test_node.spin_until(lambda: len(clocks) > 2, what='the clock')
+    factor = ParameterValue(type=ParameterType.PARAMETER_DOUBLE, double_value=1e-6)
+    set_parameter(test_node, 'real_time_factor', factor)  # the next step is 9 hours of wall time away
+    factor.double_value = 1e-300  # one step: 1e290 years; must not overflow
+    set_parameter(test_node, 'real_time_factor', factor)
+    frozen = len(clocks)
+    set_parameter(test_node, 'real_time_factor', ParameterValue(type=ParameterType.PARAMETER_INTEGER,
+                                                                integer_value=20))  # an integer is a float too
+    test_node.spin_until(lambda: len(clocks) > frozen + 10, timeout=30, what='the clock to resume at 20x')
+    assert sim.proc.poll() is None and 'Overflow' not in sim.output()
