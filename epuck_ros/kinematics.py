@@ -40,10 +40,11 @@ def integrate_arc(x: ArrayLike, y: ArrayLike, yaw: ArrayLike, v: ArrayLike, w: A
     |h| < 1e-8 in double precision, so the straight-line limit needs no threshold and cannot blow up.
     """
     half_turn = 0.5 * w * dt
-    if isinstance(half_turn, float):  # one robot: math on floats is ~10x cheaper than NumPy calls on scalars
+    if all(isinstance(value, (float, int)) for value in (x, y, yaw, v, half_turn)):
+        # one robot: math on floats is ~10x cheaper than NumPy calls on scalars
         shrink = math.sin(half_turn) / half_turn if half_turn else 1.0
         cos, sin = math.cos, math.sin
-    else:
+    else:   # any array (pose or speeds) broadcasts against the rest
         shrink = np.sinc(np.divide(half_turn, math.pi))
         cos, sin = np.cos, np.sin
     chord = v * dt * shrink

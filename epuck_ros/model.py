@@ -9,7 +9,7 @@ the PROTO rotations) and the IR lookup table (distance m, raw value, relative no
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 
 import numpy as np
 
@@ -47,9 +47,14 @@ IR_LOOKUP_TABLE = np.array([
 ])
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class RobotModel:
-    """Geometry and limits of one e-puck; the defaults are the Webots model's."""
+    """Geometry and limits of one e-puck; the defaults are the Webots model's.
+
+    The two tables are NumPy arrays (the sensors index them), made read-only so the frozen model stays
+    unchanged; equality and hashing compare their values (the generated ones would compare arrays by truth
+    value and raise).
+    """
 
     wheel_radius: float = 0.020
     wheel_separation: float = 0.052
@@ -60,3 +65,22 @@ class RobotModel:
     ir_aperture: float = 0.1
     sensor_poses: np.ndarray = field(default_factory=lambda: SENSOR_POSES.copy())
     ir_table: np.ndarray = field(default_factory=lambda: IR_LOOKUP_TABLE.copy())
+
+    def __post_init__(self) -> None:
+        for name in ('sensor_poses', 'ir_table'):
+            table = np.array(getattr(self, name), dtype=float)
+            table.setflags(write=False)
+            object.__setattr__(self, name, table)
+
+    def _key(self) -> tuple:
+        return tuple(getattr(self, f.name).tobytes() + str(getattr(self, f.name).shape).encode()
+                     if isinstance(getattr(self, f.name), np.ndarray) else getattr(self, f.name)
+                     for f in fields(self))
+
+    def __eq__(self, other: object) -> bool:
+        if not isinstance(other, RobotModel):
+            return NotImplemented
+        return self._key() == other._key()
+
+    def __hash__(self) -> int:
+        return hash(self._key())

@@ -227,31 +227,46 @@ class Simulation:
     def _separate_robots(self, xy: np.ndarray, clear: np.ndarray, obstacle: np.ndarray) -> np.ndarray:
         """Push overlapping robots (xy, in place) apart; one that cannot be freed goes back to `clear`. Which touch.
 
-        Each overlapping pair moves apart by half the overlap each along the line between the centres (so a
-        robot driving into a free one pushes it at half speed), then out of walls and obstacles again
-        (`obstacle` records those contacts), a few passes. Whatever still overlaps after that (a robot squeezed
-        between another and a wall) returns to its clear position of this substep, and so on until nothing
-        overlaps: every clear position was clear, so this ends with no overlap and nobody tunnelled.
+        Each overlapping pair is parted along the line between the centres, the overlap shared by how far each
+        robot came into the contact this substep: a robot driving into an idle one shoves it along (at its own
+        speed), two robots driving at each other share it. Then out of walls and obstacles again (`obstacle`
+        records those contacts). A shove reaches one robot further per pass, so a row of a few robots is pushed
+        along as a whole, and packs up against a wall. Whatever still overlaps after the passes (a row packed against a wall) returns to its
+        clear position of this substep, and so on until nothing overlaps: every clear position was clear, so
+        this ends with no overlap and nobody tunnelled.
         """
         diameter = 2.0 * self.model.body_radius
         first, second = self._pairs
+        blocked = np.zeros(len(xy), dtype=bool)
         for _ in range(_SEPARATION_PASSES):
             delta = xy[first] - xy[second]
             distance = np.hypot(delta[:, 0], delta[:, 1])
             over = np.flatnonzero(distance < diameter - _OVERLAP_TOLERANCE)
             if not len(over):
                 break
-            delta, distance = delta[over], distance[over]
+            pushed, pusher, delta, distance = first[over], second[over], delta[over], distance[over]
             delta[distance == 0.0] = (1.0, 0.0)   # one robot right on top of another: part them along x
             distance[distance == 0.0] = 1.0
-            push = delta * (0.5 * (diameter - distance) / distance)[:, None]
+            normal = delta / distance[:, None]   # from `pusher` towards `pushed`
+            came_in = np.maximum(-np.einsum('ij,ij->i', xy[pushed] - clear[pushed], normal), 0.0)
+            other_came_in = np.maximum(np.einsum('ij,ij->i', xy[pusher] - clear[pusher], normal), 0.0)
+            total = came_in + other_came_in
+            share = np.divide(other_came_in, total, out=np.full(len(total), 0.5), where=total > 0.0)
+            # A robot held by a wall (or by a robot so held) does not give way: the other takes the whole
+            # overlap and is held in turn, so a row pressed against a wall packs up against it.
+            share[blocked[pushed] & ~blocked[pusher]] = 0.0
+            share[blocked[pusher] & ~blocked[pushed]] = 1.0
+            blocked[pusher[share == 0.0]] |= blocked[pushed[share == 0.0]]
+            blocked[pushed[share == 1.0]] |= blocked[pusher[share == 1.0]]
+            overlap = (diameter - distance)[:, None] * normal
             shift = np.zeros_like(xy)
-            np.add.at(shift, first[over], push)
-            np.add.at(shift, second[over], -push)
-            moved = np.unique(np.concatenate([first[over], second[over]]))
-            xy[moved], hit = self.world.resolve_collision(xy[moved] + shift[moved], self.model.body_radius,
-                                                          clear[moved])
+            np.add.at(shift, pushed, overlap * share[:, None])
+            np.add.at(shift, pusher, overlap * (share - 1.0)[:, None])
+            moved = np.unique(np.concatenate([pushed, pusher]))
+            wanted = xy[moved] + shift[moved]
+            xy[moved], hit = self.world.resolve_collision(wanted, self.model.body_radius, clear[moved])
             obstacle[moved] |= hit
+            blocked[moved] |= (xy[moved] != wanted).any(axis=1)   # a wall or obstacle stopped it
         reverted = np.zeros(len(xy), dtype=bool)
         while True:
             self._cover_pairs(xy)
@@ -327,33 +342,34 @@ class Simulation:
             distance = self.world.ray_distances(np.stack([origin_x, origin_y], axis=-1), dir_x, dir_y,
                                                 self.model.ir_range, xy, self._sensing_reach - self.model.ir_range)
             if count > 1:
-                self._see_robots(distance, origin_x, origin_y, dir_x, dir_y)
+                self._see_robots(distance, cos[:, 0], sin[:, 0])
             distance = distance.ravel()
         table = self.model.ir_table
         raw = ir_sensor.noisy_raw(distance, table, self._rng if self.noise else None)
         self._ir_raw[:] = raw.reshape(self._ir_raw.shape)
         self._ir_range[:] = ir_sensor.range_from_raw(raw, distance < np.inf, table).reshape(self._ir_range.shape)
 
-    def _see_robots(self, distance: np.ndarray, origin_x: np.ndarray, origin_y: np.ndarray, dir_x: np.ndarray,
-                    dir_y: np.ndarray) -> None:
+    def _see_robots(self, distance: np.ndarray, cos: np.ndarray, sin: np.ndarray) -> None:
         """Lower `distance` (N, 8) where a ray meets another robot's body first (the pairs within sensing reach).
 
-        Each close pair gives two owners (each robot looks at the other); the owners' rays are tested against
-        the other body, sorted by owner, and each owner's nearest hit per ray kept (one reduceat, no Python loop).
+        Each close pair gives two owners (each robot looks at the other). The other body's centre is turned into
+        the owner's frame, where the 8 rays are constants, so the test is one broadcast of (pairs, 8) with no
+        per-ray gathers; sorted by owner, one reduceat keeps each owner's nearest hit per ray.
         """
         xy = self._true[:, :2]
         self._cover_pairs(xy)
         first, second = self._pairs
-        delta = xy[first] - xy[second]
-        near = np.einsum('ij,ij->i', delta, delta) < (self._sensing_reach + self.model.body_radius) ** 2
-        if not near.any():
+        dx, dy = xy[second, 0] - xy[first, 0], xy[second, 1] - xy[first, 1]
+        near = np.flatnonzero(dx * dx + dy * dy < (self._sensing_reach + self.model.body_radius) ** 2)
+        if not len(near):
             return
         owner = np.concatenate([first[near], second[near]])
-        target = np.concatenate([second[near], first[near]])
         order = np.argsort(owner, kind='stable')
-        owner, target = owner[order], target[order]
-        hits = ray_circle(origin_x[owner], origin_y[owner], dir_x[owner], dir_y[owner], xy[target, 0:1],
-                          xy[target, 1:2], self.model.body_radius)
+        owner = owner[order]
+        dx, dy = np.concatenate([dx[near], -dx[near]])[order], np.concatenate([dy[near], -dy[near]])[order]
+        local_x, local_y = cos[owner] * dx + sin[owner] * dy, cos[owner] * dy - sin[owner] * dx
+        hits = ray_circle(self._sensor_offsets[:, 0], self._sensor_offsets[:, 1], self._sensor_cos, self._sensor_sin,
+                          local_x[:, None], local_y[:, None], self.model.body_radius)
         starts = np.flatnonzero(np.diff(owner, prepend=-1))
         seen = owner[starts]
         nearest = np.minimum(distance[seen], np.minimum.reduceat(hits, starts, axis=0))

@@ -7,10 +7,12 @@ point only with its own and the neighbouring cells costs O(N log N). Everything 
 """
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 
-_ALL_PAIRS_BELOW = 48
-"""Fewer points than this: test all pairs (fewer NumPy calls than the grid; measured in bench_swarm.py)."""
+_ALL_PAIRS_BELOW = 64
+"""Fewer points than this: test all pairs (2,016 at most), which costs less than the grid's dozen NumPy calls."""
 
 
 def close_pairs(xy: np.ndarray, reach: float) -> tuple[np.ndarray, np.ndarray]:
@@ -20,12 +22,18 @@ def close_pairs(xy: np.ndarray, reach: float) -> tuple[np.ndarray, np.ndarray]:
     """
     count = len(xy)
     if count < _ALL_PAIRS_BELOW:
-        first, second = np.triu_indices(count, 1)
+        first, second = _all_pairs(count)
     else:
         first, second = _grid_candidates(xy, reach)
-    delta = xy[first] - xy[second]
-    keep = np.einsum('ij,ij->i', delta, delta) < reach * reach
+    x, y = xy[:, 0].copy(), xy[:, 1].copy()   # 1-D gathers are several times faster than row gathers
+    dx, dy = x[first] - x[second], y[first] - y[second]
+    keep = np.flatnonzero(dx * dx + dy * dy < reach * reach)
     return first[keep], second[keep]
+
+
+@functools.lru_cache(maxsize=_ALL_PAIRS_BELOW)
+def _all_pairs(count: int) -> tuple[np.ndarray, np.ndarray]:
+    return np.triu_indices(count, 1)
 
 
 def _grid_candidates(xy: np.ndarray, reach: float) -> tuple[np.ndarray, np.ndarray]:
