@@ -69,7 +69,7 @@ class Page:
     def __init__(self, host: str, port: int) -> None:
         self.states = 0
         self._connection = http.client.HTTPConnection(host, port, timeout=30)
-        self._connection.request('GET', '/events')
+        self._connection.request('GET', '/events?robot=epuck')  # as the page does, showing the robot in detail
         self._response = self._connection.getresponse()
         self._thread = threading.Thread(target=self._read, daemon=True)
         self._thread.start()

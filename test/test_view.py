@@ -5,6 +5,7 @@ import http.client
 import json
 import math
 import threading
+import time
 from collections.abc import Iterator
 
 import pytest
@@ -179,6 +180,25 @@ def test_actions_reach_the_handler_only_from_this_page(served) -> None:
     assert _request(server, 'POST', '/api/pause', b'{"paused": 1}', JSON)[0] == 400
     assert _request(server, 'POST', '/api/step', b' ' * 5000, JSON)[0] == 400
     assert len(recorder.actions) == 1
+
+
+def test_pages_and_polls_say_which_robots_are_watched(served) -> None:
+    server = served[0]
+    assert server.watched() == set()
+    _request(server, 'GET', '/state?robot=epuck2')
+    assert server.watched() == {'epuck2'}
+    connection = http.client.HTTPConnection(*server.server_address[:2], timeout=10)
+    connection.request('GET', '/events?robot=epuck0')
+    response = connection.getresponse()
+    next(_events(response))
+    assert 'epuck0' in server.watched()
+    response.close()
+    connection.close()
+    deadline = time.monotonic() + 30
+    while 'epuck0' in server.watched() and time.monotonic() < deadline:
+        server.state.set_clock(time.monotonic(), time.monotonic())  # the stream writes, and finds the page gone
+        time.sleep(0.05)
+    assert 'epuck0' not in server.watched()
 
 
 def _events(response: http.client.HTTPResponse) -> Iterator[tuple[str, dict]]:

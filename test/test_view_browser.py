@@ -119,6 +119,17 @@ class Page:
         return stepped
 
 
+def _step_until_heard(page: Page, test_node, truths: list[Truth]) -> float:
+    """Step until the test node hears a step's ground_truth: before its subscriptions have matched the sim's
+    publishers (which nothing outside DDS tells), a step's messages may pass it by. Returns that step's time."""
+    for _ in range(20):
+        stepped = page.step()
+        test_node.spin_for(0.2)
+        if all(_ns(stepped) in truth.poses for truth in truths):
+            return stepped
+    raise AssertionError('the test node heard no ground_truth of 20 steps')
+
+
 def _open_view(launch, *sim_params: str) -> str:
     launch('sim', '--ros-args', '-p', 'paused:=true', '-p', 'noise:=false', *sim_params)
     view = launch('view', '--ros-args', '-p', 'port:=0')
@@ -141,7 +152,7 @@ def test_page_draws_ground_truth_steps_pauses_and_drives(launch, test_node, brow
     assert page.text('run-state') == 'paused'
 
     # Paused: a Step is exactly one time step, and the robot is drawn where ground_truth says.
-    first = page.step()
+    first = _step_until_heard(page, test_node, [truth])
     assert page.step() == pytest.approx(first + STEP, abs=1e-9)
     test_node.spin_until(lambda: _ns(first + STEP) in truth.poses, what='ground_truth of the second step')
     drawn = page.drawn()['robots']['epuck']
@@ -195,6 +206,7 @@ def test_several_robots_each_drawn_and_only_the_selected_one_driven(launch, test
     assert page.script('return view.world.robots.map(r => r.name)') == list(names)
 
     Select(browser.find_element(By.ID, 'robot')).select_by_value('epuck1')
+    _step_until_heard(page, test_node, list(truths.values()))
     page.click('arena')
     ActionChains(browser).key_down(Keys.ARROW_UP).key_down(Keys.ARROW_LEFT).perform()
     test_node.spin_until(lambda: commands['epuck1'] and commands['epuck1'][-1].linear.x > 0.0

@@ -47,6 +47,8 @@ def test_view_follows_placed_robots_and_relays_step_and_drive(launch, test_node)
                          == list(names), what='the view to know the three placed robots')
 
     test_node.spin_until(lambda: _call(address, 'GET', '/state')[1]['paused'] is True, what='the sim settings')
+    # A page showing epuck1 in detail (polling for it): the view subscribes to epuck1's odometry and wheels only.
+    test_node.spin_until(lambda: _call(address, 'GET', '/state?robot=epuck1')[0] == 200, what='a poll')
     for _ in range(10):  # until the test node's own subscriptions have matched and received a step
         status, answer = _call(address, 'POST', '/api/step', {})
         assert status == 200, answer
@@ -61,6 +63,15 @@ def test_view_follows_placed_robots_and_relays_step_and_drive(launch, test_node)
     robots = _call(address, 'GET', '/state')[1]['robots']
     for name in names:
         assert tuple(robots[name]['pose']) == truth[name][stepped]
+
+    def details() -> dict:
+        _call(address, 'POST', '/api/step', {})  # paused: the next step brings them
+        return _call(address, 'GET', '/state?robot=epuck1')[1]['robots']
+    test_node.spin_until(lambda: details()['epuck1']['wheel_speeds'] is not None, what="epuck1's wheel speeds")
+    robots = _call(address, 'GET', '/state?robot=epuck1')[1]['robots']
+    assert robots['epuck1']['odom'] == [0.0, 0.0, 0.0] and robots['epuck1']['odom_error']['distance'] == 0.0
+    assert robots['epuck1']['wheel_speeds'] == [0.0, 0.0]
+    assert all(robots[name]['odom'] is None and robots[name]['wheel_speeds'] is None for name in ('epuck0', 'epuck2'))
 
     status, answer = _call(address, 'POST', '/api/drive', {'robot': 'epuck2', 'linear': 0.05, 'angular': -0.5})
     assert status == 200

@@ -92,6 +92,7 @@ class ViewNode(Node):
         self.state = ViewState()
         self._requests: queue.SimpleQueue[tuple[Action, ResultFuture]] = queue.SimpleQueue()
         self._robot_subscriptions: list[Subscription] = []
+        self._details: dict[str, list[Subscription]] = {}
         self._proximity: dict[str, Subscription] = {}
         self._drivers: dict[str, tuple[Publisher, float]] = {}
         self._robot_names: tuple[str, ...] = ()
@@ -133,7 +134,8 @@ class ViewNode(Node):
                                f'robots {", ".join(self._robot_names)}')
 
     def _follow_robots(self, names: tuple[str, ...]) -> None:
-        """Subscribe to each robot's topics (dropping the previous world's robots)."""
+        """Subscribe to what is drawn of each robot (dropping the previous world's robots)."""
+        self._watch(set())
         for subscription in self._robot_subscriptions + list(self._proximity.values()):
             self.destroy_subscription(subscription)
         for publisher, _ in self._drivers.values():
@@ -144,9 +146,6 @@ class ViewNode(Node):
             topic = partial(robot_topic, names, robot)
             self._robot_subscriptions += [
                 self.create_subscription(Odometry, topic('ground_truth'), partial(self._on_truth, robot), NEWEST_ONLY),
-                self.create_subscription(Odometry, topic('odom'), partial(self._on_odom, robot), NEWEST_ONLY),
-                self.create_subscription(JointState, topic('joint_states'), partial(self._on_joints, robot),
-                                         NEWEST_ONLY),
                 self.create_subscription(Float64MultiArray, topic('ir_raw'), partial(self._on_ir_raw, robot),
                                          NEWEST_ONLY),
                 self.create_subscription(UInt32, topic('collisions'), partial(self._on_collisions, robot), LATCHED),
@@ -156,6 +155,20 @@ class ViewNode(Node):
             self._proximity[robot] = self.create_subscription(
                 Range, topic('proximity'), partial(self._on_range, robot),
                 QoSProfile(depth=len(SENSOR_NAMES), reliability=NEWEST_ONLY.reliability))
+
+    def _watch(self, robots: set[str]) -> None:
+        """Odometry and wheel speeds only of the robots a page shows in detail: every subscription costs the
+        simulator a send per step (bench_view.py), and with many robots most are never looked at."""
+        for robot in set(self._details) - robots:
+            for subscription in self._details.pop(robot):
+                self.destroy_subscription(subscription)
+            self.state.update(robot, odom=None, wheel_speeds=None)  # no stale figures when it is shown again
+        for robot in robots - set(self._details):
+            topic = partial(robot_topic, self._robot_names, robot)
+            self._details[robot] = [
+                self.create_subscription(Odometry, topic('odom'), partial(self._on_odom, robot), NEWEST_ONLY),
+                self.create_subscription(JointState, topic('joint_states'), partial(self._on_joints, robot),
+                                         NEWEST_ONLY)]
 
     def _on_clock(self, msg: Clock) -> None:
         self.state.set_clock(_seconds(msg.clock), time.monotonic())
@@ -226,8 +239,10 @@ class ViewNode(Node):
             raise ActionError(f'{action.name}: the simulator did not answer within {ACTION_TIMEOUT:g} s') from None
 
     def run_requests(self) -> None:
-        """Carry out the page's queued actions (on the node's thread, as rclpy wants)."""
+        """Carry out the page's queued actions and follow what the pages watch (on the node's thread, as rclpy
+        wants)."""
         self._read_settings_once()
+        self._watch(self.server.watched() & set(self._robot_names))
         while not self._requests.empty():
             action, result = self._requests.get()
             try:

@@ -5,9 +5,11 @@ Events, which every browser's `EventSource` reads) and a handful of small POSTs,
 websocket library would add a dependency and nothing the page uses.
 
 - `GET /` the page, `GET /static/<file>` its assets (only the files shipped in `view/static`).
-- `GET /events` Server-Sent Events: `world` on connect and whenever the world changes, `state` at most
-  `MAX_FRAME_RATE` times a second and only when something changed.
-- `GET /state`, `GET /world` the same JSON once (for scripts and benchmarks).
+- `GET /events?robot=NAME` Server-Sent Events: `world` on connect and whenever the world changes, `state` at most
+  `MAX_FRAME_RATE` times a second and only when something changed. NAME is the robot the page shows in detail:
+  only robots some page watches need their odometry and wheel speeds (`ViewServer.watched`), so the view
+  subscribes to those for them alone and costs the simulator less.
+- `GET /state?robot=NAME`, `GET /world` the same JSON once (for scripts and benchmarks).
 - `POST /api/<action>` with a JSON body: one of ACTIONS, checked by `parse_action` before anything reaches ROS.
 
 A POST must be `application/json` and, if the browser says where it comes from (`Origin`), come from this very
@@ -27,12 +29,14 @@ from http import HTTPStatus
 from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
 from importlib import resources
 from ipaddress import ip_address
-from urllib.parse import urlsplit
+from urllib.parse import parse_qs, urlsplit
 
 from epuck_ros.view.state import ViewState
 
 MAX_FRAME_RATE = 30.0
 """State events per second at most, whatever the simulator's rate: more than a screen shows is wasted."""
+POLL_LEASE = 5.0
+"""Wall seconds a `GET /state?robot=NAME` keeps NAME's details (odometry, wheel speeds) subscribed."""
 MAX_BODY = 4096
 """Bytes; every action fits in far less."""
 MAX_LINEAR_SPEED = 0.5
@@ -145,6 +149,9 @@ class ViewServer(ThreadingHTTPServer):
     def __init__(self, host: str, port: int, state: ViewState, act: ActionHandler) -> None:
         self.state, self.act = state, act
         self.stopping = threading.Event()
+        self._watch_lock = threading.Lock()
+        self._streams: dict[int, str] = {}  # open event stream -> the robot it shows in detail
+        self._polls: dict[str, float] = {}  # robot -> wall time of the last GET /state for it
         self.loopback_only = is_loopback(host)
         if ':' in host:
             self.address_family = socket.AF_INET6
@@ -154,6 +161,24 @@ class ViewServer(ThreadingHTTPServer):
     def url(self) -> str:
         host, port = self.server_address[:2]
         return f'http://[{host}]:{port}/' if ':' in host else f'http://{host}:{port}/'
+
+    def watched(self) -> set[str]:
+        """The robots some page shows in detail now: those of the open streams and of recent polls."""
+        now = time.monotonic()
+        with self._watch_lock:
+            return set(self._streams.values()) | {robot for robot, at in self._polls.items() if now - at < POLL_LEASE}
+
+    def watch_stream(self, stream: int, robot: str) -> None:
+        with self._watch_lock:
+            self._streams[stream] = robot
+
+    def end_stream(self, stream: int) -> None:
+        with self._watch_lock:
+            self._streams.pop(stream, None)
+
+    def note_poll(self, robot: str) -> None:
+        with self._watch_lock:
+            self._polls[robot] = time.monotonic()
 
     def close(self) -> None:
         self.stopping.set()
@@ -169,14 +194,17 @@ class _Handler(BaseHTTPRequestHandler):
         """Quiet: a page polling or streaming would fill the terminal."""
 
     def do_GET(self) -> None:  # noqa: N802 - http.server's name
-        path = urlsplit(self.path).path
+        url = urlsplit(self.path)
+        path, robot = url.path, parse_qs(url.query).get('robot', [''])[0]
         if path in ('/', '/index.html'):
             self._send_static('index.html')
         elif path.startswith('/static/'):
             self._send_static(path[len('/static/'):])
         elif path == '/events':
-            self._stream_events()
+            self._stream_events(robot)
         elif path == '/state':
+            if robot:
+                self.server.note_poll(robot)
             self._send(HTTPStatus.OK, self.server.state.frame_json(time.monotonic()).encode(), 'application/json')
         elif path == '/world':
             self._send(HTTPStatus.OK, self.server.state.world_json().encode(), 'application/json')
@@ -231,9 +259,11 @@ class _Handler(BaseHTTPRequestHandler):
         suffix = name[name.rfind('.'):]
         self._send(HTTPStatus.OK, content, CONTENT_TYPES.get(suffix, 'application/octet-stream'))
 
-    def _stream_events(self) -> None:
+    def _stream_events(self, robot: str) -> None:
         """Send `world` and `state` events until the client goes away or the server stops."""
         state, stopping = self.server.state, self.server.stopping
+        if robot:
+            self.server.watch_stream(id(self), robot)
         self.send_response(HTTPStatus.OK)
         self.send_header('Content-Type', 'text/event-stream')
         self.send_header('Cache-Control', 'no-store')
@@ -257,6 +287,8 @@ class _Handler(BaseHTTPRequestHandler):
                 stopping.wait(1.0 / MAX_FRAME_RATE)
         except (BrokenPipeError, ConnectionResetError):
             pass  # the page was closed
+        finally:
+            self.server.end_stream(id(self))
 
     def _event(self, kind: str, data: str) -> None:
         self.wfile.write(f'event: {kind}\ndata: {data}\n\n'.encode())

@@ -23,26 +23,39 @@ let drawPending = false;
 
 // --- the stream --------------------------------------------------------------------------------------------
 
-const events = new EventSource('/events');
-events.onopen = () => setText('connection', 'live');
-events.onerror = () => setText('connection', 'disconnected: retrying…');
-events.addEventListener('world', (event) => {
-  view.world = JSON.parse(event.data);
+// The stream names the robot shown in detail: the view subscribes to its odometry and wheel speeds only.
+let events = null;
+
+function connect() {
+  if (events) events.close();
+  events = new EventSource(view.selected ? `/events?robot=${encodeURIComponent(view.selected)}` : '/events');
+  events.onopen = () => setText('connection', 'live');
+  events.onerror = () => setText('connection', 'disconnected: retrying…');
+  events.addEventListener('world', onWorld);
+  events.addEventListener('state', onState);
+}
+
+function onWorld(event) {
+  const world = JSON.parse(event.data);
+  const known = view.world && view.world.version === world.version;   // the same world again (a reconnection)
+  view.world = world;
+  if (known) return;
   view.trails = {};
-  const names = (view.world.robots || []).map((robot) => robot.name);
-  if (!names.includes(view.selected)) view.selected = names[0] || null;
-  const select = $('robot');
-  select.replaceChildren(...names.map((name) => new Option(name, name, false, name === view.selected)));
+  const names = (world.robots || []).map((robot) => robot.name);
+  const selected = names.includes(view.selected) ? view.selected : names[0] || null;
+  $('robot').replaceChildren(...names.map((name) => new Option(name, name, false, name === selected)));
+  if (selected !== view.selected) select(selected);
   requestDraw();
-});
-events.addEventListener('state', (event) => {
+}
+
+function onState(event) {
   view.frame = JSON.parse(event.data);
   for (const [name, robot] of Object.entries(view.frame.robots)) {
     if (robot.pose) extendTrail(name, robot.pose);
   }
   showFigures();
   requestDraw();
-});
+}
 
 function extendTrail(name, pose) {
   const trail = view.trails[name] || (view.trails[name] = []);
@@ -219,6 +232,7 @@ function select(name) {
   stopDriving();
   view.selected = name;
   $('robot').value = name;
+  connect();
   if (view.frame) showFigures();
   requestDraw();
 }
@@ -341,3 +355,4 @@ document.addEventListener('keyup', (event) => {
 });
 window.addEventListener('blur', stopDriving);   // a key released in another window must not keep the robot going
 showSpeeds();
+connect();
