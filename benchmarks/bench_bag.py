@@ -5,8 +5,9 @@
    (12 messages per 32 ms step) at rising rates; messages recorded / published. The sim at 10x real time
    needs 3,750 msg/s.
 3. A bag of >= 1,000,000 messages at the sim's rates (a 44-minute run: clock, odom, ground_truth, 8 ranges,
-   joint_states per step) under /tmp; `bag info` and `bag summary` on it, in process and as commands, against
-   rosbags' AnyReader deserialising the same topics of the same bag in the same run.
+   joint_states per step) under /tmp; `bag info` (of which the stamp-gap check reading every stamp) and
+   `bag summary` on it, in process and as commands, against rosbags' AnyReader deserialising the same topics
+   of the same bag in the same run.
 
 Run: python benchmarks/bench_bag.py [--messages N] [--skip-dds] [--keep]
 """
@@ -32,6 +33,7 @@ from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState, Range
 
 from epuck_ros.bag.cdr import CdrDecoder
+from epuck_ros.bag.gaps import bag_gaps
 from epuck_ros.bag.info import format_info
 from epuck_ros.bag.msgdefs import schema_text
 from epuck_ros.bag.qos import QosProfile
@@ -146,8 +148,10 @@ def bench_dds(workdir: Path, rates: tuple[int, ...] = (3750, 7500, 15000), secon
     try:
         for rate in rates:
             bag = workdir / f'dds_{rate}'
-            recorder = subprocess.Popen([str(BIN / 'record'), '-o', str(bag), *TOPICS],
-                                        stdout=subprocess.DEVNULL, stderr=subprocess.STDOUT)
+            log = workdir / f'record_{rate}.log'
+            with open(log, 'w') as output:
+                recorder = subprocess.Popen([str(BIN / 'record'), '-o', str(bag), *TOPICS],
+                                            stdout=output, stderr=subprocess.STDOUT)
             while not all(p.get_subscription_count() for p in publishers.values()):
                 time.sleep(0.05)
             time.sleep(1.0)  # DDS matching of every reader and writer
@@ -168,6 +172,8 @@ def bench_dds(workdir: Path, rates: tuple[int, ...] = (3750, 7500, 15000), secon
             published = steps * MESSAGES_PER_STEP
             print(f'   {achieved:>8,.0f} msg/s published: {count:,} of {published:,} recorded '
                   f'({100 * count / published:.1f} %)')
+            report = [line.split(']: ', 1)[-1] for line in log.read_text().splitlines() if 'lost' in line]
+            print('\n'.join(f'      record says: {line}' for line in report))
     finally:
         node.destroy_node()
         rclpy.try_shutdown()
@@ -202,7 +208,12 @@ def bench_inspection(workdir: Path, messages: int) -> None:
                 count += 1
         return count
 
+    def gaps() -> object:
+        with Bag(path) as bag:
+            return bag_gaps(bag)
+
     info_s, _ = timed(info)
+    gaps_s, (judged, missing) = timed(gaps)
     info_cli, _ = timed(lambda: subprocess.run([str(BIN / 'bag'), 'info', str(path)], check=True,
                                                capture_output=True))
     summary_s, result = timed(summary)
@@ -211,13 +222,14 @@ def bench_inspection(workdir: Path, messages: int) -> None:
     read_s, read = timed(lambda: rosbags(False))
     rosbags_s, decoded = timed(lambda: rosbags(True))
     print(f'   bag info     {info_s * 1000:8.1f} ms in process, {info_cli:.2f} s as a command (Python start-up '
-          'included)')
+          f'included); the stamp-gap check alone {gaps_s * 1000:.0f} ms for {len(judged)} topics '
+          f'({len(missing)} with gaps)')
     print(f'   bag summary  {summary_s:8.2f} s  = {decoded / summary_s:>9,.0f} msg/s of the {decoded:,} messages '
           f'it reads ({summary_cli:.2f} s as a command); circle radius {result.circle.radius:.4f} m')
     print(f'   rosbags      {rosbags_s:8.2f} s  = {decoded / rosbags_s:>9,.0f} msg/s AnyReader + deserialize, '
           f'same topics ({read / read_s:,.0f} msg/s reading only)')
     print(f'   ratios: summary is {rosbags_s / summary_s:.1f}x faster than rosbags deserialising; '
-          f'info answers in {info_s * 1000:.0f} ms whatever the size')
+          f'info answers in {info_s * 1000:.0f} ms, counts from the MCAP summary and every stamp read for gaps')
 
 
 def main() -> None:
