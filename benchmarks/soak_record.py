@@ -1,10 +1,11 @@
 """Recorder soak: the `record` executable's memory over a long recording at full speed.
 
-Starts the simulator at ``real_time_factor`` 0 (or, with ``--synthetic``, this process publishing the
+Starts the simulator at ``real_time_factor`` 0 (or, with ``--synthetic``, a child process publishing the
 sim's traffic mix as fast as it can), records it with `record` in its own process, and prints the
 recorder's resident memory (VmRSS from /proc/<pid>/status) every ``--interval`` seconds with the
 bag's size so far. At the end: messages recorded, RSS growth per message recorded (a recorder that
-leaks a few hundred bytes per message shows here at once), and what `bag info` says about gaps.
+leaks a few hundred bytes per message shows here at once), and what `record` and `bag info` say about
+lost messages (at real_time_factor 0 without lockstep the simulator may outrun the recorder).
 
 Run: python benchmarks/soak_record.py [--minutes 10] [--interval 30] [--synthetic] [--keep]
 """
@@ -148,7 +149,11 @@ def main() -> None:
               f'{samples[-1][1] / 1024:.1f} MiB at the end, max {max(k for _, k in samples) / 1024:.1f} MiB; '
               f'growth after that {growth / max(count, 1):.2f} bytes per message '
               f'(the leaking recorder: ~280)')
-        print('\n'.join(line for line in info.splitlines() if 'gap' in line.lower() or 'Messages' in line))
+        report = [line.split(']: ', 1)[-1] for line in (workdir / 'processes.log').read_text().splitlines()
+                  if 'lost' in line]
+        print('\n'.join(f'record says: {line}' for line in report))
+        print('\n'.join(line for line in info.splitlines() if 'Messages' in line or 'missing' in line
+                         or 'Stamp gaps' in line))
     finally:
         for process in (source, recorder):
             stop(process, timeout=5.0)
