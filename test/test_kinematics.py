@@ -88,3 +88,24 @@ def test_encoder_reads_the_nearest_multiple_of_its_resolution():
     readings = quantise(angles, resolution)
     assert np.abs(readings - angles).max() <= resolution / 2 + 1e-12
     np.testing.assert_allclose(readings / resolution, np.round(readings / resolution), atol=1e-9)
+
+
+def test_integrate_arc_takes_array_poses_with_scalar_speeds_and_the_reverse():
+    xs, ys, yaws = np.array([0.0, 0.3, -1.0]), np.array([0.0, -0.2, 2.0]), np.array([0.0, 2.5, -3.0])
+    each = [integrate_arc(float(x), float(y), float(yaw), 0.1, 1.5, 0.5) for x, y, yaw in zip(xs, ys, yaws)]
+    together = integrate_arc(xs, ys, yaws, 0.1, 1.5, 0.5)
+    np.testing.assert_allclose(np.array(together).T, each, atol=1e-15)
+    speeds, turns = np.array([0.1, -0.05, 0.0]), np.array([0.0, 3.0, -1.0])
+    each = [integrate_arc(0.3, -0.2, 2.5, float(v), float(w), 0.5) for v, w in zip(speeds, turns)]
+    together = np.broadcast_arrays(*integrate_arc(0.3, -0.2, 2.5, speeds, turns, 0.5))
+    np.testing.assert_allclose(np.array(together).T, each, atol=1e-15)
+
+
+def test_robot_models_compare_and_hash_by_value():
+    assert RobotModel() == RobotModel()
+    assert hash(RobotModel()) == hash(RobotModel())
+    assert RobotModel() != RobotModel(body_radius=0.04)
+    assert RobotModel() != RobotModel(ir_table=RobotModel().ir_table * 2.0)
+    assert len({RobotModel(), RobotModel()}) == 1
+    with pytest.raises(ValueError):
+        RobotModel().ir_table[0, 0] = 1.0   # frozen all the way down: the tables are read-only

@@ -103,6 +103,20 @@ def test_non_finite_commands_are_refused_and_change_nothing(command, args):
     assert sim.wheel_speeds[0] == pytest.approx([1.0, 2.0])
 
 
+@pytest.mark.parametrize('v, w, wheels', [
+    (1e308, 0.0, [MAX_WHEEL_SPEED, MAX_WHEEL_SPEED]),          # the conversion overflows to inf: clamped
+    (-1.7e308, 0.0, [-MAX_WHEEL_SPEED, -MAX_WHEEL_SPEED]),
+    (0.0, 1e308, [-MAX_WHEEL_SPEED, MAX_WHEEL_SPEED]),
+    (1.0, -1e308, [MAX_WHEEL_SPEED, -MAX_WHEEL_SPEED]),
+])
+def test_huge_finite_twists_clamp_like_wheel_commands(v, w, wheels):
+    sim = open_floor()
+    sim.command_twist(0, v, w)
+    sim.step()
+    assert sim.wheel_speeds[0].tolist() == wheels
+    assert np.isfinite(sim.true_pose).all()
+
+
 def test_wheels_stop_when_commands_stop_arriving():
     sim = open_floor(cmd_timeout=0.5)
     sim.command_wheels(0, 2.0, 2.0)

@@ -1,12 +1,16 @@
-"""The world: default arena, YAML loading with named-field errors, ray casting and collision push-out."""
+"""The world: default arena, YAML loading with named-field errors, hostile files, ray casting and collision push-out."""
 import math
+import os
+import threading
+import time
 from pathlib import Path
 
 import numpy as np
 import pytest
 import yaml
 
-from epuck_ros.world import Box, Cylinder, World, WorldError, default_world, load_world, world_from_dict
+from epuck_ros.world import (MAX_FILE_BYTES, Box, Cylinder, RobotStart, World, WorldError, default_world, load_world,
+                             world_from_dict, world_from_yaml)
 
 WORLDS = Path(__file__).resolve().parent.parent / 'epuck_ros' / 'worlds'
 RADIUS = 0.037
@@ -82,6 +86,23 @@ def test_empty_file_is_an_empty_arena(tmp_path):
     ('boxes: [{position: [0.3, 0.3], size: [0.1, 0.1]}]\nrobot: {start: [0.3, 0.23, 0]}\n',
      'robot.start', 'overlaps boxes[0]'),
     ('cylinders: [{position: [0.1, 0], radius: 0.07}]\n', 'robot.start', 'overlaps cylinders[0]'),
+    ('robot: {start: [0.463, 0, 0]}\n', 'robot.start', 'not inside'),                  # touching the wall
+    ('robots: [{name: a, start: [0, 0, 0]}]\nrobot: {start: [0, 0, 0]}\n', 'robots', 'not both'),
+    ('robots: []\n', 'robots', 'empty'),
+    ('robots: {name: a}\n', 'robots', 'expected a list'),
+    ('robots: [{name: a, start: [0, 0, 0]}, {name: a, start: [0.3, 0, 0]}]\n', 'robots', "both named 'a'"),
+    ('robots: [{name: 3pi, start: [0, 0, 0]}]\n', 'robots[0].name', 'expected a ROS name'),
+    ('robots: [{name: a/b, start: [0, 0, 0]}]\n', 'robots[0].name', 'expected a ROS name'),
+    ('robots: [{name: a__b, start: [0, 0, 0]}]\n', 'robots[0].name', 'expected a ROS name'),
+    ('robots: [{name: 7, start: [0, 0, 0]}]\n', 'robots[0].name', 'expected a ROS name'),
+    ('robots: [{name: a}]\n', 'robots[0].start', 'missing'),
+    ('robots: [{name: a, start: [0, 0, 0], colour: red}]\n', 'robots[0]', "unknown key 'colour'"),
+    ('robots: [{name: a, start: [0, 0, 0]}, {name: b, start: [0.3, 0, 0]}, {name: c, start: [0.32, 0.06, 0]}]\n',
+     'robots[2].start', "overlaps robots[1] ('b'"),
+    ('robots: [{name: a, start: [0, 0, 0]}, {name: b, start: [0.074, 0, 0]}]\n', 'robots[1].start', 'overlaps'),
+    ('robots: [{name: a, start: [0, 0.5, 0]}]\n', 'robots[0].start', 'not inside'),
+    ('boxes: [{position: [0.3, 0.3], size: [0.1, 0.1]}]\nrobots: [{name: a, start: [0, 0, 0]}, '
+     '{name: b, start: [0.3, 0.3, 0]}]\n', 'robots[1].start', 'overlaps boxes[0]'),
 ])
 def test_bad_world_files_name_the_field(tmp_path, text, field, problem):
     path = tmp_path / 'bad.yaml'
@@ -91,6 +112,115 @@ def test_bad_world_files_name_the_field(tmp_path, text, field, problem):
     message = str(caught.value)
     assert message.startswith(f'{path}: {field}: '), message
     assert problem in message
+
+
+def test_a_robots_list_gives_named_robots_and_round_trips():
+    world = world_from_yaml('robots:\n- {name: epuck0, start: [0.2, 0.1, 1.0]}\n- {name: scout, start: [-0.2, 0, 0]}\n')
+    assert world.robots == (RobotStart('epuck0', 0.2, 0.1, 1.0), RobotStart('scout', -0.2, 0.0, 0.0))
+    assert world.start_pose == (0.2, 0.1, 1.0)   # the first robot's, for one-robot callers
+    assert world.to_dict()['robots'] == [{'name': 'epuck0', 'start': [0.2, 0.1, 1.0]},
+                                         {'name': 'scout', 'start': [-0.2, 0.0, 0.0]}]
+    assert 'robot' not in world.to_dict()
+    assert world_from_dict(yaml.safe_load(yaml.safe_dump(world.to_dict()))) == world
+
+
+def test_the_one_robot_form_is_one_robot_named_epuck_and_is_written_back_as_such():
+    world = world_from_yaml('robot: {start: [0.1, 0.2, 0.3]}\n')
+    assert world.robots == (RobotStart('epuck', 0.1, 0.2, 0.3),)
+    assert world.to_dict()['robot'] == {'start': [0.1, 0.2, 0.3]} and 'robots' not in world.to_dict()
+    assert World().names == ('epuck',)
+
+
+def test_a_world_built_in_code_checks_names():
+    with pytest.raises(WorldError, match="robots: robots\\[1\\] and robots\\[0\\] are both named 'a'"):
+        World(robots=(RobotStart('a', 0, 0), RobotStart('a', 0.3, 0)))
+    with pytest.raises(WorldError, match='is not a ROS name'):
+        World(robots=(RobotStart('no way', 0, 0),))
+
+
+# --- hostile world files: one line naming the file and field, quickly, with little memory -------------------
+
+def load_text(tmp_path, text: str) -> str:
+    """The WorldError message for a file holding `text` (and that it came within a few seconds)."""
+    path = tmp_path / 'hostile.yaml'
+    path.write_text(text)
+    begin = time.monotonic()
+    with pytest.raises(WorldError) as caught:
+        load_world(path)
+    assert time.monotonic() - begin < 30.0   # generous; the point is "not minutes or hours"
+    message = str(caught.value)
+    assert message.startswith(f'{path}: ') and '\n' not in message and len(message) < 400, message
+    return message[len(f'{path}: '):]
+
+
+def test_yaml_aliases_are_refused_before_they_expand(tmp_path):
+    # the "billion laughs": nine levels of nine aliases each expand to 9^9 (387 million) items
+    lines = ['a0: &a0 [x, x, x, x, x, x, x, x, x]']
+    lines += [f'a{i}: &a{i} [' + ', '.join([f'*a{i - 1}'] * 9) + ']' for i in range(1, 10)]
+    lines += ['boxes: *a9']
+    assert load_text(tmp_path, '\n'.join(lines) + '\n').startswith('a1[0]: YAML aliases (*a0) are not allowed')
+    assert load_text(tmp_path, 'robot: &r {start: [0, 0, 0]}\nrobots: [*r]\n').startswith('robots[0]: YAML aliases')
+
+
+@pytest.mark.parametrize('text, field, problem', [
+    ('arena: {size: [' + '9' * 400 + ', 1]}\n', 'arena.size[0]', 'must be within +-10000, got 9999999'),
+    ('arena: {size: [1.0e+308, 1]}\n', 'arena.size[0]', 'must be within'),
+    ('boxes: [{position: [-1.0e+308, 0], size: [0.1, 0.1]}]\n', 'boxes[0].position[0]', 'must be within'),
+    ('robot: {start: [0, 0, 1.0e+300]}\n', 'robot.start[2]', 'must be within'),
+    ('robots: [{name: a, start: [0, 0, .inf]}]\n', 'robots[0].start[2]', 'must be finite'),
+    ('cylinders: [{position: [0.3, 0.3], radius: .nan}]\n', 'cylinders[0].radius', 'must be finite'),
+    ('arena: {size: [1.0e+400, 1]}\n', 'arena.size[0]', 'must be finite'),
+])
+def test_huge_and_non_finite_numbers_name_the_field(tmp_path, text, field, problem):
+    message = load_text(tmp_path, text)
+    assert message.startswith(f'{field}: ') and problem in message, message
+
+
+def test_deep_nesting_is_refused(tmp_path):
+    assert 'nested deeper than' in load_text(tmp_path, 'boxes: ' + '[' * 5000 + ']' * 5000 + '\n')
+    assert 'nested deeper than' in load_text(tmp_path, 'a: ' + '{a: ' * 5000 + '1' + '}' * 5000 + '\n')
+
+
+def test_a_huge_value_is_not_formatted_into_the_message(tmp_path):
+    message = load_text(tmp_path, 'boxes: [{position: [0, 0], size: "' + 'x' * 3_000_000 + '"}]\n')
+    assert message.startswith('boxes[0].size: expected a list of 2 numbers, got str')
+
+
+def test_a_named_pipe_is_refused_without_hanging(tmp_path):
+    pipe = tmp_path / 'world.yaml'
+    os.mkfifo(pipe)
+    outcome = []
+
+    def load() -> None:
+        try:
+            load_world(pipe)
+        except WorldError as error:
+            outcome.append(str(error))
+
+    reader = threading.Thread(target=load, daemon=True)
+    reader.start()
+    reader.join(timeout=60.0)
+    assert not reader.is_alive(), 'load_world blocked on a named pipe'
+    assert outcome == [f'{pipe}: cannot read the file: not a regular file (a directory, pipe or device)']
+
+
+def test_an_oversized_file_is_refused_unread(tmp_path):
+    path = tmp_path / 'big.yaml'
+    with open(path, 'wb') as file:
+        file.truncate(50 * 2 ** 20)   # 50 MB, sparse: refused by its size before any byte is read
+    with pytest.raises(WorldError, match=f'big.yaml: file too large \\({50 * 2 ** 20} bytes, at most {MAX_FILE_BYTES}\\)'):
+        load_world(path)
+    with pytest.raises(WorldError, match='too large'):
+        world_from_yaml('#' * (MAX_FILE_BYTES + 1), 'bag topic world')
+
+
+def test_binary_and_unhashable_input_are_one_line(tmp_path):
+    path = tmp_path / 'binary.yaml'
+    path.write_bytes(bytes(range(256)))
+    with pytest.raises(WorldError, match='binary.yaml: not UTF-8 text'):
+        load_world(path)
+    assert load_text(tmp_path, '{[1]: 2}\n').startswith('not valid YAML')
+    assert load_text(tmp_path, 'a: ' + '1' * 5000 + '\n').startswith('not valid YAML')   # beyond int's digit limit
 
 
 def test_missing_file_and_broken_yaml_are_world_errors(tmp_path):
