@@ -5,6 +5,7 @@ cd "$(dirname "$0")/.."
 scripts/setup.sh
 . scripts/env.sh
 export ROS_DOMAIN_ID=${ROS_DOMAIN_ID:-43}
+echo "[bench] ROS_DOMAIN_ID=$ROS_DOMAIN_ID" >&2
 for bench in benchmarks/bench_*.py; do
   echo "== $bench"
   python "$bench"

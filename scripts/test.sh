@@ -1,5 +1,7 @@
 #!/usr/bin/env bash
 # Sets up the venv if needed, then runs the whole test suite (extra arguments go to pytest).
+# The tests use your ROS_DOMAIN_ID if you set one (and no other test run holds it), else a free one; pytest's
+# header says which.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 scripts/setup.sh

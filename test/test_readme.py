@@ -1,0 +1,150 @@
+"""Every command line of the README's ```bash blocks runs and does its job, so the README cannot drift.
+
+Each line runs with bash in a scratch copy of the checkout (the venv, package and scripts linked, the sample bags
+copied), so what it writes (bags, pictures, CSV) lands there. A command runs until it ends by itself or, once it
+has shown it started (bringup's `running` line, any output of another node), for at most NATURAL_RUN wall seconds;
+then it gets Ctrl-C, as a user would stop it. Either way it must exit 0 without a traceback and leave the sign of
+its work (a summary, a closed bag, a picture, a CSV). Nothing is timed: the budget only bounds the suite.
+
+The one documented exception: `scripts/test.sh` would run this very suite again; it runs with `--collect-only`
+(it still sets up, sources the environment and must collect the tests).
+"""
+from __future__ import annotations
+
+import os
+import re
+import shlex
+import shutil
+import signal
+import subprocess
+import time
+from pathlib import Path
+
+import pytest
+from conftest import BIN_DIR, processes_in_this_domain
+
+ROOT = Path(__file__).resolve().parents[1]
+README = ROOT / 'README.md'
+LINKED = ('.venv', 'epuck_ros', 'scripts', 'requirements.txt', 'setup.py', 'setup.cfg', 'package.xml', 'resource',
+          'docs', 'benchmarks', 'test')
+COPIED = ('bags',)
+START_TIMEOUT = 120.0
+"""Wall seconds for a command to show it started, on a loaded machine."""
+NATURAL_RUN = 5.0
+"""Wall seconds a started command may go on before it is interrupted (bounds the suite, decides nothing)."""
+STOP_TIMEOUT = 60.0
+BRINGUP = re.compile(r'(^|[\s/])(bringup|run\.sh)\s')
+RECURSIVE = 'scripts/test.sh'
+
+
+def readme_commands(text: str) -> list[str]:
+    """The command lines of the ```bash blocks (comments and blank lines dropped; `\\` continuations joined)."""
+    commands: list[str] = []
+    for block in re.findall(r'^```bash\n(.*?)^```', text, flags=re.S | re.M):
+        for line in block.replace('\\\n', ' ').splitlines():
+            command = _without_comment(line).strip()
+            if command:
+                commands.append(command)
+    return commands
+
+
+def _without_comment(line: str) -> str:
+    """The line up to a `#` that starts a shell comment: outside quotes, at the start of a word."""
+    quote = ''
+    for index, char in enumerate(line):
+        if quote:
+            quote = '' if char == quote else quote
+        elif char in '\'"':
+            quote = char
+        elif char == '#' and (index == 0 or line[index - 1].isspace()):
+            return line[:index]
+    return line
+
+
+COMMANDS = readme_commands(README.read_text())
+
+
+@pytest.fixture(scope='module')
+def workspace(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A scratch checkout: the venv and sources linked, the sample bags copied (commands write next to them)."""
+    root = tmp_path_factory.mktemp('readme')
+    for name in LINKED:
+        if (ROOT / name).exists():
+            (root / name).symlink_to(ROOT / name)
+    for name in COPIED:
+        if (ROOT / name).exists():
+            shutil.copytree(ROOT / name, root / name)
+    return root
+
+
+def test_the_readme_has_commands_to_check():
+    assert len(COMMANDS) >= 10, COMMANDS
+    assert any(BRINGUP.search(command + ' ') for command in COMMANDS)
+
+
+@pytest.mark.parametrize('command', COMMANDS)
+def test_readme_command(command: str, workspace: Path, tmp_path: Path) -> None:
+    if command.split()[0] == RECURSIVE:
+        command += ' --collect-only -q'
+    log_path = tmp_path / 'output.log'
+    env = dict(os.environ, PATH=f'{BIN_DIR}{os.pathsep}{os.environ["PATH"]}', PYTHONUNBUFFERED='1')
+    with open(log_path, 'w') as log:
+        process = subprocess.Popen(['bash', '-c', command], cwd=workspace, stdout=log, stderr=subprocess.STDOUT,
+                                   env=env, start_new_session=True)
+    try:
+        interrupted = _run_bounded(process, command, log_path)
+    finally:
+        if process.poll() is None:
+            os.killpg(process.pid, signal.SIGKILL)
+            process.wait()
+    output = log_path.read_text()
+    assert process.returncode == 0, f'{command!r} exited with {process.returncode}:\n{output}'
+    assert 'Traceback' not in output, output
+    _check_sign_of_work(command, output, workspace, interrupted)
+    assert processes_in_this_domain() == [], f'{command!r} left processes behind'
+
+
+def _run_bounded(process: subprocess.Popen, command: str, log_path: Path) -> bool:
+    """Let the command end by itself, or interrupt it once it has started and run a while; True if interrupted."""
+    started_sign = '[bringup] running' if BRINGUP.search(command + ' ') else ''
+    deadline = time.monotonic() + START_TIMEOUT
+    started_at = None
+    while process.poll() is None:
+        now = time.monotonic()
+        if started_at is None:
+            output = log_path.read_text()
+            if (started_sign and started_sign in output) or (not started_sign and output.strip()):
+                started_at = now
+            elif now > deadline:
+                pytest.fail(f'{command!r} showed no sign of starting within {START_TIMEOUT:.0f} s:\n{output}')
+        elif now - started_at > NATURAL_RUN:
+            os.killpg(process.pid, signal.SIGINT)  # Ctrl-C in the terminal reaches the whole foreground group
+            try:
+                process.wait(STOP_TIMEOUT)
+            except subprocess.TimeoutExpired:
+                pytest.fail(f'{command!r} did not stop within {STOP_TIMEOUT:.0f} s of Ctrl-C:\n'
+                            f'{log_path.read_text()}')
+            return True
+        time.sleep(0.1)
+    return False
+
+
+def _check_sign_of_work(command: str, output: str, workspace: Path, interrupted: bool) -> None:
+    words = shlex.split(command, comments=True)
+    if words[0] == RECURSIVE:
+        assert re.search(r'\d+ tests? collected', output), output
+        return
+    if BRINGUP.search(command + ' ') and '--help' not in words:
+        assert '[bringup] simulated' in output, output  # the summary: it ran and stopped everything
+    for flag in ('--record', '-o', '--output'):
+        if flag in words and words.index(flag) + 1 < len(words) and not words[words.index(flag) + 1].startswith('-'):
+            target = workspace / words[words.index(flag) + 1]
+            assert target.exists(), f'{command!r} did not write {target}:\n{output}'
+            if target.is_dir():
+                assert (target / 'metadata.yaml').is_file(), f'{target} is not a closed bag:\n{output}'
+            else:
+                assert target.stat().st_size > 0, f'{target} is empty'
+    if words[0] == 'bag' and len(words) > 1 and words[1] in ('info', 'summary'):
+        assert output.strip(), f'{command!r} printed nothing'
+    if interrupted:
+        assert output.strip(), f'{command!r} printed nothing before Ctrl-C'
