@@ -8,7 +8,7 @@ raises, 2 for a bad command line or a robot the simulator does not have.
 """
 from __future__ import annotations
 
-import argparse
+import re
 import runpy
 import sys
 import traceback
@@ -22,6 +22,7 @@ from epuck_ros.webots.link import LinkError
 from epuck_ros.webots.robot import Robot, configure
 
 PROGRAM = 'webots_controller'
+ROBOT_NAME = re.compile(r'[A-Za-z_][A-Za-z0-9_]*')
 SHIM_DIR = Path(__file__).resolve().parent / 'shim'
 EXAMPLES_DIR = Path(__file__).resolve().parent / 'examples'
 USAGE = Usage(
@@ -36,16 +37,20 @@ USAGE = Usage(
             'default: the single robot')
 
 
-def parse(user: list[str]) -> argparse.Namespace:
-    parser = argparse.ArgumentParser(prog=PROGRAM, add_help=False)
-    parser.add_argument('--robot', default='')
-    parser.add_argument('script', nargs='?')
-    parser.add_argument('script_args', nargs=argparse.REMAINDER)
-    options, unknown = parser.parse_known_args(user)
-    if options.script is None:
+def parse(user: list[str]) -> tuple[str, str, list[str]]:
+    """(script, robot, the script's own arguments): `--robot NAME` is ours wherever it is, the rest the script's."""
+    robot, rest = '', []
+    args = iter(user)
+    for arg in args:
+        if arg == '--robot' or arg.startswith('--robot='):
+            robot = arg.partition('=')[2] if '=' in arg else next(args, '')
+            if not ROBOT_NAME.fullmatch(robot):
+                fail(f'--robot needs a robot name (letters, digits, _), got {robot!r}')
+        else:
+            rest.append(arg)
+    if not rest:
         fail('no controller script given (usage: webots_controller SCRIPT.py [--robot NAME]; see --help)')
-    options.script_args = unknown + options.script_args
-    return options
+    return rest[0], robot, rest[1:]
 
 
 def fail(message: str) -> None:
@@ -85,14 +90,14 @@ def _from_script(tb: TracebackType | None, path: Path) -> TracebackType | None:
 
 def main(argv: list[str] | None = None) -> None:
     args = prepare_arguments([PROGRAM, *(sys.argv[1:] if argv is None else argv)], [], USAGE, own_options=True)
-    options = parse(user_arguments(args))
-    path = Path(options.script).resolve()
+    script, robot, script_args = parse(user_arguments(args))
+    path = Path(script).resolve()
     if not path.is_file():
-        fail(f'no such controller script: {options.script}')
-    configure(options.robot, args[1:])
+        fail(f'no such controller script: {script}')
+    configure(robot, args[1:])
     code = 0
     try:
-        code = run_script(path, options.script_args)
+        code = run_script(path, script_args)
     finally:
         if isinstance(Robot.created, Robot):
             Robot.created.close()
