@@ -31,6 +31,7 @@ from std_msgs.msg import String
 
 from epuck_ros.bag import msgdefs
 from epuck_ros.bag.cdr import CdrDecoder
+from epuck_ros.bag.gaps import find_gaps
 from epuck_ros.bag.info import format_info
 from epuck_ros.bag.qos import INFINITE_NS, QosProfile, profiles_to_yaml
 from epuck_ros.bag.reader import Bag
@@ -410,3 +411,17 @@ def test_a_summary_that_fails_its_crc_is_not_believed(tmp_path):
     with Bag(tmp_path / 'run') as bag:
         assert bag.message_count == total == len(list(bag.messages()))
         assert 'run_0.mcap: summary section fails its CRC: counted from its complete chunks' in format_info(bag)
+
+
+def test_stamp_gaps_hold_when_most_of_a_topic_is_lost_and_leave_event_topics_alone():
+    period = 32_000_000
+    steps = np.arange(2000) * period
+    rng = np.random.default_rng(7)
+    kept = steps[rng.random(2000) > 0.6]  # 60 % of the steps lost: the median step is no longer the period
+    lossy = find_gaps('/odom', kept)
+    missing_between_first_and_last = int((kept[-1] - kept[0]) // period) + 1 - len(kept)
+    assert lossy.period_ns == period and lossy.missing_messages == missing_between_first_and_last
+    jittered = np.sort(steps + rng.normal(0, 0.05 * period, 2000).astype(np.int64))
+    assert find_gaps('/jittery', jittered).missing_messages == 0
+    events = np.cumsum(rng.exponential(3 * period, 500)).astype(np.int64)  # like rosout: no period
+    assert find_gaps('/rosout', events) is None

@@ -2,12 +2,12 @@
 
 A topic published once per simulation step (or at any steady rate) has stamps one period apart,
 each shared by the same number of messages (8 Range messages per step on ``proximity``). A stamp
-step much longer than the usual period is a gap (whole steps missing); a stamp carried by fewer
-messages than usual is an incomplete step. The usual period and count are medians, so they hold
-as long as most of the topic arrived. Only periodic topics are judged (most stamp steps within
-`JITTER` of the usual period): event-driven ones such as ``rosout`` have no usual period. Topics
-without a stamp first (no ``std_msgs/Header`` or
-``builtin_interfaces/Time`` as their first field) cannot be judged and are skipped. No ROS needed.
+step of several periods is a gap (whole steps missing); a stamp carried by fewer messages than
+usual is an incomplete step. The period is the typical single step (refined from the steps near
+the 10th percentile) and the usual count the 90th percentile, so both hold even when most of a
+topic was lost, as long as a tenth of its steps and stamps arrived whole. Only periodic topics are judged — nearly every step a whole number of periods —
+so event-driven ones such as ``rosout`` are left alone, as are topics without a stamp first (no
+``std_msgs/Header`` or ``builtin_interfaces/Time`` as their first field). No ROS needed.
 """
 from __future__ import annotations
 
@@ -20,11 +20,11 @@ from epuck_ros.bag.cdr import CDR_BE, CDR_LE, ENCAPSULATION
 from epuck_ros.bag.reader import Bag, Topic
 
 GAP_FACTOR = 1.5
-"""A stamp step longer than this many usual periods is a gap."""
+"""A stamp step of at least this many periods is a gap."""
 JITTER = 0.25
-"""A step within this fraction of the usual period is regular."""
-REGULAR_SHARE = 0.75
-"""A topic is periodic when at least this share of its stamp steps are regular."""
+"""A step within this fraction of a period of a whole number of periods is regular."""
+REGULAR_SHARE = 0.9
+"""A topic is periodic when at least this share of its stamp steps are regular (random steps: ~50 %)."""
 MIN_STEPS = 10
 """Fewer stamp steps than this say nothing about a period."""
 _STAMP_TYPES = ('Header', 'std_msgs/Header', 'std_msgs/msg/Header',
@@ -82,11 +82,14 @@ def find_gaps(topic: str, stamps: np.ndarray) -> TopicGaps | None:
     forward = steps[steps > 0]  # a step back is a restart (reset, a new run), not a loss
     if len(forward) < MIN_STEPS:
         return None
-    period = int(np.median(forward))
-    if np.count_nonzero(np.abs(forward - period) <= JITTER * period) < REGULAR_SHARE * len(forward):
+    rough = np.percentile(forward, 10)
+    single = forward[(forward > 0.5 * rough) & (forward < 1.5 * rough)]
+    period = int(np.median(single))
+    periods = forward / period
+    if np.count_nonzero(np.abs(periods - np.rint(periods)) <= JITTER) < REGULAR_SHARE * len(forward):
         return None  # not a periodic topic
-    per_stamp = max(1, int(np.median(counts)))
-    long_steps = forward[forward > GAP_FACTOR * period]
+    per_stamp = max(1, int(np.percentile(counts, 90)))
+    long_steps = forward[periods >= GAP_FACTOR]
     missing_steps = int(np.sum(np.rint(long_steps / period) - 1)) if len(long_steps) else 0
     inner = counts[1:-1]  # the first and last stamp may be cut by the start and end of the recording
     short = inner[inner < per_stamp]
