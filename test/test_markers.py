@@ -71,7 +71,8 @@ def test_walls_stand_outside_the_free_area() -> None:
                    walls[2].pose.position.x - WALL_THICKNESS / 2, walls[3].pose.position.y - WALL_THICKNESS / 2]
     assert inner_faces == pytest.approx([-width / 2, -height / 2, width / 2, height / 2])
     # In the same arena without obstacles, a ray from the centre hits each wall's inner face.
-    distances = World(arena_size=WORLD.arena_size).cast_rays(np.zeros((4, 2)), np.array([math.pi, -math.pi / 2, 0.0, math.pi / 2]), max_range=10.0)
+    toward_walls = np.array([math.pi, -math.pi / 2, 0.0, math.pi / 2])
+    distances = World(arena_size=WORLD.arena_size).cast_rays(np.zeros((4, 2)), toward_walls, max_range=10.0)
     assert list(distances) == pytest.approx([width / 2, height / 2, width / 2, height / 2])
     # The walls close the arena: each is long enough to reach the outer corners.
     assert walls[0].scale.y == walls[2].scale.y == pytest.approx(height + 2 * WALL_THICKNESS)

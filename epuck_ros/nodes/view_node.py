@@ -267,7 +267,8 @@ class ViewNode(Node):
                      else Parameter('real_time_factor', value=args['value']))
             self._sim_parameters.set_parameters([param]).add_done_callback(partial(_parameter_set, param, result))
         else:
-            client, request = (self._step, Trigger.Request()) if action.name == 'step' else (self._reset, Empty.Request())
+            client, request = ((self._step, Trigger.Request()) if action.name == 'step'
+                               else (self._reset, Empty.Request()))
             if not client.service_is_ready():
                 raise ActionError(f'the simulator offers no {client.srv_name} service')
             client.call_async(request).add_done_callback(partial(_service_answered, action.name, result))

@@ -49,7 +49,8 @@ class RobotReadings:
     collisions: int = 0
 
     def to_json(self, start: tuple[float, float, float]) -> dict:
-        return {'pose': self.pose, 'stamp': self.stamp, 'odom': self.odom, 'odom_error': _odom_error(start, self.odom, self.pose),
+        return {'pose': self.pose, 'stamp': self.stamp, 'odom': self.odom,
+                'odom_error': _odom_error(start, self.odom, self.pose),
                 'ir_raw': self.ir_raw, 'ir_range': self.ir_range, 'wheel_speeds': self.wheel_speeds,
                 'collisions': self.collisions}
 
