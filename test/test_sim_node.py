@@ -6,7 +6,10 @@ from pathlib import Path
 
 import pytest
 from conftest import ros_args
+from geometry_msgs.msg import Twist, Vector3
 from nav_msgs.msg import Odometry
+from rcl_interfaces.msg import ParameterType
+from rcl_interfaces.srv import GetParameters
 from rclpy.qos import DurabilityPolicy, QoSProfile
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState, Range
@@ -169,3 +172,84 @@ def test_lockstep_advances_one_step_per_command(launch, test_node):
     assert steps_per_command == [1] * 5
     times = [c.clock.sec + c.clock.nanosec * 1e-9 for c in clocks]
     assert [b - a for a, b in zip(times, times[1:])] == pytest.approx([STEP] * 4, abs=1e-9)
+
+
+def test_help_describes_every_parameter_and_starts_nothing(launch):
+    sim = launch('sim', '--help')
+    assert sim.proc.wait(timeout=20) == 0
+    output = sim.output()
+    for name in ('real_time_factor', 'robots', 'lockstep', 'cmd_timeout', 'seed'):
+        assert f'\n  {name} ' in output
+    assert 'example:' in output and 'ir_raw' in output
+    assert 'sim ready' not in output
+
+
+@pytest.mark.parametrize('param, expected', [
+    ('seeed:=3', "unknown parameter 'seeed' (did you mean seed?)"),
+    ('real_time_factr:=0', 'did you mean real_time_factor?'),
+    ('seed:=abc', 'seed: expected an integer'),
+    ('robots:=-1', 'robots: -1 is out of range'),
+    ('cmd_timeout:=', 'cmd_timeout: empty value'),
+])
+def test_unknown_or_invalid_parameters_are_named_and_refused(launch, param, expected):
+    sim = launch('sim', '--ros-args', '-p', param)
+    assert sim.proc.wait(timeout=20) == 2
+    assert expected in sim.output() and 'Traceback' not in sim.output()
+
+
+def test_integers_are_accepted_for_float_parameters_and_use_sim_time_is_ignored(launch, test_node):
+    sim = launch('sim', '--ros-args', '-p', 'real_time_factor:=0', '-p', 'cmd_timeout:=2', '-p', 'use_sim_time:=true')
+    sim.wait_for_output('sim ready')
+    assert 'real-time factor max' in sim.output() and 'use_sim_time ignored' in sim.output()
+    client = test_node.node.create_client(GetParameters, '/sim/get_parameters')
+    assert client.wait_for_service(timeout_sec=20.0)
+    future = client.call_async(GetParameters.Request(names=['real_time_factor', 'cmd_timeout', 'use_sim_time']))
+    test_node.spin_until(future.done, what='the parameters')
+    rtf, timeout, sim_time = future.result().values
+    assert (rtf.type, rtf.double_value) == (ParameterType.PARAMETER_DOUBLE, 0.0)
+    assert (timeout.type, timeout.double_value) == (ParameterType.PARAMETER_DOUBLE, 2.0)
+    assert sim_time.bool_value is False
+    # the clock source does not listen to its own /clock
+    subscribers = test_node.node.get_subscriptions_info_by_topic('/clock')
+    assert not [s for s in subscribers if s.node_name == 'sim']
+
+
+def test_a_second_simulator_on_the_domain_is_refused(launch, test_node):
+    first = start_sim(launch)
+    clocks = test_node.collect(Clock, '/clock', 100)
+    test_node.spin_until(lambda: clocks, what='the first simulator')
+    second = launch('sim', *ros_args({'noise': False}))
+    assert second.proc.wait(timeout=30) == 2
+    assert 'another simulator runs on ROS domain' in second.output() and '/clock is published by /sim' in \
+        second.output()
+    count = len(clocks)
+    test_node.spin_until(lambda: len(clocks) > count + 5, what='the first simulator to go on')
+    assert first.proc.poll() is None
+
+
+def test_cmd_vel_nan_is_refused_and_huge_speeds_clamp(launch, test_node):
+    sim = start_sim(launch, real_time_factor=10.0)
+    joints = test_node.collect(JointState, 'joint_states', 1000)
+    pub = test_node.node.create_publisher(Twist, 'cmd_vel', 10)
+    test_node.spin_until(lambda: joints and pub.get_subscription_count() > 0, what='sim topics')
+    pub.publish(Twist(linear=Vector3(x=math.nan)))
+    sim.wait_for_output('cmd_vel refused')
+    pub.publish(Twist(linear=Vector3(x=1e308)))
+    test_node.spin_until(lambda: joints[-1].velocity[0] > 0, what='the robot to drive')
+    assert list(joints[-1].velocity) == [MAX_WHEEL_SPEED, MAX_WHEEL_SPEED]
+    assert sim.proc.poll() is None
+
+
+def test_repeated_timeouts_are_logged_once_then_counted(launch, test_node):
+    sim = start_sim(launch, real_time_factor=10.0, cmd_timeout=0.1)
+    truth = test_node.collect(Odometry, 'ground_truth', 1000)
+    pub = test_node.node.create_publisher(Float64MultiArray, 'wheel_cmd', 10)
+    test_node.spin_until(lambda: truth and pub.get_subscription_count() > 0, what='sim topics')
+    for _ in range(3):
+        pub.publish(wheel_cmd(1.0, 1.0))
+        test_node.spin_until(lambda: truth[-1].twist.twist.linear.x > 0, what='the robot to move')
+        test_node.spin_until(lambda: truth[-1].twist.twist.linear.x == 0.0, what='the timeout')
+    assert sim.stop() == 0  # the first SIGINT ends it cleanly, after a client came and went
+    output = sim.log_path.read_text()
+    assert output.count('no command for 0.1 s') == 1
+    assert 'command time-out: wheels stopped 2 more times (epuck 2)' in output

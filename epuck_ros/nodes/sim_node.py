@@ -50,9 +50,14 @@ IDLE_POLL = 0.05
 """Wall seconds between two looks at the parameters while paused."""
 PACING_SLICE = 0.02
 """Pacing sleeps at most this long at a time, then reads the real-time factor again: a change takes effect at once."""
-DISCOVERY_WINDOW = 0.5
-"""Wall seconds after start-up during which the sim looks for another simulator (another `/clock` publisher)
-before publishing anything; DDS discovery on one machine takes up to about 0.3 s."""
+DISCOVERY_WINDOW = 1.5
+"""Wall seconds from the start of the process during which the sim looks for another simulator (another `/clock`
+publisher, or a node with its name) before it steps or publishes anything. DDS discovery on one machine usually
+takes well under a second after rclpy starts (measured: 0-0.3 s idle; 1-2 s, rarely 5 s, with the two cores
+overloaded, when this window can miss it). Afterwards another simulator only gets a warning (it refuses itself),
+so of two simulators the one that was there first goes on. The window overlaps rclpy's own start-up."""
+WATCH_PERIOD = 2.0
+"""Wall seconds between two looks for another `/clock` publisher once running."""
 SUMMARY_PERIOD = 30.0
 """Wall seconds between two summaries of a repeated condition (command time-outs)."""
 
@@ -92,10 +97,6 @@ USAGE = Usage(
     'reset (Empty) and step (Trigger, one step while paused). With several robots, robot NAME\'s topics are '
     'NAME/odom, NAME/cmd_vel, ...',
     'sim --ros-args -p real_time_factor:=0 -p seed:=4 -p robots:=5')
-
-
-class AnotherSimulator(RuntimeError):
-    """Another clock source runs on this ROS domain: two simulators would mix their times and topics."""
 
 
 class Pacer:
@@ -159,9 +160,10 @@ class RepeatedCondition:
 class SimNode(Node):
     """The simulator: one `RobotPorts` per robot, plus /clock, world, world_markers, reset and step."""
 
-    def __init__(self) -> None:
+    def __init__(self, started: float | None = None) -> None:
+        """`started`: monotonic time the process started, from which the discovery window counts."""
         super().__init__('sim')
-        started = time.monotonic()
+        self._started = time.monotonic() if started is None else started
         values = declare_parameters(self, SIM_PARAMETERS)
         self._stop_listening_to_own_clock()
         world = load_world(values['world']) if values['world'] else default_world()
@@ -184,12 +186,14 @@ class SimNode(Node):
         self._stepped = threading.Condition()
         self._resends = 0
         self.failure = ''
+        self.refusal = ''
+        """Why this simulator will not run (another one is there); main() exits 2 with it."""
+        self._warned_newcomer = False
         self._running = threading.Event()
         self._thread = threading.Thread(target=self._run, name='sim_loop', daemon=True)
         self._timeouts = RepeatedCondition(self.get_logger().info, 'command time-out: wheels stopped')
         self._stalled_topics: set[str] = set()
         self.add_on_set_parameters_callback(self._on_set_parameters)
-        self._refuse_if_another_simulator(started)
 
         stream = QoSProfile(depth=PUBLISHER_HISTORY_STEPS, reliability=ReliabilityPolicy.RELIABLE)
         latched = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
@@ -221,23 +225,34 @@ class SimNode(Node):
             self.set_parameters([Parameter('use_sim_time', value=False)])
             self.get_logger().info('use_sim_time ignored: the simulator is the source of /clock, it does not follow it')
 
-    def _refuse_if_another_simulator(self, started: float) -> None:
-        """Another `/clock` publisher (a simulator, a bag being played) or a node with this one's name: refuse."""
-        me = (self.get_name(), self.get_namespace())
-        deadline = started + DISCOVERY_WINDOW
-        while True:
-            clocks = self.get_publishers_info_by_topic('/clock')
-            namesakes = self.get_node_names_and_namespaces().count(me)
-            if clocks or namesakes > 1:
-                who = ', '.join(sorted({f'{c.node_namespace.rstrip("/")}/{c.node_name}' for c in clocks}))
-                raise AnotherSimulator(
-                    f'another simulator runs on ROS domain {os.environ.get("ROS_DOMAIN_ID", "0")}: '
-                    + (f'/clock is published by {who}' if clocks else f'a node named {self.get_fully_qualified_name()}'
-                                                                      ' exists') +
-                    '; stop it or use another ROS_DOMAIN_ID')
-            if time.monotonic() >= deadline:
-                return
-            time.sleep(0.02)
+    def _another_simulator(self) -> str:
+        """What shows another simulator (another `/clock` publisher: a sim, a bag being played; or a node with this
+        one's name), or ''."""
+        clocks = self.get_publishers_info_by_topic('/clock')
+        if len(clocks) > 1:  # ours is one
+            who = ', '.join(sorted({f'{c.node_namespace.rstrip("/")}/{c.node_name}' for c in clocks
+                                    if not c.node_name.startswith('_NODE_NAME_UNKNOWN')})) or 'another node'
+            return f'/clock is published by {who}'
+        if self.get_node_names_and_namespaces().count((self.get_name(), self.get_namespace())) > 1:
+            return f'a node named {self.get_fully_qualified_name()} exists'
+        return ''
+
+    def _alone_on_the_domain(self) -> bool:
+        """Before the first step: look for another simulator until the discovery window ends; refuse if there is."""
+        while self._running.is_set() and time.monotonic() < self._started + DISCOVERY_WINDOW:
+            found = self._another_simulator()
+            if found:
+                self.refusal = (f'another simulator runs on ROS domain {os.environ.get("ROS_DOMAIN_ID", "0")}: '
+                                f'{found}; stop it or use another ROS_DOMAIN_ID')
+                return False
+            time.sleep(0.05)
+        return True
+
+    def _watch_for_newcomers(self) -> None:
+        found = self._another_simulator()
+        if found and not self._warned_newcomer:
+            self._warned_newcomer = True
+            self.get_logger().warning(f'another simulator appeared ({found}); it should refuse to start')
 
     def _stream_publishers(self) -> list:
         return [self._clock_pub] + [pub for ports in self.ports for pub in ports.stream_publishers]
@@ -327,9 +342,15 @@ class SimNode(Node):
 
     def _loop(self) -> None:
         """Step and publish until stopped, paced by the real-time factor; idle while paused."""
+        if not self._alone_on_the_domain():
+            return
         pacer = Pacer()
         resend = False
+        next_watch = time.monotonic() + WATCH_PERIOD
         while self._running.is_set() and self.context.ok():
+            if time.monotonic() > next_watch:
+                self._watch_for_newcomers()
+                next_watch = time.monotonic() + WATCH_PERIOD
             if self._paused and not self._step_requests:
                 pacer.restart()
                 self._acks.restart(self._sim.steps)
@@ -409,6 +430,7 @@ def _stamp(seconds: float) -> tuple[int, int]:
 
 
 def main(args: list[str] | None = None) -> None:
+    started = time.monotonic()
     argv = prepare_arguments(args, SIM_PARAMETERS, USAGE)
     # FastDDS sends from its own thread instead of inside publish(): the loop thread is then free to step
     # (measured with benchmarks/bench_sim_node.py: about 1.5x the real-time factor with a subscriber attached).
@@ -417,10 +439,13 @@ def main(args: list[str] | None = None) -> None:
     node = None
     code = 0
     try:
-        node = SimNode()
+        node = SimNode(started)
         node.start()
-        spin_until_shutdown(node)
-    except (WorldError, ParameterException, AnotherSimulator) as error:
+        spin_until_shutdown(node, until=lambda: bool(node.refusal))
+        if node.refusal:
+            print(f'sim: cannot start: {node.refusal}', file=sys.stderr)
+            code = 2
+    except (WorldError, ParameterException) as error:
         print(f'sim: cannot start: {error}', file=sys.stderr)
         code = 2
     finally:
