@@ -22,7 +22,6 @@ from concurrent.futures import TimeoutError as ResultTimeout
 from functools import partial
 
 import rclpy
-import yaml
 from builtin_interfaces.msg import Time
 from geometry_msgs.msg import Twist
 from nav_msgs.msg import Odometry
@@ -46,7 +45,7 @@ from epuck_ros.nodes.params import ParamSpec, Usage, declare_parameters, prepare
 from epuck_ros.nodes.sim_node import JOINT_NAMES
 from epuck_ros.view.server import Action, ActionError, ViewServer, is_loopback
 from epuck_ros.view.state import ViewState, pose_from_odometry, robot_topic
-from epuck_ros.world import WorldError, world_from_dict
+from epuck_ros.world import WorldError, world_from_yaml
 
 SPIN_RATE = 30.0
 """Times a second the node takes its newest messages: the page's frame rate, a fixed cost per second."""
@@ -124,8 +123,8 @@ class ViewNode(Node):
 
     def _on_world(self, msg: String) -> None:
         try:
-            world = world_from_dict(yaml.safe_load(msg.data) or {}, source='world topic')
-        except (WorldError, yaml.YAMLError) as error:
+            world = world_from_yaml(msg.data, source='world topic')
+        except WorldError as error:
             self.get_logger().error(f'cannot draw the world: {" ".join(str(error).split())}')
             return
         self.state.set_world(world)

@@ -10,7 +10,7 @@ const COLOURS = ['#d62728', '#1f77b4', '#2ca02c', '#9467bd', '#ff7f0e', '#17becf
 
 // Everything the page knows and what it last drew; `window.epuckView.drawn` is what tests compare with ROS.
 const view = {
-  world: null, frame: null, selected: null, trails: {},
+  world: null, worldText: null, frame: null, selected: null, trails: {},
   drawn: null,   // {time, robots: {name: {pose: [x, y, yaw], stamp}}} of the last frame painted
   drive: {linear: 0.1, angular: 1.5, keys: new Set(), sent: '0,0', timer: null},
 };
@@ -36,10 +36,10 @@ function connect() {
 }
 
 function onWorld(event) {
+  if (event.data === view.worldText) return;   // the same world again (the stream reconnected)
   const world = JSON.parse(event.data);
-  const known = view.world && view.world.version === world.version;   // the same world again (a reconnection)
   view.world = world;
-  if (known) return;
+  view.worldText = event.data;
   view.trails = {};
   const names = (world.robots || []).map((robot) => robot.name);
   const selected = names.includes(view.selected) ? view.selected : names[0] || null;
