@@ -225,7 +225,14 @@ class Recorder(Node):
 
 def parse_arguments(argv: list[str]) -> argparse.Namespace:
     parser = argparse.ArgumentParser(
-        prog='record', description='Record topics to a rosbag2-compatible MCAP bag (like ros2 bag record).')
+        prog='record', description='Record topics to a rosbag2-compatible MCAP bag (like ros2 bag record).',
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        epilog='It records on the ROS_DOMAIN_ID of its environment (printed at start) and warns if nothing\n'
+               f'arrives within {NOTHING_RECORDED_WARNING:.0f} s. At the end it reports lost samples (DDS events) '
+               'and stamp gaps.\n'
+               'Exit codes: 0 done, 1 the bag could not be written (e.g. disk full), 2 bad arguments or\n'
+               'an existing output folder.\n\n'
+               'example: record -o bags/manual /odom /ground_truth --ros-args -p use_sim_time:=true')
     parser.add_argument('topics', nargs='*', metavar='TOPIC', help='topics to record (default: all)')
     parser.add_argument('-o', '--output', type=Path,
                         help='bag folder to create (default: bags/rosbag2_YYYY_MM_DD-HH_MM_SS)')
