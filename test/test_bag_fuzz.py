@@ -289,3 +289,18 @@ def test_a_world_alias_bomb_inside_a_bag_costs_nothing(tmp_path):
                             capture_output=True, text=True, timeout=120)
     assert result.returncode == 0, result.stderr
     assert 'world not used' in result.stdout and 'aliases' in result.stdout
+
+
+def test_deeply_nested_schema_types_are_refused(tmp_path):
+    """2,000 message types each holding the next: a recursive check would end in RecursionError."""
+    from mcap.writer import Writer
+    blocks = ['Level1 next\n'] + [f'MSG: pkg/Level{i}\nLevel{i + 1} next\n' for i in range(1, 2000)]
+    blocks.append('MSG: pkg/Level2000\nuint8 value\n')
+    with open(tmp_path / 'deep.mcap', 'wb') as stream:
+        writer = Writer(stream)
+        writer.start(profile='ros2', library='fuzz')
+        schema = writer.register_schema('pkg/msg/Deep', 'ros2msg', ('=' * 80 + '\n').join(blocks).encode())
+        writer.add_message(writer.register_channel('/deep', 'cdr', schema), 1, b'\x00\x01\x00\x00\x07', 1)
+        writer.finish()
+    code, _, err = run_bag('csv', str(tmp_path / 'deep.mcap'), '/deep')
+    assert code == 2 and 'types nested more than 64 levels deep' in err
