@@ -134,7 +134,7 @@ def build_parser() -> argparse.ArgumentParser:
                    '~/toggle_paused of the `bag_player` node resume or pause',
                    ['bag play bags/avoid', 'bag play bags/avoid --rate 5 --loop',
                     'bag play bags/avoid --start-paused --topics /ground_truth /world',
-                    'bag play bags/avoid --ros-args -r __ns:=/replay'])
+                    'bag play bags/avoid --ros-args -r /odom:=/replayed/odom'])
     play.add_argument('--rate', type=_positive, default=1.0, help='playback speed: 2 plays twice as fast (default 1)')
     play.add_argument('--loop', action='store_true', help='start again at the end, until Ctrl-C')
     play.add_argument('--start-paused', action='store_true', help='wait for a resume before the first message')

@@ -49,7 +49,7 @@ class Player(Node):
         super().__init__('bag_player', enable_rosout=False)  # its log lines must not mix with a replayed /rosout
         self._bag = bag
         self._outputs = {}
-        wanted = set(topics) if topics else None
+        wanted = {'/' + topic.lstrip('/') for topic in topics} if topics else None
         for name, topic in sorted(bag.topics.items()):
             if name == CLOCK_TOPIC or not topic.message_count or (wanted is not None and name not in wanted):
                 continue
