@@ -285,8 +285,8 @@ def test_a_world_alias_bomb_inside_a_bag_costs_nothing(tmp_path):
                 data = serialize_message(String(data=alias_bomb().replace('rosbag2_bagfile_information', 'arena')))
             writer.write(message.topic, data, message.log_time)
     writer.close()
-    result = subprocess.run(['bash', '-c', f'ulimit -v 2000000; exec "{BIN_DIR / "bag"}" summary "{tmp_path / "bomb"}"'],
-                            capture_output=True, text=True, timeout=120)
+    command = f'ulimit -v 2000000; exec "{BIN_DIR / "bag"}" summary "{tmp_path / "bomb"}"'
+    result = subprocess.run(['bash', '-c', command], capture_output=True, text=True, timeout=120)
     assert result.returncode == 0, result.stderr
     assert 'world not used' in result.stdout and 'aliases' in result.stdout
 

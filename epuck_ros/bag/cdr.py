@@ -62,7 +62,7 @@ def _cut_short(type_name: str) -> CdrError:
 
 
 def odometry_fields(buffer: bytes, start: int, end: int | None = None) -> tuple[int, float, float, float, float, float]:
-    """nav_msgs/Odometry -> (header stamp ns, x, y, yaw, linear.x, angular.z); data ends at `end` (default: buffer's)."""
+    """nav_msgs/Odometry -> (header stamp ns, x, y, yaw, linear.x, angular.z); data ends at `end`."""
     end = len(buffer) if end is None else min(end, len(buffer))
     base = _little_endian_base(buffer, start, end)
     sec, nanosec, frame_length = _HEADER.unpack_from(buffer, base)

@@ -5,9 +5,10 @@ each shared by the same number of messages (8 Range messages per step on ``proxi
 step of several periods is a gap (whole steps missing); a stamp carried by fewer messages than
 usual is an incomplete step. The period is the typical single step (refined from the steps near
 the 10th percentile) and the usual count the 90th percentile, so both hold even when most of a
-topic was lost, as long as a tenth of its steps and stamps arrived whole. Only periodic topics are judged — nearly every step a whole number of periods —
-so event-driven ones such as ``rosout`` are left alone, as are topics without a stamp first (no
-``std_msgs/Header`` or ``builtin_interfaces/Time`` as their first field). No ROS needed.
+topic was lost, as long as a tenth of its steps and stamps arrived whole. Only periodic topics
+are judged (nearly every step a whole number of periods), so event-driven ones such as
+``rosout`` are left alone, as are topics without a stamp first (no ``std_msgs/Header`` or
+``builtin_interfaces/Time`` as their first field). No ROS needed.
 """
 from __future__ import annotations
 
