@@ -45,6 +45,9 @@ QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
 LATCHED = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
 GRAPH_POLL_PERIOD = 0.1
 """Wall seconds between two looks at the graph for an `ir_raw` publisher (until there is one)."""
+FALLBACK_DELAY = 1.0
+"""Wall seconds `proximity` must have had a publisher without any `ir_raw` one before the node reads `proximity`:
+the graph shows a simulator's publishers one by one, and the `ir_raw` one may come in a moment later."""
 STOP_ACK_TIMEOUT = 2.0
 """Wall seconds an ending node waits for its last (zero) wheel command to be acknowledged."""
 ALL_ROBOTS = 'all'
@@ -135,23 +138,26 @@ class BehaviourNode(Node):
         self._late_ticks = 0
         self._assembler = RangeAssembler()
         self._range_subscription = None
-        self._raw_subscription = None
         self._graph_timer = None
-        self._publisher = self.create_publisher(Float64MultiArray, 'wheel_cmd', QOS)
-        self._command = Float64MultiArray()
+        self._proximity_polls = 0
+        """Looks at the graph that showed a `proximity` publisher and no `ir_raw` one."""
         if self.behaviour.needs_odom:
             self.create_subscription(Odometry, 'odom', self._on_odom, QOS)
         if self.behaviour.needs_proximity:
-            self._raw_subscription = self.create_subscription(Float64MultiArray, 'ir_raw', self._on_ir_raw, QOS)
+            self.create_subscription(Float64MultiArray, 'ir_raw', self._on_ir_raw, QOS)
             self._graph_timer = self.create_timer(GRAPH_POLL_PERIOD, self._choose_ir_topic,
                                                   clock=Clock(clock_type=ClockType.STEADY_TIME))
+        # Last: a lockstep simulator waits for the answers of a robot whose wheel_cmd has a publisher.
+        self._publisher = self.create_publisher(Float64MultiArray, 'wheel_cmd', QOS)
+        self._command = Float64MultiArray()
         self._logged_status = ''
         self.create_timer(period, self._on_tick)
         summary = ', '.join(f'{setting}={value}' for setting, value in settings.items())
         self.get_logger().info(f'{spec.summary}; {summary}, control_period={period}')
 
     def _choose_ir_topic(self) -> None:
-        """`ir_raw` once it has a publisher; until then `proximity` if that has one (a real robot's driver)."""
+        """`ir_raw` once it has a publisher; until then `proximity` once that has had one for FALLBACK_DELAY (a
+        real robot's driver)."""
         if self.count_publishers(self.resolve_topic_name('ir_raw')) > 0:
             self.destroy_timer(self._graph_timer)
             if self._range_subscription is not None:
@@ -159,8 +165,11 @@ class BehaviourNode(Node):
                 self._range_subscription = None
                 self.get_logger().info('ir_raw has a publisher now: reading it instead of proximity')
         elif self._range_subscription is None and self.count_publishers(self.resolve_topic_name('proximity')) > 0:
-            self._range_subscription = self.create_subscription(Range, 'proximity', self._on_range, QOS)
-            self.get_logger().info('nobody publishes ir_raw: reading the eight proximity Range messages of each step')
+            self._proximity_polls += 1
+            if self._proximity_polls * GRAPH_POLL_PERIOD >= FALLBACK_DELAY:
+                self._range_subscription = self.create_subscription(Range, 'proximity', self._on_range, QOS)
+                self.get_logger().info('nobody publishes ir_raw: reading the eight proximity Range messages of '
+                                       'each step')
 
     def _on_odom(self, msg: Odometry) -> None:
         pose = msg.pose.pose
