@@ -18,15 +18,15 @@ from conftest import BIN_DIR, processes_in_this_domain
 
 from epuck_ros.bringup.cli import parse_args
 
-SUMMARY = re.compile(r'simulated ([\d.]+) s in [\d.]+ s wall \(([\d.]+)x real time\); '
-                     r'distance travelled ([\d.]+) m; collisions (\d+)')
+SIMULATED = re.compile(r'\[bringup\] simulated ([\d.]+) s in [\d.]+ s wall \(([\d.]+)x real time\)')
+ROBOT = re.compile(r'\[bringup\] (?:(\w+): )?([\d.]+) m in [\d.]+ s, (\d+) contacts with walls/obstacles')
 
 
 def summary_of(output: str) -> tuple[float, float, int]:
-    """(simulated s, distance m, collisions) from bringup's last line."""
-    found = SUMMARY.search(output)
-    assert found, output
-    return float(found[1]), float(found[3]), int(found[4])
+    """(simulated s, distance m, contacts) from bringup's summary of a one-robot run."""
+    simulated, robots = SIMULATED.search(output), ROBOT.findall(output)
+    assert simulated and len(robots) == 1, output
+    return float(simulated[1]), float(robots[0][1]), int(robots[0][2])
 
 
 def child_pids() -> list[int]:
@@ -220,7 +220,7 @@ def test_several_robots_one_behaviour_process_a_table_per_robot(launch, tmp_path
     run = launch('bringup', 'avoid', '--robots', '3', '--duration', '3', '--real-time-factor', '0', '--seed', '2',
                  '--record', str(tmp_path / 'swarm'))
     assert run.proc.wait(timeout=120) == 0, run.output()
-    rows = re.findall(r'\[bringup\] (epuck\d)\s+([\d.]+)\s+(\d+)', run.output())
+    rows = ROBOT.findall(run.output())
     assert [name for name, _, _ in rows] == ['epuck0', 'epuck1', 'epuck2'], run.output()
     assert all(float(distance) > 0.05 for _, distance, _ in rows), run.output()
     assert '[bringup] running avoid on 3 robots' in run.output()

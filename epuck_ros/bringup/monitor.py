@@ -7,7 +7,6 @@ children's log lines, so rewording a log line cannot break `bringup`.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
 
 import rclpy
 import yaml
@@ -22,6 +21,7 @@ from rosgraph_msgs.msg import Clock
 from std_msgs.msg import String
 
 from epuck_ros.bag.cdr import odometry_fields
+from epuck_ros.bag.run_summary import RunTally
 from epuck_ros.nodes.robot_ports import topic_prefix
 from epuck_ros.world import World, WorldError, world_from_dict
 
@@ -37,15 +37,18 @@ def robot_topic(world: World, robot: str, topic: str) -> str:
     return topic_prefix(robot, len(world.robots) > 1) + topic
 
 
-@dataclass
 class RobotTrack:
-    """Every ground-truth sample of one robot: (stamp ns, x, y, yaw, v, w) rows, as the bag reader decodes them."""
+    """Feeds one robot's ground-truth samples to the run's tally, decoded from the raw CDR as the bag reader does."""
 
-    name: str
-    rows: list[tuple[int, float, float, float, float, float]] = field(default_factory=list)
+    def __init__(self, tally: RunTally, name: str, label: str) -> None:
+        self._add, self._label = tally.add, label
+        self.name = name
+        self.stamps: set[int] = set()
 
     def add(self, data: bytes) -> None:
-        self.rows.append(odometry_fields(data, 0))
+        stamp, x, y, _, _, _ = odometry_fields(data, 0)
+        self.stamps.add(stamp)
+        self._add(self._label, stamp, x, y)
 
 
 class RunMonitor:
@@ -63,6 +66,8 @@ class RunMonitor:
         self.world: World | None = None
         self.world_error = ''
         self.tracks: dict[str, RobotTrack] = {}
+        self.tally: RunTally | None = None
+        """Distance and contacts of every robot so far (the same tally `bag summary` makes from a bag)."""
         self._parameters = AsyncParameterClient(self.node, SIM_NODE)
         self.node.create_subscription(Clock, '/clock', self._on_clock, 10)
         latched = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
@@ -81,8 +86,12 @@ class RunMonitor:
             self.world_error = str(error)
             return
         qos = QoSProfile(depth=SAMPLE_DEPTH, reliability=ReliabilityPolicy.RELIABLE)
-        for name in self.world.names:
-            track = self.tracks[name] = RobotTrack(name)
+        several = len(self.world.robots) > 1
+        # Labelled as a bag names its robots: by namespace, '' for a lone robot's topics.
+        labels = [name if several else '' for name in self.world.names]
+        self.tally = RunTally(labels, self.world)
+        for name, label in zip(self.world.names, labels):
+            track = self.tracks[name] = RobotTrack(self.tally, name, label)
             self.node.create_subscription(Odometry, robot_topic(self.world, name, 'ground_truth'), track.add, qos,
                                           raw=True)
 
@@ -150,5 +159,5 @@ def _full_name(namespace: str, name: str) -> str:
 
 def samples_missing(track: RobotTrack, time_step: float, end_time: float) -> int:
     """Steps up to `end_time` of which no ground-truth sample arrived (the first step is at `time_step`)."""
-    steps = {round(row[0] * 1e-9 / time_step) for row in track.rows}
+    steps = {round(stamp * 1e-9 / time_step) for stamp in track.stamps}
     return max(0, int(math.floor(end_time / time_step + 1e-6)) - len(steps))

@@ -160,29 +160,28 @@ class Supervisor:
 
 
 def report(supervisor: Supervisor, sim_time: float, wall_time: float) -> list[str]:
-    """The summary lines: time and speed, then distance and collisions per robot (from the bag if recorded)."""
+    """The summary lines: time and speed (from the resume on), then each robot's distance and contacts (from the
+    bag if the run was recorded, else from the samples received: the same computation either way)."""
     plan, monitor = supervisor.plan, supervisor.monitor
     speed = f'{sim_time / wall_time:.1f}x real time' if wall_time > 0 else 'no wall time'
-    head = f'[bringup] simulated {sim_time:.2f} s in {wall_time:.1f} s wall ({speed})'
+    head = [f'[bringup] simulated {sim_time:.2f} s in {wall_time:.1f} s wall ({speed})']
     notes = []
     if plan.record_dir is not None:
         try:
             figures = summary.from_bag(plan.record_dir)
         except (BagError, OSError) as error:
-            return [head, f'[bringup] cannot summarise the bag: {error}']
+            return head + [f'[bringup] cannot summarise the bag: {error}']
         notes.append(f'[bringup] recorded to {plan.record_dir} (bag summary {plan.record_dir} says more)')
-    else:
-        figures = summary.from_tracks(monitor.tracks, monitor.world)
+    elif monitor.tally is not None:
+        figures = monitor.tally.figures
         time_step = _time_step(plan)
-        lost = {t.name: samples_missing(t, time_step, sim_time) for t in monitor.tracks.values()}
-        if any(lost.values()):
-            notes.append(f'[bringup] note: {sum(lost.values())} ground-truth samples did not arrive; distances are '
-                         f'from the others (record the run for exact figures)')
-    if len(figures) == 1:
-        (f,) = figures
-        return [f'{head}; distance travelled {f.distance:.3f} m; collisions '
-                f'{"unknown" if f.collisions is None else f.collisions}', *notes]
-    return [head, *[f'[bringup] {line}' for line in summary.table(figures)], *notes]
+        lost = sum(samples_missing(track, time_step, sim_time) for track in monitor.tracks.values())
+        if lost:
+            notes.append(f'[bringup] note: {lost} ground-truth samples did not arrive; distances are from the '
+                         f'others (record the run for exact figures)')
+    else:
+        return head
+    return head + [f'[bringup] {line}' for line in summary.lines(figures)] + notes
 
 
 def _time_step(plan: Plan) -> float:
