@@ -79,6 +79,12 @@ def test_view_follows_placed_robots_and_relays_step_and_drive(launch, test_node)
     assert (driven[-1].linear.x, driven[-1].angular.z) == (0.05, -0.5)
     status, answer = _call(address, 'POST', '/api/drive', {'robot': 'epuck7', 'linear': 0.0, 'angular': 0.0})
     assert status == 400 and 'epuck7' in answer['error']
+    # The simulator's own parameter range decides what real-time factor it takes.
+    status, answer = _call(address, 'POST', '/api/real_time_factor', {'value': 1e9})
+    assert status == 400 and answer['error'].startswith('real_time_factor refused'), answer
+    assert _call(address, 'POST', '/api/real_time_factor', {'value': 2})[0] == 200
+    test_node.spin_until(lambda: _call(address, 'GET', '/state')[1]['real_time_factor'] == 2.0,
+                         what='the new real-time factor back from the sim')
 
 
 def test_a_port_in_use_is_one_line_and_exit_code_2(launch) -> None:
