@@ -24,9 +24,11 @@ from std_msgs.msg import UInt32
 
 from conftest import ros_args
 from epuck_ros.ir_sensor import raw_from_distance
-from epuck_ros.model import IR_LOOKUP_TABLE, SENSOR_POSES, RobotModel
+from epuck_ros.model import FRONT_SENSORS, IR_LOOKUP_TABLE, SENSOR_POSES, RobotModel
+from epuck_ros.simulation import Simulation
 from epuck_ros.webots.devices import DistanceSensor, Motor, PositionSensor
 from epuck_ros.webots.runner import EXAMPLES_DIR
+from epuck_ros.world import default_world
 from test_behaviour_nodes import moving, trajectory
 from test_behaviours import fitted_circle
 
@@ -156,7 +158,7 @@ def example(name: str) -> Path:
 
 
 def test_straight_line_example_drives_at_the_course_speed(launch: object, test_node: object) -> None:
-    run = ControllerRun(launch, test_node, example('straight_line'), 4.0)
+    run = ControllerRun(launch, test_node, example('straight_line'), 3.0)
     rows = moving(run.finish())[3:]
     speed = np.polyfit(rows[:, 0], rows[:, 1], 1)[0]
     print(f'straight_line: {speed:.5f} m/s, heading change {math.degrees(rows[-1, 3] - rows[0, 3]):.4f} deg')
@@ -166,7 +168,7 @@ def test_straight_line_example_drives_at_the_course_speed(launch: object, test_n
 
 
 def test_spin_example_turns_on_the_spot(launch: object, test_node: object) -> None:
-    run = ControllerRun(launch, test_node, example('spin'), 4.0)
+    run = ControllerRun(launch, test_node, example('spin'), 3.0)
     rows = moving(run.finish())[3:]
     rate = np.polyfit(rows[:, 0], rows[:, 3], 1)[0]
     drift = float(np.hypot(*(rows[:, 1:3] - rows[0, 1:3]).T).max())
@@ -180,7 +182,7 @@ def test_spin_example_turns_on_the_spot(launch: object, test_node: object) -> No
 
 
 def test_circle_example_has_the_course_radius(launch: object, test_node: object) -> None:
-    run = ControllerRun(launch, test_node, example('circle'), 8.0)
+    run = ControllerRun(launch, test_node, example('circle'), 5.0)
     _, _, radius = fitted_circle(moving(run.finish())[3:, 1:3])
     print(f'circle: fitted radius {radius:.5f} m')
     assert radius == pytest.approx(0.026 * 0.9 / 0.3, rel=0.005)  # 0.078 m
@@ -222,21 +224,50 @@ def test_avoid_example_runs_five_minutes_without_a_collision(launch: object, tes
     assert run.stop_controller() == 0, run.output
 
 
-def test_the_course_obstacle_avoidance_runs_unchanged_and_deterministically(launch: object, test_node: object) -> None:
-    """Noise on, same seed, lockstep: two runs of the course's program are the same to the bit."""
-    runs = []
-    for _ in range(2):
-        run = ControllerRun(launch, test_node, COURSE_DIR / 'obstacle_avoidance.py', 15.0, noise=True,
-                            sim_params={'seed': 3})
-        runs.append(run.finish())
-        assert run.stop_controller() == 0, run.output
-        run.sim.stop()
-    first, second = runs
-    turned = float(np.abs(np.diff(first[:, 3])).sum())
-    print(f'course obstacle avoidance: turned {math.degrees(turned):.1f} deg in 15 s; runs identical: '
-          f'{np.array_equal(first, second)}')
+def course_avoidance_in_the_core(seed: int, duration: float) -> np.ndarray:
+    """The course's obstacle avoidance on the pure core, as Webots would step it: rows (t, x, y, yaw).
+
+    Step 1 runs before the controller answers (wheels still); then its first step() sends the motors' state
+    after setPosition(inf): Webots' initial velocity, maxVelocity; from then on each command answers the
+    readings of the step just taken."""
+    sim = Simulation(default_world(), seed=seed, noise=True)
+    sim.step()
+    left = right = MODEL.max_wheel_speed
+    rows = [(sim.time, *sim.true_pose[0])]
+    while True:
+        sim.command_wheels(0, left, right)
+        sim.step()
+        rows.append((sim.time, *sim.true_pose[0]))
+        if sim.time >= duration - 1e-9:
+            return np.array(rows)
+        values = sim.ir_raw[0]
+        left = right = 0.5 * MODEL.max_wheel_speed
+        if max(values[i] for i in FRONT_SENSORS) > 80.0:
+            left, right = -0.4 * MODEL.max_wheel_speed, 0.4 * MODEL.max_wheel_speed
+        elif values[2] > 80.0:
+            left, right = 0.5 * MODEL.max_wheel_speed, 0.2 * MODEL.max_wheel_speed
+        elif values[5] > 80.0:
+            left, right = 0.2 * MODEL.max_wheel_speed, 0.5 * MODEL.max_wheel_speed
+
+
+def test_the_course_obstacle_avoidance_runs_unchanged_step_for_step_as_on_the_core(
+        launch: object, test_node: object) -> None:
+    """Noise on, seed 3, lockstep: the course's program through webots_controller and the sim process gives the
+    very run of the same rules stepped on the pure core: every reading was that of the step it asked for, and
+    the run is as deterministic as the core is."""
+    run = ControllerRun(launch, test_node, COURSE_DIR / 'obstacle_avoidance.py', 15.0, noise=True,
+                        sim_params={'seed': 3})
+    over_dds = run.finish()
+    assert run.stop_controller() == 0, run.output
+    over_dds = over_dds[np.unique(over_dds[:, 0], return_index=True)[1]]  # a first step re-sent in lockstep
+    core = course_avoidance_in_the_core(3, 15.0)
+    turned = float(np.abs(np.diff(core[:, 3])).sum())
+    print(f'course obstacle avoidance: turned {math.degrees(turned):.1f} deg in 15 s; {len(over_dds)} steps')
     assert turned > 1.0  # it saw the walls (NaN readings would never exceed the threshold)
-    assert len(first) == len(second) and np.array_equal(first, second)
+    assert len(over_dds) == len(core)
+    assert np.allclose(over_dds[:, 0], core[:, 0], atol=1e-9, rtol=0.0)  # stamps are whole nanoseconds
+    assert np.array_equal(over_dds[:, 1:3], core[:, 1:3])
+    assert np.allclose(np.unwrap(core[:, 3]), over_dds[:, 3], atol=1e-12, rtol=0.0)
 
 
 def expected_raw(pose: np.ndarray, face_x: float, half_width: float) -> np.ndarray:
