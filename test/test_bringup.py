@@ -7,10 +7,12 @@ from __future__ import annotations
 import os
 import re
 import signal
+import socket
 import subprocess
 import sys
 import textwrap
 import time
+import urllib.request
 from pathlib import Path
 
 import pytest
@@ -252,4 +254,47 @@ def test_an_rclpy_controller_script_runs_with_sim_time_and_gets_the_summary(laun
     simulated, distance, _ = summary_of(run.output())
     assert simulated == pytest.approx(3.0, abs=0.032)
     assert 0.02 * 2.0 * (simulated - 0.2) < distance <= 0.02 * 2.0 * simulated + 1e-3
+    assert processes_in_this_domain() == []
+
+
+def test_a_webots_controller_script_runs_through_webots_controller(launch):
+    script = Path(__file__).resolve().parents[1] / 'epuck_ros' / 'webots' / 'examples' / 'straight_line.py'
+    run = launch('bringup', '--controller', str(script), '--duration', '3', '--real-time-factor', '0', '--no-noise')
+    assert run.proc.wait(timeout=90) == 0, run.output()
+    simulated, distance, _ = summary_of(run.output())
+    # Half speed (0.0628 m/s) from the first step to the last, as the native `forward`.
+    assert distance == pytest.approx(0.0628 * (simulated - 0.032), abs=2e-3)
+    assert processes_in_this_domain() == []
+
+
+def free_port() -> int:
+    with socket.socket() as probe:
+        probe.bind(('127.0.0.1', 0))
+        return probe.getsockname()[1]
+
+
+def test_run_sh_view_starts_the_default_run_with_the_view_and_prints_its_url(tmp_path):
+    """What a newcomer types: `scripts/run.sh --view` (here on a free port), then opens the printed address."""
+    port = free_port()
+    log_path = tmp_path / 'run.log'
+    root = Path(__file__).resolve().parents[1]
+    with open(log_path, 'w') as log:
+        process = subprocess.Popen([str(root / 'scripts' / 'run.sh'), '--view', '-p', f'view.port:={port}'],
+                                   stdout=log, stderr=subprocess.STDOUT, start_new_session=True)
+    try:
+        url = f'http://127.0.0.1:{port}/'
+        deadline = time.monotonic() + 120
+        while f'[bringup] view: {url}' not in log_path.read_text():
+            assert process.poll() is None and time.monotonic() < deadline, log_path.read_text()
+            time.sleep(0.1)
+        assert '[bringup] running avoid until Ctrl-C' in log_path.read_text()
+        with urllib.request.urlopen(url, timeout=60) as response:
+            assert response.status == 200 and b'<html' in response.read().lower()
+        process.send_signal(signal.SIGINT)
+        assert process.wait(timeout=60) == 0, log_path.read_text()
+    finally:
+        if process.poll() is None:
+            process.kill()
+            process.wait()
+    assert '[bringup] simulated' in log_path.read_text()
     assert processes_in_this_domain() == []
