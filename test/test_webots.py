@@ -107,21 +107,24 @@ class ControllerRun:
 
     def __init__(self, launch: object, test_node: object, script: Path | str, duration: float, *,
                  noise: bool = False, world: Path | None = None, sim_params: dict | None = None,
-                 joints: bool = False) -> None:
+                 joints: bool = False, robot: str = '') -> None:
         self.test_node = test_node
         self.duration = duration
-        self.truth: list[Odometry] = test_node.collect(Odometry, 'ground_truth', HISTORY)
-        self.joints: list[JointState] = test_node.collect(JointState, 'joint_states', HISTORY) if joints else []
+        prefix = f'{robot}/' if robot else ''
+        self.truth: list[Odometry] = test_node.collect(Odometry, prefix + 'ground_truth', HISTORY)
+        self.joints: list[JointState] = test_node.collect(JointState, prefix + 'joint_states', HISTORY) if joints \
+            else []
         latched = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
-        self.collisions: list[UInt32] = test_node.collect(UInt32, 'collisions', latched)
+        self.collisions: list[UInt32] = test_node.collect(UInt32, prefix + 'collisions', latched)
         params = {'real_time_factor': 0.0, 'lockstep': True, 'paused': True, 'pause_at': float(duration),
                   'noise': noise, **({'world': str(world)} if world else {}), **(sim_params or {})}
         self.sim = launch(SIM, *ros_args(params))
         self.sim.wait_for_output('sim ready')
-        self.controller = launch('webots_controller', str(script))
+        self.controller = launch('webots_controller', str(script), *(['--robot', robot] if robot else []))
         node = test_node.node
         # In the graph = connected enough: the sim re-sends an unanswered first step, so a late match costs no step.
-        test_node.spin_until(lambda: node.count_publishers('wheel_cmd') > 0 and node.count_subscribers('ir_raw') > 0
+        test_node.spin_until(lambda: node.count_publishers(prefix + 'wheel_cmd') > 0 and
+                             node.count_subscribers(prefix + 'ir_raw') > 0
                              or self.controller.proc.poll() is not None, timeout=30.0, what='the controller')
         assert self.controller.proc.poll() is None, self.output
         self._resume()
@@ -448,15 +451,29 @@ def test_a_script_that_stops_stepping_leaves_the_robot_stopped_after_cmd_timeout
     assert run.stop_controller() == 0  # Ctrl-C outside step(): KeyboardInterrupt, a clean end
 
 
-def test_bad_command_lines_get_one_line_and_exit_2(launch: object, test_node: object) -> None:
+def test_a_missing_script_gets_one_line_and_exit_2(launch: object) -> None:
     missing = launch('webots_controller', '/nowhere/my_controller.py')
     assert missing.proc.wait(timeout=30.0) == 2
     assert missing.output().strip() == 'webots_controller: no such controller script: /nowhere/my_controller.py'
-    sim = launch(SIM, *ros_args({'real_time_factor': 1.0}))
-    sim.wait_for_output('sim ready')
-    wrong = launch('webots_controller', str(example('spin')), '--robot', 'epuck7')
-    assert wrong.proc.wait(timeout=30.0) == 2
-    assert wrong.output().strip().splitlines()[-1] == (
-        'webots_controller: --robot epuck7: the simulator has a single robot (its topics carry no robot name); '
-        'leave --robot out')
-    assert 'Traceback' not in wrong.output()
+
+
+def test_robot_picks_one_robot_of_several(launch: object, test_node: object) -> None:
+    """Two robots: without --robot, or with a name the world does not have, one line and exit 2; --robot epuck1
+    drives epuck1 (its topics under epuck1/) and epuck0, which nobody drives, stays where it is."""
+    others = test_node.collect(Odometry, 'epuck0/ground_truth', HISTORY)
+    run = ControllerRun(launch, test_node, example('spin'), 3.0, robot='epuck1', sim_params={'robots': 2})
+    rows = run.finish()
+    assert run.stop_controller() == 0, run.output
+    rate = np.polyfit(*moving(rows)[3:, [0, 3]].T, 1)[0]
+    still = trajectory(others)
+    print(f'--robot epuck1: {rate:.4f} rad/s; epuck0 moved {np.ptp(still[:, 1:], axis=0)}')
+    assert rate == pytest.approx(-2.415, rel=0.005)
+    assert np.ptp(still[:, 1:], axis=0).max() == 0.0
+    wrong = {'the simulator has several robots (epuck0, epuck1): choose one with --robot NAME':
+             launch('webots_controller', str(example('spin'))),
+             '--robot epuck7: no such robot in the simulator (robots: epuck0, epuck1)':
+             launch('webots_controller', str(example('spin')), '--robot', 'epuck7')}
+    for line, process in wrong.items():
+        assert process.proc.wait(timeout=30.0) == 2
+        assert process.output().strip().splitlines()[-1] == f'webots_controller: {line}'
+        assert 'Traceback' not in process.output()
