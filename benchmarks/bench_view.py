@@ -1,8 +1,8 @@
 """Does the live view slow the simulator down? The `sim` node's real-time factor at `real_time_factor` 0, alone and
 with the `view` node running and a page connected to it.
 
-One `sim` process (default world, noise on) runs throughout; the phases alternate: sim alone, sim + view + page,
-and so on. The page is a client reading the view's event stream (`/events`) as a browser does. The real-time
+One `sim` process (default world, noise on) runs throughout; the phases alternate: sim alone, sim + view with no
+page open (as `bringup --view` before a browser connects), sim + view + page, and so on. The page is a client reading the view's event stream (`/events`) as a browser does. The real-time
 factor is the simulated time /clock advanced over the wall time of the phase, read by a best-effort, depth-1
 subscription sampled only at the start and the end of each phase (so measuring costs the sim nothing).
 
@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import argparse
 import http.client
+import json
 import os
 import shutil
 import signal
@@ -23,6 +24,7 @@ import subprocess
 import sys
 import threading
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 import rclpy
@@ -102,6 +104,22 @@ def start_view(log: Path) -> tuple[subprocess.Popen, str, int]:
     raise SystemExit(f'the view did not start:\n{log.read_text()}')
 
 
+def get(host: str, port: int, path: str) -> str:
+    connection = http.client.HTTPConnection(host, port, timeout=30)
+    connection.request('GET', path)
+    body = connection.getresponse().read().decode()
+    connection.close()
+    return body
+
+
+def wait_for(condition: Callable[[], bool], what: str, timeout: float = 60.0) -> None:
+    deadline = time.monotonic() + timeout
+    while not condition():
+        if time.monotonic() > deadline:
+            raise SystemExit(f'timed out waiting for {what}')
+        time.sleep(0.05)
+
+
 def cpu_seconds(pid: int) -> float:
     """User + system CPU time a process has used (Linux /proc)."""
     fields = Path(f'/proc/{pid}/stat').read_text().rsplit(')', 1)[1].split()
@@ -120,24 +138,26 @@ def stop(process: subprocess.Popen) -> None:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument('--seconds', type=float, default=5.0, help='wall seconds per phase (default 5)')
-    parser.add_argument('--rounds', type=int, default=2, help='pairs of phases (default 2)')
+    parser.add_argument('--rounds', type=int, default=2, help='rounds of the three phases (default 2)')
     args = parser.parse_args()
     os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
     sim = subprocess.Popen([_executable('sim'), '--ros-args', '-p', 'real_time_factor:=0.0'],
                            stdout=subprocess.DEVNULL, stderr=subprocess.STDOUT)
     rclpy.init()
     sampler = ClockSampler()
-    alone, viewed, event_rates, view_cpu = [], [], [], []
+    alone, unwatched, viewed, event_rates, view_cpu = [], [], [], [], []
     try:
         sampler.sample()
         for _ in range(args.rounds):
             alone.append(sampler.real_time_factor(args.seconds))
-            print(f'sim alone:          {alone[-1]:7.0f}x real time', flush=True)
+            print(f'sim alone:            {alone[-1]:7.0f}x real time', flush=True)
             view, host, port = start_view(Path('/tmp') / f'bench_view_{os.getpid()}.log')
             try:
+                wait_for(lambda: 'robots' in json.loads(get(host, port, '/world')), 'the view to have the world')
+                unwatched.append(sampler.real_time_factor(args.seconds))
+                print(f'sim + view, no page:  {unwatched[-1]:7.0f}x real time', flush=True)
                 page = Page(host, port)
-                while page.states == 0:  # the view has the world and the page its first frame
-                    time.sleep(0.05)
+                wait_for(lambda: page.states > 0, 'the first frame on the page')
                 states, cpu = page.states, cpu_seconds(view.pid)
                 viewed.append(sampler.real_time_factor(args.seconds))
                 event_rates.append((page.states - states) / args.seconds)
@@ -145,18 +165,19 @@ def main() -> None:
                 page.close()
             finally:
                 stop(view)
-            print(f'sim + view + page:  {viewed[-1]:7.0f}x real time '
+            print(f'sim + view + page:    {viewed[-1]:7.0f}x real time '
                   f'(the page got {event_rates[-1]:.0f} state events/s; '
                   f'the view used {100 * view_cpu[-1]:.0f} % of a core)', flush=True)
     finally:
         sampler.node.destroy_node()
         rclpy.try_shutdown()
         stop(sim)
-    mean_alone, mean_viewed = sum(alone) / len(alone), sum(viewed) / len(viewed)
-    print(f'mean: sim alone {mean_alone:.0f}x, with view and page {mean_viewed:.0f}x real time; '
-          f'ratio with/without {mean_viewed / mean_alone:.2f}; page events {max(event_rates):.0f}/s at most; '
+    mean = {name: sum(values) / len(values) for name, values in
+            (('alone', alone), ('unwatched', unwatched), ('viewed', viewed))}
+    print(f'mean: sim alone {mean["alone"]:.0f}x; with the view and no page {mean["unwatched"]:.0f}x '
+          f'(ratio {mean["unwatched"] / mean["alone"]:.2f}); with the view and a page {mean["viewed"]:.0f}x '
+          f'(ratio {mean["viewed"] / mean["alone"]:.2f}); page events {max(event_rates):.0f}/s at most; '
           f'view CPU {100 * sum(view_cpu) / len(view_cpu):.0f} % of a core')
-
 
 if __name__ == '__main__':
     main()
