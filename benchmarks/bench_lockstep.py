@@ -1,0 +1,132 @@
+"""Closed-loop speed in lockstep: the real `sim` and `avoid` processes at `real_time_factor` 0.
+
+In lockstep the simulator steps only once every driven robot's controller answered the last step, so the
+real-time factor reached is that of the whole loop (simulator, DDS both ways, controller). Measured, in the same
+run, for the same simulated seconds (the simulator starts paused and pauses itself at `pause_at`):
+- baseline: `avoid` reading the eight `proximity` Range messages of each step (what it did before `ir_raw`; forced
+  here by remapping `ir_raw` away, as on a robot whose driver publishes no `ir_raw`);
+- `avoid` reading `ir_raw`, one message per step (the issue's goal: >= 50x real time);
+- N robots, all driven by one `avoid --robots all` process.
+Printed per configuration: real-time factor, steps/s, robot-steps/s and the CPU each process used per step.
+
+Run: . scripts/env.sh; ROS_DOMAIN_ID=43 python benchmarks/bench_lockstep.py [--seconds S] [--swarm N]
+"""
+from __future__ import annotations
+
+import argparse
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import rclpy
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+from rclpy.parameter_client import AsyncParameterClient
+
+STEP = 0.032
+TIMEOUT = 60.0
+POLL = 0.01
+"""Wall seconds between two looks at the simulator's `paused` parameter (the end of a run)."""
+
+
+def executable(name: str) -> str:
+    return shutil.which(name) or str(Path(sys.executable).parent / name)
+
+
+def cpu_seconds(pid: int) -> float:
+    fields = Path(f'/proc/{pid}/stat').read_text().rsplit(')', 1)[1].split()
+    return (int(fields[11]) + int(fields[12])) / os.sysconf('SC_CLK_TCK')
+
+
+@dataclass
+class Result:
+    label: str
+    robots: int
+    rtf: float
+    sim_cpu_us: float
+    controller_cpu_us: float
+    """CPU microseconds per step."""
+
+    def line(self, baseline: Result | None) -> str:
+        ratio = f'  {self.rtf / baseline.rtf:5.2f}x the baseline' if baseline else ''
+        return (f'{self.label:<34} {self.robots:>3} robot(s) {self.rtf:7.1f}x real time = {self.rtf / STEP:7,.0f} '
+                f'steps/s = {self.rtf / STEP * self.robots:8,.0f} robot-steps/s; CPU per step: sim '
+                f'{self.sim_cpu_us:6.0f} us, avoid {self.controller_cpu_us:6.0f} us{ratio}')
+
+
+def wait(node: Node, condition: object, what: str) -> None:
+    deadline = time.monotonic() + TIMEOUT
+    while not condition():
+        if time.monotonic() > deadline:
+            raise SystemExit(f'bench_lockstep: timed out waiting for {what}')
+        rclpy.spin_once(node, timeout_sec=POLL)
+
+
+def call(node: Node, future: object, what: str) -> object:
+    wait(node, future.done, what)
+    return future.result()
+
+
+def run(node: Node, label: str, seconds: float, robots: int, ir_raw: bool) -> Result:
+    """One closed-loop run of `seconds` simulated seconds; the processes are stopped before returning."""
+    sim = subprocess.Popen([executable('sim'), '--ros-args', '-p', 'lockstep:=true', '-p', 'real_time_factor:=0',
+                            '-p', 'paused:=true', '-p', f'pause_at:={seconds}', '-p', f'robots:={robots}'],
+                           stdout=subprocess.DEVNULL, stderr=subprocess.STDOUT)
+    avoid = subprocess.Popen([executable('avoid'), *(['--robots', 'all'] if robots > 1 else []), '--ros-args',
+                              '-p', 'use_sim_time:=true', *([] if ir_raw else ['-r', 'ir_raw:=ir_raw_unused'])],
+                             stdout=subprocess.DEVNULL, stderr=subprocess.STDOUT)
+    try:
+        names = [f'/epuck{i}/' for i in range(robots)] if robots > 1 else ['/']
+        reads = 'ir_raw' if ir_raw else 'proximity'
+        wait(node, lambda: all(node.count_publishers(f'{n}wheel_cmd') and node.count_subscribers(f'{n}{reads}')
+                               for n in names), f'avoid to drive every robot and read {reads}')
+        params = AsyncParameterClient(node, 'sim')
+        wait(node, params.services_are_ready, 'the sim parameter services')
+        cpu = (cpu_seconds(sim.pid), cpu_seconds(avoid.pid))
+        start = time.monotonic()
+        call(node, params.set_parameters([Parameter('paused', value=False)]), 'the sim to resume')
+        while not call(node, params.get_parameters(['paused']), 'the paused parameter').values[0].bool_value:
+            if time.monotonic() - start > TIMEOUT * 10:
+                raise SystemExit('bench_lockstep: the run did not end')
+            time.sleep(POLL)
+        wall = time.monotonic() - start
+        steps = round(seconds / STEP)
+        sim_cpu, avoid_cpu = (cpu_seconds(p.pid) - before for p, before in zip((sim, avoid), cpu))
+        return Result(label, robots, seconds / wall, sim_cpu / steps * 1e6, avoid_cpu / steps * 1e6)
+    finally:
+        for process in (avoid, sim):
+            process.send_signal(signal.SIGINT)
+            try:
+                process.wait(timeout=15)
+            except subprocess.TimeoutExpired:
+                process.kill()
+                process.wait()
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument('--seconds', type=float, default=60.0, help='simulated seconds per run (default 60)')
+    parser.add_argument('--swarm', type=int, default=10, help='robots of the one-process run (default 10; 0 = skip)')
+    args = parser.parse_args()
+    os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
+    rclpy.init()
+    node = rclpy.create_node('bench_lockstep')
+    try:
+        baseline = run(node, 'avoid on 8 proximity Ranges/step', args.seconds, 1, ir_raw=False)
+        print(baseline.line(None), flush=True)
+        print(run(node, 'avoid on 1 ir_raw/step', args.seconds, 1, ir_raw=True).line(baseline), flush=True)
+        if args.swarm > 1:
+            print(run(node, 'avoid --robots all, ir_raw', args.seconds, args.swarm, ir_raw=True).line(baseline),
+                  flush=True)
+    finally:
+        node.destroy_node()
+        rclpy.try_shutdown()
+
+
+if __name__ == '__main__':
+    main()
