@@ -1,11 +1,15 @@
-"""The real-time factor the `sim` node reaches with `real_time_factor` 0, publishing all its topics over DDS.
+"""The real-time factor the `sim` node reaches at `real_time_factor` 0, over DDS, in three set-ups.
 
-The node runs in its own process (noise on, default world) while this process listens to every topic it
-publishes, as a controller and a recorder would. Printed: simulated seconds per wall second measured from
-`/clock` (node), messages received per second, and, in the same run, the pure core's steps/s (the ceiling the
-node's ROS overhead is measured against). The issue's goal is at least 100x real time for the node.
+1. one robot, every topic it publishes subscribed by this process (as a controller plus a recorder would);
+2. 50 robots (`robots:=50`), every topic of every robot subscribed by this process;
+3. closed loop, one robot: `sim` in lockstep with the `avoid` behaviour node (which reads `ir_raw`, one message
+   per step) — the speed of a deterministic run, the issue's goal being >= 50x real time.
 
-Run: ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST python benchmarks/bench_sim_node.py [--seconds S]
+Each runs in its own processes (noise on, default world). Printed: simulated seconds per wall second from `/clock`,
+messages received per second, the CPU each process used, and, in the same run, the pure core's steps/s for the
+same number of robots (the ceiling the node's ROS overhead is measured against).
+
+Run: . scripts/env.sh; ROS_DOMAIN_ID=42 python benchmarks/bench_sim_node.py [--seconds S] [--robots N]
 """
 from __future__ import annotations
 
@@ -20,24 +24,48 @@ from pathlib import Path
 
 import rclpy
 from nav_msgs.msg import Odometry
+from rclpy.node import Node
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState, Range
+from std_msgs.msg import Float64MultiArray
 
-sys.path.insert(0, str(Path(__file__).parent))
-from bench_core import run_core  # noqa: E402
+from epuck_ros.model import RobotModel
+from epuck_ros.simulation import Simulation
+from epuck_ros.world import default_world, place_robots
 
 STEP = 0.032
-TOPICS = [(Clock, '/clock'), (Odometry, 'odom'), (Odometry, 'ground_truth'), (Range, 'proximity'),
-          (JointState, 'joint_states')]
+ROBOT_TOPICS = [(Odometry, 'odom'), (Odometry, 'ground_truth'), (Range, 'proximity'), (JointState, 'joint_states'),
+                (Float64MultiArray, 'ir_raw')]
 
 
-def measure_node(seconds: float) -> tuple[float, int]:
-    """(simulated seconds per wall second, messages received) over `seconds` of wall time."""
-    sim_exe = shutil.which('sim') or str(Path(sys.executable).parent / 'sim')
-    sim = subprocess.Popen([sim_exe, '--ros-args', '-p', 'real_time_factor:=0.0'],
-                           stdout=subprocess.DEVNULL, stderr=subprocess.STDOUT)
-    rclpy.init()
-    node = rclpy.create_node('bench_sim_node')
+def executable(name: str) -> str:
+    return shutil.which(name) or str(Path(sys.executable).parent / name)
+
+
+def cpu_seconds(pid: int) -> float:
+    """User + system CPU seconds of a process so far (from /proc)."""
+    fields = Path(f'/proc/{pid}/stat').read_text().rsplit(')', 1)[1].split()
+    return (int(fields[11]) + int(fields[12])) / os.sysconf('SC_CLK_TCK')
+
+
+def core_steps_per_second(robots: int, steps: int) -> float:
+    world = default_world() if robots == 1 else place_robots(default_world(), robots, seed=0)
+    sim = Simulation(world, RobotModel(), noise=True)
+    for index in range(robots):
+        sim.command_wheels(index, 3.0, 2.5)
+    start = time.perf_counter()
+    for _ in range(steps):
+        sim.step()
+    return steps / (time.perf_counter() - start)
+
+
+def measure(seconds: float, sim_args: list[str], robots: int, controller: list[str] | None = None) -> dict:
+    """Start sim (and a controller), subscribe everything, measure over `seconds` of wall time."""
+    processes = [subprocess.Popen([executable('sim'), '--ros-args', '-p', 'real_time_factor:=0', *sim_args],
+                                  stdout=subprocess.DEVNULL, stderr=subprocess.STDOUT)]
+    if controller:
+        processes.append(subprocess.Popen(controller, stdout=subprocess.DEVNULL, stderr=subprocess.STDOUT))
+    node = Node('bench_sim_node')
     clock: list[float] = []
     received = [0]
 
@@ -48,38 +76,67 @@ def measure_node(seconds: float) -> tuple[float, int]:
     def count(_msg: object) -> None:
         received[0] += 1
 
-    for msg_type, topic in TOPICS:
-        node.create_subscription(msg_type, topic, on_clock if topic == '/clock' else count, 100)
+    node.create_subscription(Clock, '/clock', on_clock, 100)
+    if not controller:
+        prefixes = [''] if robots == 1 else [f'epuck{i}/' for i in range(robots)]
+        for prefix in prefixes:
+            for msg_type, topic in ROBOT_TOPICS:
+                node.create_subscription(msg_type, prefix + topic, count, 100)
     try:
-        deadline = time.monotonic() + 30.0
-        while not clock and time.monotonic() < deadline:
+        deadline = time.monotonic() + 60.0
+        while (len(clock) < 50) and time.monotonic() < deadline:
             rclpy.spin_once(node, timeout_sec=0.1)
         if not clock:
-            raise SystemExit('the sim node published no /clock within 30 s')
+            raise SystemExit('the sim node published no /clock within 60 s')
         first_sim, start, received[0] = clock[-1], time.monotonic(), 0
+        cpu_start = [cpu_seconds(p.pid) for p in processes] + [time.process_time()]
         while time.monotonic() - start < seconds:
             rclpy.spin_once(node, timeout_sec=0.1)
         wall = time.monotonic() - start
-        return (clock[-1] - first_sim) / wall, int(received[0] / wall)
+        cpu = [cpu_seconds(p.pid) for p in processes] + [time.process_time()]
+        return {'rtf': (clock[-1] - first_sim) / wall, 'messages': received[0] / wall,
+                'cpu': [(b - a) / wall for a, b in zip(cpu_start, cpu)]}
     finally:
         node.destroy_node()
-        rclpy.try_shutdown()
-        sim.send_signal(signal.SIGINT)
-        sim.wait(timeout=10)
+        for process in reversed(processes):
+            process.send_signal(signal.SIGINT)
+            try:
+                process.wait(timeout=15)
+            except subprocess.TimeoutExpired:
+                process.kill()
+                process.wait()
+
+
+def report(label: str, result: dict, core: float, names: list[str]) -> None:
+    cpu = ', '.join(f'{name} {share:.0%}' for name, share in zip(names, result['cpu']))
+    print(f'{label:34s} {result["rtf"]:8.1f}x real time = {result["rtf"] / STEP:8,.0f} steps/s; '
+          f'{result["messages"]:9,.0f} msg/s received; node/core {result["rtf"] / (core * STEP):5.2f}; CPU {cpu}')
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument('--seconds', type=float, default=10.0, help='wall seconds to measure the node (default 10)')
+    parser.add_argument('--seconds', type=float, default=10.0, help='wall seconds per measurement (default 10)')
+    parser.add_argument('--robots', type=int, default=50, help='robots in the swarm case (default 50)')
     args = parser.parse_args()
     os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
-    core_steps, _ = run_core(20000)
-    print(f'core alone:          {core_steps:10,.0f} steps/s = {core_steps * STEP:6.0f}x real time')
-    node_rtf, messages = measure_node(args.seconds)
-    print(f'sim node (all topics): {node_rtf:8.0f}x real time = {node_rtf / STEP:8,.0f} steps/s, '
-          f'{messages:,} messages/s received by one subscriber process')
-    print(f'node / core:         {node_rtf / (core_steps * STEP):10.2f} (the share of time not spent on ROS)')
-    print(f'goal 100x real time: {"met" if node_rtf >= 100 else "NOT met"}')
+    core_one = core_steps_per_second(1, 20000)
+    core_many = core_steps_per_second(args.robots, 2000)
+    print(f'{"core alone, 1 robot":34s} {core_one * STEP:8.1f}x real time = {core_one:8,.0f} steps/s')
+    print(f'{f"core alone, {args.robots} robots":34s} {core_many * STEP:8.1f}x real time = {core_many:8,.0f} steps/s')
+    rclpy.init()
+    try:
+        one = measure(args.seconds, [], 1)
+        report('sim node, 1 robot, all topics', one, core_one, ['sim', 'subscriber'])
+        many = measure(args.seconds, ['-p', f'robots:={args.robots}'], args.robots)
+        report(f'sim node, {args.robots} robots, all topics', many, core_many, ['sim', 'subscriber'])
+        loop = measure(args.seconds, ['-p', 'lockstep:=true'], 1,
+                       [executable('avoid'), '--ros-args', '-p', 'use_sim_time:=true'])
+        report('closed loop: sim + avoid, lockstep', loop, core_one, ['sim', 'avoid', 'this process'])
+    finally:
+        rclpy.try_shutdown()
+    print(f'goals: node 1 robot >= 100x: {"met" if one["rtf"] >= 100 else "NOT met"}; '
+          f'{args.robots} robots >= 1x: {"met" if many["rtf"] >= 1 else "NOT met"}; '
+          f'closed loop >= 50x: {"met" if loop["rtf"] >= 50 else "NOT met"}')
 
 
 if __name__ == '__main__':
