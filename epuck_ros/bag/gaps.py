@@ -83,7 +83,7 @@ def find_gaps(topic: str, stamps: np.ndarray) -> TopicGaps | None:
     forward = steps[steps > 0]  # a step back is a restart (reset, a new run), not a loss
     if len(forward) < MIN_STEPS:
         return None
-    rough = np.percentile(forward, 10)
+    rough = np.percentile(forward, 10, method='lower')  # a step that occurred, so `single` holds it
     single = forward[(forward > 0.5 * rough) & (forward < 1.5 * rough)]
     period = int(np.median(single))
     periods = forward / period

@@ -246,8 +246,11 @@ class McapFile:
                                                   statistics.message_end_time if last is None else last)
         for index in summary.metadata_indexes:
             if index.name == 'rosbag2':
-                body = self._record_body(index.offset, Opcode.METADATA, f'{self.path} metadata record')
-                self._keep_rosbag2_metadata(_read_record(body, Metadata, f'{self.path} at byte {index.offset}'))
+                try:
+                    body = self._record_body(index.offset, Opcode.METADATA, f'{self.path} metadata record')
+                    self._keep_rosbag2_metadata(_read_record(body, Metadata, f'{self.path} at byte {index.offset}'))
+                except BagError:
+                    pass  # optional (it gives the ROS distro): a corrupt one is ignored
         return True
 
     def _check_chunk_indexes(self, indexes: list) -> str | None:
@@ -368,8 +371,11 @@ class McapFile:
             elif opcode == Opcode.HEADER:
                 self.profile, self.library = self._strings(position + 9, end, 2)
             elif opcode == Opcode.METADATA:
-                self._keep_rosbag2_metadata(_read_record(data[position + 9:end], Metadata,
-                                                         f'{self.path} at byte {position}'))
+                try:
+                    self._keep_rosbag2_metadata(_read_record(data[position + 9:end], Metadata,
+                                                             f'{self.path} at byte {position}'))
+                except BagError:
+                    pass  # optional (it gives the ROS distro): a corrupt one is ignored
             else:
                 yield from self._walk_records(data, position, end, channel_ids, schemas, position)
             position = end
