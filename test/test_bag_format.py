@@ -425,3 +425,10 @@ def test_stamp_gaps_hold_when_most_of_a_topic_is_lost_and_leave_event_topics_alo
     assert find_gaps('/jittery', jittered).missing_messages == 0
     events = np.cumsum(rng.exponential(3 * period, 500)).astype(np.int64)  # like rosout: no period
     assert find_gaps('/rosout', events) is None
+
+
+def test_stamp_gaps_of_two_clusters_of_steps():
+    """Two short steps then ten long ones: the 10th percentile falls between them (it was NaN, a traceback)."""
+    stamps = np.cumsum([0, 10, 10] + [1000] * 10)
+    gaps = find_gaps('/clustered', stamps)
+    assert (gaps.period_ns, gaps.gaps, gaps.missing_steps) == (10, 10, 990)
