@@ -1,14 +1,16 @@
-"""Does the live view slow the simulator down? The `sim` node's real-time factor at `real_time_factor` 0, alone and
-with the `view` node running and a page connected to it.
+"""Does the live view slow the simulator down? The `sim` node at `real_time_factor` 0: alone, with the `view` node
+running and no page open (as `bringup --view` before a browser connects), and with a page connected.
 
-One `sim` process (default world, noise on) runs throughout; the phases alternate: sim alone, sim + view with no
-page open (as `bringup --view` before a browser connects), sim + view + page, and so on. The page is a client reading the view's event stream (`/events`) as a browser does. The real-time
-factor is the simulated time /clock advanced over the wall time of the phase, read by a best-effort, depth-1
-subscription sampled only at the start and the end of each phase (so measuring costs the sim nothing).
+One `sim` process (default world, noise on) runs throughout and the three phases alternate. The page is a client
+reading the view's event stream (`/events?robot=epuck`) as a browser does. Per phase:
+- the real-time factor reached: simulated time (/clock, read by a best-effort depth-1 subscription sampled only
+  at the start and end of the phase, so measuring costs the sim nothing) over wall time;
+- the sim's CPU time per simulated second (Linux /proc): what each step costs the sim whatever else the machine
+  runs. Its inverse is the real-time factor the sim would reach with a core to itself, a figure other jobs on
+  the machine disturb far less than the wall-clock one;
+- the view's CPU use and the state events a second the page got (at most 30, whatever the sim's rate).
 
-Printed: the real-time factor of each phase, the means, their ratio (with / without), the state events a second
-the page received (the view thins them to at most 30 a second whatever the simulator's rate) and the CPU time the
-view process used (on a machine with few cores, that is what the simulator may lose).
+Printed: each phase, then the means and the ratios to the sim alone.
 
 Run: . scripts/env.sh && ROS_DOMAIN_ID=43 python benchmarks/bench_view.py [--seconds S] [--rounds N]
 """
@@ -25,6 +27,7 @@ import sys
 import threading
 import time
 from collections.abc import Callable
+from dataclasses import dataclass
 from pathlib import Path
 
 import rclpy
@@ -58,11 +61,30 @@ class ClockSampler:
             rclpy.spin_once(self.node, timeout_sec=0.1)
         return time.monotonic(), self.latest
 
-    def real_time_factor(self, seconds: float) -> float:
+    def measure(self, seconds: float, sim_pid: int, view_pid: int | None = None) -> Phase:
+        """Real-time factor and CPU use over `seconds` of wall time."""
+        sim_cpu0, view_cpu0 = cpu_seconds(sim_pid), cpu_seconds(view_pid) if view_pid else 0.0
         wall0, sim0 = self.sample()
         time.sleep(seconds)
         wall1, sim1 = self.sample()
-        return (sim1 - sim0) / (wall1 - wall0)
+        sim_cpu, view_cpu = cpu_seconds(sim_pid) - sim_cpu0, (cpu_seconds(view_pid) - view_cpu0) if view_pid else 0.0
+        return Phase(rtf=(sim1 - sim0) / (wall1 - wall0), sim_cpu_per_sim_second=sim_cpu / (sim1 - sim0),
+                     view_cores=view_cpu / (wall1 - wall0))
+
+
+@dataclass
+class Phase:
+    rtf: float
+    sim_cpu_per_sim_second: float
+    view_cores: float
+    page_events: float = 0.0
+
+    def __str__(self) -> str:
+        text = (f'{self.rtf:6.0f}x real time; sim CPU {1e3 * self.sim_cpu_per_sim_second:6.2f} ms per simulated s '
+                f'(= {1 / self.sim_cpu_per_sim_second:4.0f}x on a core of its own)')
+        if self.view_cores:
+            text += f'; view {100 * self.view_cores:3.0f} % of a core'
+        return text + (f'; page {self.page_events:.0f} events/s' if self.page_events else '')
 
 
 class Page:
@@ -145,39 +167,41 @@ def main() -> None:
                            stdout=subprocess.DEVNULL, stderr=subprocess.STDOUT)
     rclpy.init()
     sampler = ClockSampler()
-    alone, unwatched, viewed, event_rates, view_cpu = [], [], [], [], []
+    phases: dict[str, list[Phase]] = {'sim alone': [], 'sim + view, no page': [], 'sim + view + page': []}
     try:
         sampler.sample()
         for _ in range(args.rounds):
-            alone.append(sampler.real_time_factor(args.seconds))
-            print(f'sim alone:            {alone[-1]:7.0f}x real time', flush=True)
+            phases['sim alone'].append(sampler.measure(args.seconds, sim.pid))
+            print(f'sim alone:            {phases["sim alone"][-1]}', flush=True)
             view, host, port = start_view(Path('/tmp') / f'bench_view_{os.getpid()}.log')
             try:
                 wait_for(lambda: 'robots' in json.loads(get(host, port, '/world')), 'the view to have the world')
-                unwatched.append(sampler.real_time_factor(args.seconds))
-                print(f'sim + view, no page:  {unwatched[-1]:7.0f}x real time', flush=True)
+                phases['sim + view, no page'].append(sampler.measure(args.seconds, sim.pid, view.pid))
+                print(f'sim + view, no page:  {phases["sim + view, no page"][-1]}', flush=True)
                 page = Page(host, port)
                 wait_for(lambda: page.states > 0, 'the first frame on the page')
-                states, cpu = page.states, cpu_seconds(view.pid)
-                viewed.append(sampler.real_time_factor(args.seconds))
-                event_rates.append((page.states - states) / args.seconds)
-                view_cpu.append((cpu_seconds(view.pid) - cpu) / args.seconds)
+                states = page.states
+                phase = sampler.measure(args.seconds, sim.pid, view.pid)
+                phase.page_events = (page.states - states) / args.seconds
+                phases['sim + view + page'].append(phase)
                 page.close()
             finally:
                 stop(view)
-            print(f'sim + view + page:    {viewed[-1]:7.0f}x real time '
-                  f'(the page got {event_rates[-1]:.0f} state events/s; '
-                  f'the view used {100 * view_cpu[-1]:.0f} % of a core)', flush=True)
+            print(f'sim + view + page:    {phases["sim + view + page"][-1]}', flush=True)
     finally:
         sampler.node.destroy_node()
         rclpy.try_shutdown()
         stop(sim)
-    mean = {name: sum(values) / len(values) for name, values in
-            (('alone', alone), ('unwatched', unwatched), ('viewed', viewed))}
-    print(f'mean: sim alone {mean["alone"]:.0f}x; with the view and no page {mean["unwatched"]:.0f}x '
-          f'(ratio {mean["unwatched"] / mean["alone"]:.2f}); with the view and a page {mean["viewed"]:.0f}x '
-          f'(ratio {mean["viewed"] / mean["alone"]:.2f}); page events {max(event_rates):.0f}/s at most; '
-          f'view CPU {100 * sum(view_cpu) / len(view_cpu):.0f} % of a core')
+    means = {name: Phase(*(sum(getattr(p, f) for p in runs) / len(runs) for f in
+                           ('rtf', 'sim_cpu_per_sim_second', 'view_cores', 'page_events')))
+             for name, runs in phases.items()}
+    alone = means['sim alone']
+    print('means:')
+    for name, mean in means.items():
+        print(f'  {name + ":":22}{mean}')
+        if name != 'sim alone':
+            print(f'  {"":22}ratio to the sim alone: real-time factor {mean.rtf / alone.rtf:.2f}, '
+                  f'sim CPU per simulated second {mean.sim_cpu_per_sim_second / alone.sim_cpu_per_sim_second:.2f}')
 
 if __name__ == '__main__':
     main()

@@ -63,11 +63,11 @@ def test_ir_readings_become_ray_lengths_through_the_lookup_table() -> None:
 def test_real_time_factor_is_measured_over_the_last_second_and_falls_to_zero_when_time_stands_still() -> None:
     state = ViewState()
     for i in range(11):
-        state.set_clock(sim_time=0.2 * i, wall_time=100.0 + 0.1 * i)
+        state.set_time(sim_time=0.2 * i, wall_time=100.0 + 0.1 * i)
     assert state.real_time_factor(wall_now=101.0) == pytest.approx(2.0)
     assert state.real_time_factor(wall_now=103.0) == 0.0
-    state.set_clock(sim_time=0.0, wall_time=103.0)  # time went back (a bag replayed): old samples dropped
-    state.set_clock(sim_time=0.5, wall_time=103.5)
+    state.set_time(sim_time=0.0, wall_time=103.0)  # time went back (a bag replayed): old samples dropped
+    state.set_time(sim_time=0.5, wall_time=103.5)
     assert state.real_time_factor(wall_now=103.5) == pytest.approx(1.0)
 
 
@@ -196,7 +196,7 @@ def test_pages_and_polls_say_which_robots_are_watched(served) -> None:
     connection.close()
     deadline = time.monotonic() + 30
     while 'epuck0' in server.watched() and time.monotonic() < deadline:
-        server.state.set_clock(time.monotonic(), time.monotonic())  # the stream writes, and finds the page gone
+        server.state.set_time(time.monotonic(), time.monotonic())  # the stream writes, and finds the page gone
         time.sleep(0.05)
     assert 'epuck0' not in server.watched()
 

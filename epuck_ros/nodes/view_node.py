@@ -2,14 +2,16 @@
 
 It follows the latched `world` topic (arena, obstacles, robot names: one robot uses the unprefixed topics,
 several use `<name>/...`), keeps the newest ground truth, odometry, IR readings, wheel speeds and collision count
-of every robot and the simulated time, and serves them to the page (`epuck_ros.view.server`). The page's controls
+of every robot and the simulated time (the stamp of the first robot's ground truth), and serves them to the page (`epuck_ros.view.server`). The page's controls
 reach the simulator only through its own interfaces: its `paused` and `real_time_factor` parameters, its `step`
 and `reset` services and each robot's `cmd_vel`.
 
 The view must never slow the simulator down, which may step thousands of times a second. Every subscription is
 best-effort with a history of one, and the node takes its messages `SPIN_RATE` times a second rather than as they
 come: in between, each topic keeps only its newest sample, so the view handles a fixed number of messages a
-second whatever the simulator's rate, and the simulator never waits for it.
+second whatever the simulator's rate, and the simulator never waits for it. Each subscriber still costs the
+simulator a send per step, so the view subscribes to the robots' topics only while a page is open, and to
+odometry and wheel speeds only for the robots a page shows in detail.
 """
 from __future__ import annotations
 
@@ -35,7 +37,6 @@ from rclpy.publisher import Publisher
 from rclpy.qos import DurabilityPolicy, QoSProfile, qos_profile_sensor_data
 from rclpy.subscription import Subscription
 from rclpy.task import Future
-from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState, Range
 from std_msgs.msg import Float64MultiArray, String, UInt32
 from std_srvs.srv import Empty, Trigger
@@ -95,6 +96,7 @@ class ViewNode(Node):
         self._proximity: dict[str, Subscription] = {}
         self._drivers: dict[str, tuple[Publisher, float]] = {}
         self._robot_names: tuple[str, ...] = ()
+        self._has_ir_raw: set[str] = set()
 
         sim_node = values['sim_node']
         namespace = self.get_namespace().rstrip('/')
@@ -105,7 +107,6 @@ class ViewNode(Node):
         self._step = self.create_client(Trigger, 'step')
         self._reset = self.create_client(Empty, 'reset')
         self.create_subscription(String, 'world', self._on_world, LATCHED)
-        self.create_subscription(Clock, '/clock', self._on_clock, NEWEST_ONLY)
 
         host, port = values['host'], values['port']
         try:
@@ -128,32 +129,39 @@ class ViewNode(Node):
             self.get_logger().error(f'cannot draw the world: {" ".join(str(error).split())}')
             return
         self.state.set_world(world)
-        self._follow_robots(tuple(robot.name for robot in world.robots))
+        self._follow(())  # the previous world's robots
+        for publisher, _ in self._drivers.values():
+            self.destroy_publisher(publisher)
+        self._drivers, self._robot_names = {}, tuple(robot.name for robot in world.robots)
+        self._has_ir_raw = set()
         self.get_logger().info(f'world: {world.arena_size[0]:g} m x {world.arena_size[1]:g} m, '
                                f'robots {", ".join(self._robot_names)}')
 
-    def _follow_robots(self, names: tuple[str, ...]) -> None:
-        """Subscribe to what is drawn of each robot (dropping the previous world's robots)."""
-        self._watch(set())
+    def _follow(self, robots: tuple[str, ...]) -> None:
+        """Subscribe to what is drawn of each of `robots` (none: drop every such subscription).
+
+        Only while a page is open: every subscriber costs the simulator a send per step (bench_view.py), and the
+        readings kept meanwhile are what a page opened later starts from."""
         for subscription in self._robot_subscriptions + list(self._proximity.values()):
             self.destroy_subscription(subscription)
-        for publisher, _ in self._drivers.values():
-            self.destroy_publisher(publisher)
-        self._robot_subscriptions, self._proximity, self._drivers = [], {}, {}
-        self._robot_names = names
-        for robot in names:
-            topic = partial(robot_topic, names, robot)
+        self._robot_subscriptions, self._proximity = [], {}
+        self._watch(set())
+        if not robots:
+            return
+        for robot in robots:
+            topic = partial(robot_topic, self._robot_names, robot)
             self._robot_subscriptions += [
                 self.create_subscription(Odometry, topic('ground_truth'), partial(self._on_truth, robot), NEWEST_ONLY),
                 self.create_subscription(Float64MultiArray, topic('ir_raw'), partial(self._on_ir_raw, robot),
                                          NEWEST_ONLY),
                 self.create_subscription(UInt32, topic('collisions'), partial(self._on_collisions, robot), LATCHED),
             ]
-            # Bags recorded before `ir_raw` existed have only the 8 Range messages; dropped once ir_raw arrives.
-            # Its depth holds one step's 8 sensors.
-            self._proximity[robot] = self.create_subscription(
-                Range, topic('proximity'), partial(self._on_range, robot),
-                QoSProfile(depth=len(SENSOR_NAMES), reliability=NEWEST_ONLY.reliability))
+            if robot not in self._has_ir_raw:
+                # Bags recorded before `ir_raw` existed have only the 8 Range messages (depth: one step's worth);
+                # dropped once ir_raw arrives.
+                self._proximity[robot] = self.create_subscription(
+                    Range, topic('proximity'), partial(self._on_range, robot),
+                    QoSProfile(depth=len(SENSOR_NAMES), reliability=NEWEST_ONLY.reliability))
 
     def _watch(self, robots: set[str]) -> None:
         """Odometry and wheel speeds only of the robots a page shows in detail: every subscription costs the
@@ -169,14 +177,14 @@ class ViewNode(Node):
                 self.create_subscription(JointState, topic('joint_states'), partial(self._on_joints, robot),
                                          NEWEST_ONLY)]
 
-    def _on_clock(self, msg: Clock) -> None:
-        self.state.set_clock(_seconds(msg.clock), time.monotonic())
-
     def _on_truth(self, robot: str, msg: Odometry) -> None:
-        pose = msg.pose.pose
+        pose, stamp = msg.pose.pose, _seconds(msg.header.stamp)
         self.state.update(robot, pose=pose_from_odometry(pose.position.x, pose.position.y,
-                                                         pose.orientation.z, pose.orientation.w),
-                          stamp=_seconds(msg.header.stamp))
+                                                         pose.orientation.z, pose.orientation.w), stamp=stamp)
+        if robot == self._robot_names[0]:
+            # The simulated time shown is that of the first robot's pose: every message of a step carries the
+            # step's time, and not taking /clock too spares the simulator one send per step.
+            self.state.set_time(stamp, time.monotonic())
 
     def _on_odom(self, robot: str, msg: Odometry) -> None:
         pose = msg.pose.pose
@@ -193,6 +201,7 @@ class ViewNode(Node):
     def _on_ir_raw(self, robot: str, msg: Float64MultiArray) -> None:
         if len(msg.data) != len(SENSOR_NAMES) or not all(math.isfinite(v) for v in msg.data):
             return
+        self._has_ir_raw.add(robot)
         proximity = self._proximity.pop(robot, None)
         if proximity is not None:
             self.destroy_subscription(proximity)
@@ -241,7 +250,10 @@ class ViewNode(Node):
         """Carry out the page's queued actions and follow what the pages watch (on the node's thread, as rclpy
         wants)."""
         self._read_settings_once()
-        self._watch(self.server.watched() & set(self._robot_names))
+        if self.server.pages_open() != bool(self._robot_subscriptions):
+            self._follow(self._robot_names if self.server.pages_open() else ())
+        if self._robot_subscriptions:
+            self._watch(self.server.watched() & set(self._robot_names))
         while not self._requests.empty():
             action, result = self._requests.get()
             try:

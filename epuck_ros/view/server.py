@@ -6,9 +6,10 @@ websocket library would add a dependency and nothing the page uses.
 
 - `GET /` the page, `GET /static/<file>` its assets (only the files shipped in `view/static`).
 - `GET /events?robot=NAME` Server-Sent Events: `world` on connect and whenever the world changes, `state` at most
-  `MAX_FRAME_RATE` times a second and only when something changed. NAME is the robot the page shows in detail:
-  only robots some page watches need their odometry and wheel speeds (`ViewServer.watched`), so the view
-  subscribes to those for them alone and costs the simulator less.
+  `MAX_FRAME_RATE` times a second and only when something changed. NAME is the robot the page shows in detail.
+  The view subscribes to the robots' topics only while a page is open (`ViewServer.pages_open`), and to
+  odometry and wheel speeds only for the robots a page shows in detail (`ViewServer.watched`): each subscriber
+  costs the simulator a send per step.
 - `GET /state?robot=NAME`, `GET /world` the same JSON once (for scripts and benchmarks).
 - `POST /api/<action>` with a JSON body: one of ACTIONS, checked by `parse_action` before anything reaches ROS.
 
@@ -36,7 +37,7 @@ from epuck_ros.view.state import ViewState
 MAX_FRAME_RATE = 30.0
 """State events per second at most, whatever the simulator's rate: more than a screen shows is wasted."""
 POLL_LEASE = 5.0
-"""Wall seconds a `GET /state?robot=NAME` keeps NAME's details (odometry, wheel speeds) subscribed."""
+"""Wall seconds a `GET /state[?robot=NAME]` counts as an open page (showing NAME in detail)."""
 MAX_BODY = 4096
 """Bytes; every action fits in far less."""
 MAX_LINEAR_SPEED = 0.5
@@ -160,11 +161,19 @@ class ViewServer(ThreadingHTTPServer):
         host, port = self.server_address[:2]
         return f'http://[{host}]:{port}/' if ':' in host else f'http://{host}:{port}/'
 
-    def watched(self) -> set[str]:
-        """The robots some page shows in detail now: those of the open streams and of recent polls."""
+    def _looking(self) -> set[str]:
+        """What the open streams and recent polls show in detail ('' for none)."""
         now = time.monotonic()
         with self._watch_lock:
             return set(self._streams.values()) | {robot for robot, at in self._polls.items() if now - at < POLL_LEASE}
+
+    def pages_open(self) -> bool:
+        """Whether any page (an event stream, or a poll within POLL_LEASE) is looking at the view."""
+        return bool(self._looking())
+
+    def watched(self) -> set[str]:
+        """The robots some page shows in detail now."""
+        return self._looking() - {''}
 
     def watch_stream(self, stream: int, robot: str) -> None:
         with self._watch_lock:
@@ -201,8 +210,7 @@ class _Handler(BaseHTTPRequestHandler):
         elif path == '/events':
             self._stream_events(robot)
         elif path == '/state':
-            if robot:
-                self.server.note_poll(robot)
+            self.server.note_poll(robot)
             self._send(HTTPStatus.OK, self.server.state.frame_json(time.monotonic()).encode(), 'application/json')
         elif path == '/world':
             self._send(HTTPStatus.OK, self.server.state.world_json().encode(), 'application/json')
@@ -260,8 +268,7 @@ class _Handler(BaseHTTPRequestHandler):
     def _stream_events(self, robot: str) -> None:
         """Send `world` and `state` events until the client goes away or the server stops."""
         state, stopping = self.server.state, self.server.stopping
-        if robot:
-            self.server.watch_stream(id(self), robot)
+        self.server.watch_stream(id(self), robot)
         self.send_response(HTTPStatus.OK)
         self.send_header('Content-Type', 'text/event-stream')
         self.send_header('Cache-Control', 'no-store')

@@ -19,7 +19,7 @@ from epuck_ros.model import RobotModel
 from epuck_ros.world import World
 
 RTF_WINDOW = 1.0
-"""Wall seconds of /clock samples over which the real-time factor reached is measured."""
+"""Wall seconds of simulated-time samples over which the real-time factor reached is measured."""
 
 
 def robot_topic(robot_names: tuple[str, ...], robot: str, topic: str) -> str:
@@ -108,7 +108,8 @@ class ViewState:
         with self._lock:
             return tuple(self.robots)
 
-    def set_clock(self, sim_time: float, wall_time: float) -> None:
+    def set_time(self, sim_time: float, wall_time: float) -> None:
+        """The simulated time of what is drawn, seen at `wall_time` (monotonic s)."""
         with self._lock:
             if self.time is not None and sim_time < self.time:  # time went back (a bag played again)
                 self._clock_samples.clear()
