@@ -44,7 +44,7 @@ FAR_RAW = float(IR_LOOKUP_TABLE[-1, 1])
 # --- devices, no DDS ----------------------------------------------------------------------------------------------
 
 def test_motor_velocity_mode_clamps_with_webots_warning_and_refuses_nan(capsys: pytest.CaptureFixture) -> None:
-    motor = Motor('left wheel motor', 6.28)
+    motor = Motor('left wheel motor', 6.28, PositionSensor('left wheel sensor', lambda: 0))
     assert motor.getVelocity() == 6.28 and not motor.in_velocity_mode  # Webots: position control, at maxVelocity
     motor.setPosition(float('inf'))
     motor.setVelocity(10.0)
@@ -58,7 +58,7 @@ def test_motor_velocity_mode_clamps_with_webots_warning_and_refuses_nan(capsys: 
 
 
 def test_motor_position_control_is_webots_p_controller_limited_by_velocity(capsys: pytest.CaptureFixture) -> None:
-    motor = Motor('right wheel motor', 6.28)
+    motor = Motor('right wheel motor', 6.28, PositionSensor('right wheel sensor', lambda: 0))
     assert motor.command(1.5) == 0.0  # holds the angle it starts at
     motor.setPosition(2.0)
     motor.setVelocity(1.0)
@@ -94,7 +94,7 @@ def test_sensors_are_nan_until_one_sampling_period_then_sample_every_period(caps
 
 
 def test_unsupported_calls_name_what_is_supported() -> None:
-    motor = Motor('left wheel motor', 6.28)
+    motor = Motor('left wheel motor', 6.28, PositionSensor('left wheel sensor', lambda: 0))
     with pytest.raises(AttributeError, match=r'Motor.setTorque is part of the Webots API but not supported.*'
                                              r'setVelocity'):
         motor.setTorque(1.0)
@@ -449,6 +449,33 @@ def test_a_script_that_stops_stepping_leaves_the_robot_stopped_after_cmd_timeout
     assert rows[-1, 1] > 0.01  # it drove while the script stepped
     assert moving_until == pytest.approx(last_step + 0.5, abs=0.04)  # then cmd_timeout stopped it
     assert run.stop_controller() == 0  # Ctrl-C outside step(): KeyboardInterrupt, a clean end
+
+
+def test_a_finite_set_position_drives_each_wheel_to_that_angle(
+        launch: object, test_node: object, tmp_path: Path) -> None:
+    """Webots' default motor mode: P-control on the angle, at most at the velocity (maxVelocity by default)."""
+    script = tmp_path / 'position.py'
+    script.write_text(textwrap.dedent('''
+        from controller import Robot
+
+        robot = Robot()
+        step = int(robot.getBasicTimeStep())
+        for name in ('left wheel motor', 'right wheel motor'):
+            motor = robot.getDevice(name)
+            motor.getPositionSensor().enable(step)
+            motor.setPosition(10.0)
+        while robot.step(step) != -1:
+            pass
+    '''))
+    run = ControllerRun(launch, test_node, script, 4.0, joints=True)
+    rows = run.finish()
+    assert run.stop_controller() == 0, run.output
+    final = list(run.joints[-1].position)
+    fastest = max(max(abs(v) for v in msg.velocity) for msg in run.joints)
+    print(f'setPosition(10): wheels at {final} rad, robot at x = {rows[-1, 1]:.5f} m, fastest {fastest} rad/s')
+    assert final == pytest.approx([10.0, 10.0], abs=2 * MODEL.encoder_resolution)
+    assert rows[-1, 1] == pytest.approx(10.0 * MODEL.wheel_radius, abs=2 * MODEL.encoder_resolution * 0.02)
+    assert fastest == pytest.approx(MODEL.max_wheel_speed)
 
 
 def test_a_missing_script_gets_one_line_and_exit_2(launch: object) -> None:

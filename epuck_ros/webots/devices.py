@@ -65,8 +65,10 @@ class Motor(Device):
     velocity, on the wheel's encoder angle (Webots uses the exact joint angle; the encoder is within 2π/1000 rad).
     """
 
-    def __init__(self, name: str, max_velocity: float) -> None:
+    def __init__(self, name: str, max_velocity: float, encoder: PositionSensor) -> None:
         super().__init__(name)
+        self._encoder = encoder
+        encoder.motor = self
         self._max_velocity = max_velocity
         self._velocity = max_velocity  # Webots starts a motor's velocity at its maxVelocity
         self._target: float | None = None  # None: hold the angle of the first reading (the joint's start)
@@ -101,6 +103,10 @@ class Motor(Device):
 
     def getMaxVelocity(self) -> float:
         return self._max_velocity
+
+    def getPositionSensor(self) -> PositionSensor:
+        """The encoder on the same wheel joint."""
+        return self._encoder
 
     def getMinPosition(self) -> float:
         return 0.0  # Webots: minPosition = maxPosition = 0 means no limit, as on the e-puck's wheels
@@ -197,6 +203,8 @@ class PositionSensor(SampledSensor):
     def __init__(self, name: str, now_ns: Callable[[], int]) -> None:
         super().__init__(name, now_ns)
         self._speed = math.nan
+        self.motor: Motor | None = None
+        """The motor on the same wheel joint (set by the Motor)."""
 
     def sample_with_speed(self, time_ns: int, angle: float, speed: float) -> None:
         if self._period_ms > 0 and time_ns >= self._due_ns:
@@ -205,6 +213,9 @@ class PositionSensor(SampledSensor):
 
     def getVelocity(self) -> float:
         return self._speed
+
+    def getMotor(self) -> Motor | None:
+        return self.motor
 
 
 class LED(Device):

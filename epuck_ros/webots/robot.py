@@ -97,8 +97,9 @@ class Robot:
         self._time_ns = data.time_ns
         self._data = data
         now = lambda: self._time_ns  # noqa: E731 - the devices' view of simulated time
-        self._motors = [Motor(name, model.max_wheel_speed) for name in MOTOR_NAMES]
         self._encoders = [PositionSensor(name, now) for name in ENCODER_NAMES]
+        self._motors = [Motor(name, model.max_wheel_speed, encoder)
+                        for name, encoder in zip(MOTOR_NAMES, self._encoders)]
         self._distance_sensors = [DistanceSensor(name, now, model.ir_table, model.ir_aperture)
                                   for name in SENSOR_NAMES]
         self._leds = [LED(name) for name in LED_NAMES]

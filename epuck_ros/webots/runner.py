@@ -17,7 +17,7 @@ from types import TracebackType
 
 import rclpy
 
-from epuck_ros.nodes.params import Usage, prepare_arguments, user_arguments
+from epuck_ros.nodes.params import HELP_FLAGS, ParameterError, check_arguments, user_arguments
 from epuck_ros.webots.link import LinkError
 from epuck_ros.webots.robot import Robot, configure
 
@@ -25,16 +25,25 @@ PROGRAM = 'webots_controller'
 ROBOT_NAME = re.compile(r'[A-Za-z_][A-Za-z0-9_]*')
 SHIM_DIR = Path(__file__).resolve().parent / 'shim'
 EXAMPLES_DIR = Path(__file__).resolve().parent / 'examples'
-USAGE = Usage(
-    program=PROGRAM,
-    summary='Run an unmodified Webots controller script (from controller import Robot ...) against the e-puck '
-            'simulator over ROS: one rclpy node inside Robot(); step(32) is one simulator step (with the sim in '
-            'lockstep, the run is deterministic). Start `sim` first (or use `bringup --controller SCRIPT.py`). '
-            f'Examples: {EXAMPLES_DIR}.',
-    example=f'{PROGRAM} {EXAMPLES_DIR / "avoid_obstacles.py"}   # with `sim` running',
-    options='  SCRIPT.py [ARG ...]  the controller script and its own arguments (sys.argv[1:])\n'
-            '  --robot NAME         the robot of a multi-robot world to drive (its topics are NAME/...); '
-            'default: the single robot')
+HELP = f"""usage: {PROGRAM} SCRIPT.py [ARG ...] [--robot NAME] [--ros-args ...]
+
+Run an unmodified Webots controller script (Python: from controller import Robot ...) against the e-puck
+simulator over ROS. The script's Robot is one rclpy node: it publishes wheel_cmd and reads /clock,
+joint_states and ir_raw; step(32) is exactly one simulator step, and with the simulator in lockstep the run
+is the same every time. Start `sim` first, or let `bringup --controller SCRIPT.py` start everything.
+
+options:
+  SCRIPT.py [ARG ...]  the controller script and its own arguments (its sys.argv[1:])
+  --robot NAME         the robot of a multi-robot world to drive (topics NAME/...); default: the only robot
+  --ros-args ...       ROS arguments for the node (remappings, --log-level, -r __ns:=/NS)
+
+exit code: the script's; 0 when Ctrl-C or a vanished simulator ends it (step() returns -1); 1 with the
+script's traceback when it raises; 2 for a bad command line or a robot the simulator does not have.
+
+examples (shipped in {EXAMPLES_DIR}):
+  sim --ros-args -p lockstep:=true &
+  {PROGRAM} {EXAMPLES_DIR / 'avoid_obstacles.py'}
+  bringup --controller {EXAMPLES_DIR / 'circle.py'} --duration 20 --record"""
 
 
 def parse(user: list[str]) -> tuple[str, str, list[str]]:
@@ -89,7 +98,14 @@ def _from_script(tb: TracebackType | None, path: Path) -> TracebackType | None:
 
 
 def main(argv: list[str] | None = None) -> None:
-    args = prepare_arguments([PROGRAM, *(sys.argv[1:] if argv is None else argv)], [], USAGE, own_options=True)
+    argv = [PROGRAM, *(sys.argv[1:] if argv is None else argv)]
+    if any(arg in HELP_FLAGS for arg in user_arguments(argv)):
+        print(HELP)
+        raise SystemExit(0)
+    try:
+        args = check_arguments(argv, [])  # the node has no parameters of its own: `-p typo:=1` is refused
+    except ParameterError as error:
+        fail(f'{str(error).split(" (known")[0]}: the controller\'s node has no parameters of its own')
     script, robot, script_args = parse(user_arguments(args))
     path = Path(script).resolve()
     if not path.is_file():
