@@ -14,7 +14,9 @@ from collections.abc import Callable
 import numpy as np
 from geometry_msgs.msg import Twist, TwistStamped
 from nav_msgs.msg import Odometry
+from rclpy.event_handler import PublisherEventCallbacks
 from rclpy.node import Node
+from rclpy.publisher import Publisher
 from rclpy.qos import QoSProfile
 from sensor_msgs.msg import JointState, Range
 from std_msgs.msg import Float64MultiArray, UInt32
@@ -74,12 +76,12 @@ class RobotPorts:
         self._logger = node.get_logger()
         self._make_messages(frames, world_frame, model)
 
-        self._odom_pub = node.create_publisher(Odometry, topics + 'odom', stream_qos)
-        self._truth_pub = node.create_publisher(Odometry, topics + 'ground_truth', stream_qos)
-        self._range_pub = node.create_publisher(Range, topics + 'proximity', _deeper(stream_qos, len(SENSOR_NAMES)))
-        self._joints_pub = node.create_publisher(JointState, topics + 'joint_states', stream_qos)
-        self._raw_pub = node.create_publisher(Float64MultiArray, topics + 'ir_raw', stream_qos)
-        self._collisions_pub = node.create_publisher(UInt32, topics + 'collisions', latched_qos)
+        self._odom_pub = quiet_publisher(node, Odometry, topics + 'odom', stream_qos)
+        self._truth_pub = quiet_publisher(node, Odometry, topics + 'ground_truth', stream_qos)
+        self._range_pub = quiet_publisher(node, Range, topics + 'proximity', _deeper(stream_qos, len(SENSOR_NAMES)))
+        self._joints_pub = quiet_publisher(node, JointState, topics + 'joint_states', stream_qos)
+        self._raw_pub = quiet_publisher(node, Float64MultiArray, topics + 'ir_raw', stream_qos)
+        self._collisions_pub = quiet_publisher(node, UInt32, topics + 'collisions', latched_qos)
         self.stream_publishers = [self._odom_pub, self._truth_pub, self._range_pub, self._joints_pub, self._raw_pub]
         self.publish_collisions(0)
 
@@ -156,6 +158,17 @@ class RobotPorts:
 
     def publish_collisions(self, count: int) -> None:
         self._collisions_pub.publish(UInt32(data=count))
+
+
+def quiet_publisher(node: Node, msg_type: type, topic: str, qos: QoSProfile) -> Publisher:
+    """A publisher without rclpy's default QoS-event handlers.
+
+    rclpy gives every publisher two event handlers (incompatible QoS, incompatible type) that sit in the
+    executor's wait set, which it rebuilds in Python on every wait: with six publishers per robot they were most
+    of the executor's work per received command. A reader with an incompatible QoS still hears about it: rclpy
+    warns on the subscription's side."""
+    return node.create_publisher(msg_type, topic, qos,
+                                 event_callbacks=PublisherEventCallbacks(use_default_callbacks=False))
 
 
 def _deeper(qos: QoSProfile, factor: int) -> QoSProfile:

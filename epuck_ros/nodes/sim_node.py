@@ -30,7 +30,7 @@ from epuck_ros.markers import world_markers
 from epuck_ros.model import RobotModel
 from epuck_ros.nodes.ack_window import AckWindow
 from epuck_ros.nodes.params import ParamSpec, Usage, declare_parameters, prepare_arguments
-from epuck_ros.nodes.robot_ports import JOINT_NAMES, WARN_PERIOD, RobotPorts
+from epuck_ros.nodes.robot_ports import JOINT_NAMES, WARN_PERIOD, RobotPorts, quiet_publisher
 from epuck_ros.nodes.serialized import Patch
 from epuck_ros.nodes.spinning import spin_until_shutdown
 from epuck_ros.simulation import CommandError, Simulation, StepEvents
@@ -202,12 +202,12 @@ class SimNode(Node):
             RobotPorts(self, index, name, several, stream, latched, self._on_command, values['frame_prefix'],
                        values['cmd_vel_stamped'])
             for index, name in enumerate(self._sim.names)]
-        self.create_publisher(String, 'world', latched).publish(
+        quiet_publisher(self, String, 'world', latched).publish(
             String(data=yaml.safe_dump(world.to_dict(), sort_keys=False)))
-        self.create_publisher(MarkerArray, 'world_markers', latched).publish(world_markers(world))
+        quiet_publisher(self, MarkerArray, 'world_markers', latched).publish(world_markers(world))
         self.create_service(Empty, 'reset', self._on_reset)
         self.create_service(Trigger, 'step', self._on_step)
-        self._clock_pub = self.create_publisher(Clock, '/clock', stream)
+        self._clock_pub = quiet_publisher(self, Clock, '/clock', stream)
         self._clock_message = Patch(Clock(), [('clock.sec', 'i'), ('clock.nanosec', 'I')])
         self._acks = AckWindow(self._stream_publishers, ACK_WINDOW_STEPS, self._on_ack_stall)
         robots = f'{len(world.robots)} robots ({", ".join(world.names[:5])}{", ..." if len(world.robots) > 5 else ""})' \
