@@ -356,3 +356,13 @@ document.addEventListener('keyup', (event) => {
 window.addEventListener('blur', stopDriving);   // a key released in another window must not keep the robot going
 showSpeeds();
 connect();
+// A hidden tab closes its stream: the view then drops its subscriptions and the simulator pays nothing for it.
+document.addEventListener('visibilitychange', () => {
+  if (document.hidden) {
+    stopDriving();
+    events.close();
+    setText('connection', 'paused while the tab is hidden');
+  } else {
+    connect();
+  }
+});
