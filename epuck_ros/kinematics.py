@@ -13,6 +13,9 @@ from numpy.typing import ArrayLike
 from epuck_ros.model import RobotModel
 
 
+_SCALAR = (float, int)
+
+
 def twist_from_wheels(left: ArrayLike, right: ArrayLike, model: RobotModel) -> tuple[ArrayLike, ArrayLike]:
     """Forward speed (m/s) and yaw rate (rad/s) from the wheel speeds (rad/s)."""
     v = 0.5 * model.wheel_radius * (right + left)
@@ -40,7 +43,8 @@ def integrate_arc(x: ArrayLike, y: ArrayLike, yaw: ArrayLike, v: ArrayLike, w: A
     |h| < 1e-8 in double precision, so the straight-line limit needs no threshold and cannot blow up.
     """
     half_turn = 0.5 * w * dt
-    if all(isinstance(value, (float, int)) for value in (x, y, yaw, v, half_turn)):
+    if (isinstance(half_turn, float) and isinstance(x, _SCALAR) and isinstance(y, _SCALAR)
+            and isinstance(yaw, _SCALAR) and isinstance(v, _SCALAR)):
         # one robot: math on floats is ~10x cheaper than NumPy calls on scalars
         shrink = math.sin(half_turn) / half_turn if half_turn else 1.0
         cos, sin = math.cos, math.sin
@@ -58,5 +62,10 @@ def wrap_angle(angle: ArrayLike) -> ArrayLike:
 
 
 def quantise(angle: ArrayLike, resolution: float) -> ArrayLike:
-    """An encoder's reading: the angle rounded to the nearest multiple of `resolution` (Webots PositionSensor)."""
+    """An encoder's reading: the angle rounded to the nearest multiple of `resolution` (Webots PositionSensor).
+
+    Ties round to even either way (Python's round and np.rint agree); floats skip NumPy's per-call cost.
+    """
+    if isinstance(angle, float):
+        return round(angle / resolution) * resolution
     return np.rint(np.divide(angle, resolution)) * resolution

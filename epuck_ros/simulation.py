@@ -70,6 +70,7 @@ class Simulation:
         self._sensor_poses = np.asarray(model.sensor_poses, dtype=float)
         # Sensor positions and directions on the body, turned by the robot's yaw each step.
         self._sensor_offsets = self._sensor_poses[:, :2].copy()
+        self._sensor_left = np.column_stack([-self._sensor_poses[:, 1], self._sensor_poses[:, 0]])   # turned 90 deg
         self._sensor_cos, self._sensor_sin = np.cos(self._sensor_poses[:, 2]), np.sin(self._sensor_poses[:, 2])
         # Beyond this distance from the body's centre no IR ray can reach anything: the sensor farthest out plus
         # the ray. Farther from every surface, a step casts no rays at all.
@@ -87,6 +88,8 @@ class Simulation:
         self._collisions, self._robot_collisions = np.zeros(n, dtype=int), np.zeros(n, dtype=int)
         self._last_command_time = np.zeros(n)
         self._commanded = np.zeros(n, dtype=bool)
+        self._earliest_command = math.inf
+        """No commanded robot's last command is older than this: below the timeout, no array is looked at."""
         # Robot pairs that can touch or see each other this step (see _cover_pairs): found within the sensing
         # reach plus a body, plus room for each robot to travel a step and be pushed a little.
         self._slack = fastest + _PAIR_SLACK
@@ -124,6 +127,7 @@ class Simulation:
         self._command[robot] = clamp_wheels(float(left), float(right), self.model.max_wheel_speed)
         self._last_command_time[robot] = self.time
         self._commanded[robot] = True
+        self._earliest_command = min(self._earliest_command, self.time)
 
     # --- stepping -----------------------------------------------------------------------------------------
 
@@ -149,13 +153,14 @@ class Simulation:
 
     def _expire_commands(self, events: StepEvents) -> None:
         """Zero the command of every robot whose last command is older than `cmd_timeout` (if that is > 0)."""
-        if self.cmd_timeout <= 0.0 or not self._commanded.any():
+        if self.cmd_timeout <= 0.0 or self.time - self._earliest_command <= self.cmd_timeout:
             return
         expired = self._commanded & (self.time - self._last_command_time > self.cmd_timeout)
         if expired.any():
             events.timed_out = np.flatnonzero(expired).tolist()
             self._command[expired] = 0.0
             self._commanded[expired] = False
+        self._earliest_command = float(self._last_command_time[self._commanded].min(initial=math.inf))
 
     def _move_one(self) -> bool:
         """The only robot along its exact arc, pushed out of obstacles after each substep; whether it touched.
@@ -304,22 +309,26 @@ class Simulation:
         The same formulas on floats for one robot and on columns for many (kinematics takes either).
         """
         resolution, dt = self.model.encoder_resolution, self.time_step
-        if len(self._odom) == 1:
+        if len(self._odom) == 1:   # rows as tuples: one assignment per array
             (rotation_left, rotation_right), = self._wheel_rotation.tolist()
             (left, right), = self._command.tolist()
             (last_left, last_right), = self._encoders.tolist()
-            (x, y, yaw), = self._odom.tolist()
-        else:
-            rotation_left, rotation_right = self._wheel_rotation.T
-            left, right = self._command.T
-            last_left, last_right = self._encoders.T.copy()
-            x, y, yaw = self._odom.T
-        rotation_left, rotation_right = rotation_left + left * dt, rotation_right + right * dt
-        encoder_left, encoder_right = quantise(rotation_left, resolution), quantise(rotation_right, resolution)
-        distance, turn = twist_from_wheels(encoder_left - last_left, encoder_right - last_right, self.model)
-        self._wheel_rotation[:, 0], self._wheel_rotation[:, 1] = rotation_left, rotation_right
-        self._encoders[:, 0], self._encoders[:, 1] = encoder_left, encoder_right
-        self._odom[:, 0], self._odom[:, 1], self._odom[:, 2] = integrate_arc(x, y, yaw, distance, turn, 1.0)
+            rotation_left, rotation_right = rotation_left + left * dt, rotation_right + right * dt
+            encoder_left, encoder_right = quantise(rotation_left, resolution), quantise(rotation_right, resolution)
+            distance, turn = twist_from_wheels(encoder_left - last_left, encoder_right - last_right, self.model)
+            self._wheel_rotation[0] = (rotation_left, rotation_right)
+            self._encoders[0] = (encoder_left, encoder_right)
+            self._odom[0] = integrate_arc(*self._odom[0].tolist(), distance, turn, 1.0)
+            self._odom_twist[0] = (distance / dt, turn / dt)
+            return
+        rotation = self._wheel_rotation
+        rotation += self._command * dt
+        encoders = quantise(rotation, resolution)
+        change = encoders - self._encoders
+        self._encoders[:] = encoders
+        distance, turn = twist_from_wheels(change[:, 0], change[:, 1], self.model)
+        odom = self._odom
+        odom[:, 0], odom[:, 1], odom[:, 2] = integrate_arc(odom[:, 0], odom[:, 1], odom[:, 2], distance, turn, 1.0)
         self._odom_twist[:, 0], self._odom_twist[:, 1] = distance / dt, turn / dt
 
     def _sense(self) -> None:
@@ -334,13 +343,12 @@ class Simulation:
         if count == 1 and not self.world.anything_within(*xy[0].tolist(), self._sensing_reach):
             distance = self._no_hits
         else:
-            cos, sin = np.cos(self._true[:, 2:3]), np.sin(self._true[:, 2:3])
-            origin_x = xy[:, 0:1] + cos * self._sensor_offsets[:, 0] - sin * self._sensor_offsets[:, 1]
-            origin_y = xy[:, 1:2] + sin * self._sensor_offsets[:, 0] + cos * self._sensor_offsets[:, 1]
-            dir_x = cos * self._sensor_cos - sin * self._sensor_sin
-            dir_y = sin * self._sensor_cos + cos * self._sensor_sin
-            distance = self.world.ray_distances(np.stack([origin_x, origin_y], axis=-1), dir_x, dir_y,
-                                                self.model.ir_range, xy, self._sensing_reach - self.model.ir_range)
+            yaw = self._true[:, 2:3]
+            cos, sin = np.cos(yaw), np.sin(yaw)
+            origins = xy[:, None, :] + cos[:, :, None] * self._sensor_offsets + sin[:, :, None] * self._sensor_left
+            yaws = yaw + self._sensor_poses[:, 2]
+            distance = self.world.ray_distances(origins, np.cos(yaws), np.sin(yaws), self.model.ir_range, xy,
+                                                self._sensing_reach - self.model.ir_range)
             if count > 1:
                 self._see_robots(distance, cos[:, 0], sin[:, 0])
             distance = distance.ravel()
@@ -386,6 +394,7 @@ class Simulation:
             state.fill(0.0)
         for flags in (self._in_contact, self._touching_obstacle, self._touching_robot, self._commanded):
             flags.fill(False)
+        self._earliest_command = math.inf
         self._sense()
 
     # --- state --------------------------------------------------------------------------------------------
