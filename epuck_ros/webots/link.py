@@ -137,21 +137,26 @@ class SimLink:
             return f'the simulator has several robots ({names}): choose one with --robot NAME'
         return f'--robot {self._robot}: no such robot in the simulator (robots: {names})'
 
-    def _time_step(self) -> float:
-        """The `time_step` parameter of the node that publishes /clock."""
-        found: list[str] = []
-        if not self._wait(lambda: bool(found.extend(self._clock_sources()) or found), 'the /clock publisher\'s name'):
+    def _time_step(self) -> float | None:
+        """The `time_step` parameter (s) of the node that publishes /clock; None if told to stop first."""
+        sources: list[str] = []
+
+        def named() -> bool:
+            sources[:] = self._clock_sources()
+            return bool(sources)
+
+        if not self._wait(named, 'the name of the node publishing /clock'):
             return None
-        sim_name = found[0]
-        client = AsyncParameterClient(self.node, sim_name)
-        if not self._wait(lambda: client.services_are_ready(), f'the parameter services of {sim_name}'):
+        client = AsyncParameterClient(self.node, sources[0])
+        if not self._wait(client.services_are_ready, f'the parameter services of {sources[0]}'):
             return None
         future = client.get_parameters(['time_step'])
-        if not self._wait(future.done, f'{sim_name} to answer'):
+        if not self._wait(future.done, f'{sources[0]} to answer'):
             return None
-        value = future.result().values[0].double_value if future.result().values else 0.0
+        values = future.result().values
+        value = values[0].double_value if values else 0.0
         if not value > 0.0:
-            raise LinkError(f'{sim_name} publishes /clock but has no time_step parameter: is it epuck_ros\'s sim?')
+            raise LinkError(f'{sources[0]} publishes /clock but has no time_step parameter: is it epuck_ros\'s sim?')
         return value
 
     def _clock_sources(self) -> list[str]:

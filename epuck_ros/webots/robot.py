@@ -92,7 +92,7 @@ class Robot:
         time_step = self._link.connect()
         data = self._link.first_step() if time_step is not None else None
         if data is None:
-            raise KeyboardInterrupt  # stopped while connecting
+            raise KeyboardInterrupt  # ended (Ctrl-C, or the simulator went away) before the first step
         self._basic_step_ms = time_step * 1000.0
         self._time_ns = data.time_ns
         self._data = data
@@ -190,13 +190,6 @@ class Robot:
             raise AttributeError(name)
         raise unsupported('Robot', name, public_methods(Robot))
 
-    # --- the runner's side --------------------------------------------------------------------------------------
-
-    def close(self) -> None:
-        """Leave the simulation: the node goes (the simulator's cmd_timeout then stops the wheels)."""
-        self._link.close()
-
-
 class _AnotherRobot(Robot):
     """A second Robot(): Webots prints an error and goes on; here its calls act on the first Robot."""
 
@@ -204,3 +197,10 @@ class _AnotherRobot(Robot):
         if name in ('__class__', '__dict__'):
             return object.__getattribute__(self, name)
         return getattr(Robot.created, name)
+
+
+def close() -> None:
+    """The runner's end: the Robot's node goes (the simulator's cmd_timeout then stops the wheels)."""
+    link = getattr(Robot.created, '_link', None)  # None: no Robot, or it failed before connecting
+    if link is not None:
+        link.close()

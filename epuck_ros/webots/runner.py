@@ -19,7 +19,7 @@ import rclpy
 
 from epuck_ros.nodes.params import HELP_FLAGS, ParameterError, check_arguments, user_arguments
 from epuck_ros.webots.link import LinkError
-from epuck_ros.webots.robot import Robot, configure
+from epuck_ros.webots.robot import close, configure
 
 PROGRAM = 'webots_controller'
 ROBOT_NAME = re.compile(r'[A-Za-z_][A-Za-z0-9_]*')
@@ -115,8 +115,7 @@ def main(argv: list[str] | None = None) -> None:
     try:
         code = run_script(path, script_args)
     finally:
-        if isinstance(Robot.created, Robot):
-            Robot.created.close()
+        close()
         rclpy.try_shutdown()
     raise SystemExit(code)
 
