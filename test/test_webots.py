@@ -7,6 +7,7 @@ device semantics (no DDS) against Webots' reference manual.
 """
 from __future__ import annotations
 
+import importlib.util
 import json
 import math
 import textwrap
@@ -340,6 +341,7 @@ def test_distance_sensors_read_the_lookup_table_of_the_step_they_asked_for(
 
 
 MISUSE = '''
+import importlib.util
 import json
 import math
 from controller import Robot
@@ -478,10 +480,18 @@ def test_a_finite_set_position_drives_each_wheel_to_that_angle(
     assert fastest == pytest.approx(MODEL.max_wheel_speed)
 
 
-def test_a_missing_script_gets_one_line_and_exit_2(launch: object) -> None:
+def test_a_missing_script_gets_one_line_and_exit_2_and_help_shows_an_example(launch: object) -> None:
     missing = launch('webots_controller', '/nowhere/my_controller.py')
     assert missing.proc.wait(timeout=30.0) == 2
     assert missing.output().strip() == 'webots_controller: no such controller script: /nowhere/my_controller.py'
+    helped = launch('webots_controller', '--help')
+    assert helped.proc.wait(timeout=30.0) == 0
+    assert 'usage: webots_controller SCRIPT.py' in helped.output() and 'avoid_obstacles.py' in helped.output()
+
+
+def test_the_shim_is_not_an_installed_controller_module() -> None:
+    """Only the runner puts it on sys.path: installed, it would hide a real Webots' `controller`."""
+    assert importlib.util.find_spec('controller') is None
 
 
 def test_robot_picks_one_robot_of_several(launch: object, test_node: object) -> None:
