@@ -66,11 +66,16 @@ def offered_profile(qos: QoSProfile) -> QosProfile:
 
 
 def subscription_qos(offered: list[QoSProfile]) -> QoSProfile:
-    """Compatible with every publisher: reliable / transient_local only if all of them offer it."""
+    """Compatible with every publisher: reliable / transient_local only if all of them offer it.
+
+    Reliable topics are taken KEEP_ALL: DDS then acknowledges a sample only once the recorder has room for it, so
+    a publisher that waits for acknowledgements (the simulator, see `epuck_ros.nodes.ack_window`) waits for the
+    recorder instead of the recorder's queue overwriting what it has not written yet (KEEP_LAST lost a third of
+    `proximity` at `real_time_factor` 0)."""
     reliable = all(q.reliability == ReliabilityPolicy.RELIABLE for q in offered)
     latched = all(q.durability == DurabilityPolicy.TRANSIENT_LOCAL for q in offered)
     return QoSProfile(
-        history=HistoryPolicy.KEEP_LAST, depth=SUBSCRIPTION_DEPTH,
+        history=HistoryPolicy.KEEP_ALL if reliable else HistoryPolicy.KEEP_LAST, depth=SUBSCRIPTION_DEPTH,
         reliability=ReliabilityPolicy.RELIABLE if reliable else ReliabilityPolicy.BEST_EFFORT,
         durability=DurabilityPolicy.TRANSIENT_LOCAL if latched else DurabilityPolicy.VOLATILE)
 
