@@ -148,6 +148,14 @@ class Player(Node):
         self._clock_publisher.publish(msg)
 
 
+def _serve(executor: SingleThreadedExecutor) -> None:
+    """The services' thread: spins until the executor or the context (Ctrl-C, SIGTERM) is shut down."""
+    try:
+        executor.spin()
+    except ExternalShutdownException:
+        pass
+
+
 def _enter_toggles(player: Player) -> None:
     """Each line typed on the terminal pauses or resumes."""
     for _ in sys.stdin:
@@ -163,7 +171,7 @@ def play(args: argparse.Namespace) -> None:
             player = Player(bag, args.topics, args.rate, args.clock, args.start_paused)
             executor = SingleThreadedExecutor()
             executor.add_node(player)
-            services = threading.Thread(target=executor.spin, name='services')
+            services = threading.Thread(target=_serve, args=(executor,), name='services')
             services.start()
             if args.start_paused:
                 how = 'press Enter or call' if sys.stdin.isatty() else 'call'
