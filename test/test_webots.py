@@ -370,6 +370,11 @@ right.setPosition(float('inf'))
 left.setVelocity(2.0)
 right.setVelocity(10.0)  # above maxVelocity: Webots warns and clamps to 6.28
 left.setVelocity(float('nan'))  # refused: the motor keeps 2.0
+before = robot.getTime()
+robot.step(2 * step)
+after_two = robot.getTime()
+robot.step(step // 2)  # less than a basic step: one whole step, as Webots rounds up
+report['stepped_ms'] = [round(1000 * (after_two - before)), round(1000 * (robot.getTime() - after_two))]
 print('REPORT', json.dumps(report), flush=True)
 while again.step(step) != -1:  # the second instance steps the one robot there is
     pass
@@ -388,6 +393,7 @@ def test_misuse_gets_webots_messages_and_the_run_goes_on(launch: object, test_no
     assert report['basic_time_step'] == 32.0 and report['name'] == 'epuck'
     assert report['unknown_is_none'] and report['camera_is_none'] and report['disabled_is_nan']
     assert report['led'] == 1
+    assert report['stepped_ms'] == [64, 32]
     assert 'Robot.getKeyboard is part of the Webots API but not supported' in report['keyboard']
     assert 'controller.Camera is part of the Webots API but not supported' in report['camera_import']
     for message in ('Error: only one Robot instance can be created per controller process.',

@@ -13,6 +13,7 @@ way gets the defaults (the single robot, rclpy's own command line).
 from __future__ import annotations
 
 import _thread
+import math
 import signal
 import threading
 from dataclasses import dataclass, field
@@ -117,7 +118,8 @@ class Robot:
         return self._time_ns * 1e-9
 
     def step(self, duration: int | None = None) -> int:
-        """Advance `duration` ms (default: one basic step); -1 once the simulation is ending, else 0."""
+        """Advance `duration` ms (default: one basic step; 0: none) in whole simulator steps; -1 once the
+        simulation is ending, else 0. Without lockstep a slow controller may find more time has passed."""
         if duration is None:
             duration = int(self._basic_step_ms)
         if SESSION.ending:
@@ -125,11 +127,12 @@ class Robot:
         if duration < 0:
             report('Error: wb_robot_step() called with a negative duration.')
             return 0
-        target_ns = self._time_ns + round(duration * NANOSECONDS_PER_MS)
-        half_step_ns = self._basic_step_ms * NANOSECONDS_PER_MS / 2.0
+        # Whole simulator steps, rounded up: step(16) or step(40) with a 32 ms basic step take one and two steps.
+        steps = math.ceil(duration / self._basic_step_ms - 1e-9)
+        target_ns = self._time_ns + round((steps - 0.5) * self._basic_step_ms * NANOSECONDS_PER_MS)
         SESSION.in_step = True
         try:
-            while self._time_ns < target_ns - half_step_ns:
+            while self._time_ns < target_ns:
                 left, right = (motor.command(angle) for motor, angle in zip(self._motors, self._data.wheel_angles))
                 data = self._link.answer_and_wait(left, right)
                 if data is None:
