@@ -13,11 +13,16 @@ import matplotlib.pyplot as plt
 import numpy as np
 import pytest
 from PIL import Image
-from test_bag_cli import MODEL, REPO, SWARM_STARTS, WALL_X, drive, into_the_wall, write_run, write_swarm
+from rclpy.serialization import serialize_message
+from std_msgs.msg import String
+from test_bag_cli import (MODEL, REPO, START_NS, SWARM_STARTS, WALL_X, drive, into_the_wall, odometry, write_run,
+                          write_swarm)
 
 from epuck_ros.bag.plot import draw_runs, plot_runs
+from epuck_ros.bag.qos import QosProfile
 from epuck_ros.bag.reader import Bag
 from epuck_ros.bag.run_summary import load_runs, summarise_runs
+from epuck_ros.bag.writer import BagWriter
 from epuck_ros.world import world_from_dict
 
 
@@ -125,3 +130,20 @@ def test_each_robot_has_its_own_colour_and_a_long_list_stays_compact(tmp_path):
     figure = figure_of(write_swarm(tmp_path / 'thirty', starts, {name: [0.0] * 5 for name in starts}))
     assert len(legend_texts(figure)) <= 4
     assert any(axes.get_ylabel() == 'robot' for axes in figure.axes)
+
+
+def test_without_ground_truth_the_odometry_is_the_path_drawn_from_the_start_pose(tmp_path):
+    x0, y0, yaw0 = 0.2, -0.1, math.pi / 2
+    writer = BagWriter(tmp_path / 'odom_only')
+    writer.add_topic('/world', 'std_msgs/msg/String', [QosProfile(depth=1, durability='transient_local')])
+    writer.write('/world', serialize_message(String(data=f'robot: {{start: [{x0}, {y0}, {yaw0}]}}')), START_NS)
+    writer.add_topic('/odom', 'nav_msgs/msg/Odometry', [QosProfile()])
+    odom = drive([(0.5, 0.5, 2.0)])
+    for step, pose in enumerate(odom):
+        writer.write('/odom', odometry(pose, step, 'odom'), START_NS + step * 32_000_000)
+    writer.close()
+    figure = figure_of(tmp_path / 'odom_only')
+    segments = part(figure, 'trajectory').get_segments()
+    assert segments[0][0] == pytest.approx([x0, y0], abs=1e-12)
+    assert segments[-1][1] == pytest.approx([x0, y0 + odom[-1][0]], abs=1e-12)  # driven along +y
+    assert 'odometry (no ground truth), colour = time (s)' in legend_texts(figure)

@@ -160,9 +160,9 @@ def _start_and_end_handles() -> list[Line2D]:
 
 
 def _plot_one(figure: plt.Figure, axes: plt.Axes, run: RunData, length: float, body_radius: float) -> list:
-    path = run.trajectory
+    path = run.path_in_world()
     handles = []
-    odom = run.odom_in_world() if run.odom is not path else None
+    odom = run.odom_in_world() if run.truth is not None else None
     if odom is not None:
         axes.plot(odom.x, odom.y, '--', color='0.45', linewidth=1.2, zorder=2, gid='odometry')
         handles.append(Line2D([], [], linestyle='--', color='0.45', label='odometry, from the start pose'))
@@ -174,7 +174,7 @@ def _plot_one(figure: plt.Figure, axes: plt.Axes, run: RunData, length: float, b
     lines.set_gid('trajectory')
     axes.add_collection(lines)
     figure.colorbar(lines, cax=figure.add_axes(COLORBAR_BOX), label='time (s)')
-    what = 'ground truth' if path is run.truth else 'odometry'
+    what = 'ground truth' if path is run.truth else 'odometry (no ground truth)'
     handles.insert(0, Line2D([], [], color=plt.get_cmap(TIME_COLORMAP)(0.6), linewidth=2.5,
                              label=f'{what}, colour = time (s)'))
     _heading_arrows(axes, path, length)
@@ -199,7 +199,7 @@ def _plot_many(figure: plt.Figure, axes: plt.Axes, runs: Sequence[RunData], summ
     colours = _robot_colours(len(runs))
     handles = []
     for run, colour in zip(runs, colours):
-        path = run.trajectory
+        path = run.path_in_world()
         axes.plot(path.x, path.y, color=colour, linewidth=1.5, zorder=3, gid=f'trajectory {run.namespace}')
         axes.plot(path.x[0], path.y[0], 'o', color=colour, markeredgecolor='black', markersize=6, zorder=8)
         _end_pose(axes, path, colour, body_radius)
@@ -253,7 +253,7 @@ def draw_runs(runs: Sequence[RunData], summary: BagSummary,
     world = runs[0].world
     if world is not None:
         _draw_world(axes, world)
-    paths = [run.trajectory for run in runs]
+    paths = [run.path_in_world() for run in runs]
     if len(runs) == 1:
         odom = runs[0].odom_in_world()
         paths += [odom] if odom is not None else []

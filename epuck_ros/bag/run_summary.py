@@ -107,6 +107,12 @@ class RunData:
         """The robot's name: the last part of its namespace ('' for a one-robot bag's '/')."""
         return self.namespace.rstrip('/').rsplit('/', 1)[-1]
 
+    def path_in_world(self) -> Trajectory:
+        """The true path, else the odometry in the world (else in its own frame, when nothing places it)."""
+        if self.truth is not None:
+            return self.truth
+        return self.odom_in_world() or self.trajectory
+
     def odom_in_world(self) -> Trajectory | None:
         """The odometry drawn from the robot's start pose (or, without one, from where the truth began)."""
         if self.odom is None:
