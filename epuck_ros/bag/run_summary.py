@@ -51,9 +51,6 @@ MIN_SIDE_RATIO = 0.25
 CIRCLE_RMS_RATIO = 0.1
 """A circle's points lie within this fraction of its radius (rms) of the fitted circle."""
 
-MOTIONS = ('standing', 'straight line', 'spin in place', 'circle', 'rectangle', 'free motion')
-"""What `classify` can call a run, in the order it tries them."""
-
 
 @dataclass
 class Trajectory:
