@@ -258,7 +258,7 @@ KILLED_WRITER = textwrap.dedent('''
     payload = bytes([0, 1, 0, 0, 4, 0, 0, 0]) + b'abc' + bytes(1)
     for i in range(int(sys.argv[3])):
         background.write('/data', payload, 1000 + i)
-    time.sleep(0.5)  # more than the flush period: everything written is now in complete chunks
+    assert background.flush(timeout=120)  # everything written is now in complete chunks
     print('written', flush=True)
     time.sleep(60)
 ''')

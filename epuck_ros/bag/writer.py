@@ -247,6 +247,14 @@ class BackgroundWriter:
         if self._error is None:
             self._queue.put((topic, data, log_time, publish_time))
 
+    def flush(self, timeout: float | None = None) -> bool:
+        """Write everything queued so far in complete chunks (a kill after this loses none of it).
+
+        Returns False if that did not happen within `timeout` seconds or writing has failed."""
+        done = threading.Event()
+        self._queue.put(done)
+        return done.wait(timeout) and self._error is None
+
     def close(self) -> None:
         """Write everything queued, finish the bag; raises BagWriteError if writing failed at any point."""
         self._queue.put(_STOP)
@@ -281,6 +289,10 @@ class BackgroundWriter:
                 unflushed = True
             elif isinstance(item, _Topic):
                 writer.add_topic(item.name, item.type_name, item.qos_profiles)
+            elif isinstance(item, threading.Event):
+                writer.flush()
+                unflushed = False
+                item.set()
             if time.monotonic() >= next_flush:
                 if unflushed:
                     writer.flush()
