@@ -1,13 +1,12 @@
-"""The real-time factor the `sim` node reaches at `real_time_factor` 0, over DDS, in three set-ups.
+"""The real-time factor the `sim` node reaches at `real_time_factor` 0, over DDS, with every topic subscribed.
 
 1. one robot, every topic it publishes subscribed by this process (as a controller plus a recorder would);
-2. 50 robots (`robots:=50`), every topic of every robot subscribed by this process;
-3. closed loop, one robot: `sim` in lockstep with the `avoid` behaviour node (which reads `ir_raw`, one message
-   per step) — the speed of a deterministic run, the issue's goal being >= 50x real time.
+2. 50 robots (`robots:=50`), every topic of every robot subscribed by this process.
 
-Each runs in its own processes (noise on, default world). Printed: simulated seconds per wall second from `/clock`,
-messages received per second, the CPU each process used, and, in the same run, the pure core's steps/s for the
-same number of robots (the ceiling the node's ROS overhead is measured against).
+The node runs in its own process (noise on, default world). Printed: simulated seconds per wall second from
+`/clock`, messages received per second, the CPU each process used, and, in the same run, the pure core's steps/s
+for the same number of robots (the ceiling the node's ROS overhead is measured against). The closed loop in
+lockstep (sim + a behaviour) is `bench_lockstep.py`'s.
 
 Run: . scripts/env.sh; ROS_DOMAIN_ID=42 python benchmarks/bench_sim_node.py [--seconds S] [--robots N]
 """
@@ -16,7 +15,6 @@ from __future__ import annotations
 import argparse
 import os
 import shutil
-import signal
 import subprocess
 import sys
 import time
@@ -29,6 +27,7 @@ from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState, Range
 from std_msgs.msg import Float64MultiArray
 
+from epuck_ros.bringup.processes import interrupt
 from epuck_ros.model import RobotModel
 from epuck_ros.simulation import Simulation
 from epuck_ros.world import default_world, place_robots
@@ -59,12 +58,10 @@ def core_steps_per_second(robots: int, steps: int) -> float:
     return steps / (time.perf_counter() - start)
 
 
-def measure(seconds: float, sim_args: list[str], robots: int, controller: list[str] | None = None) -> dict:
-    """Start sim (and a controller), subscribe everything, measure over `seconds` of wall time."""
-    processes = [subprocess.Popen([executable('sim'), '--ros-args', '-p', 'real_time_factor:=0', *sim_args],
-                                  stdout=subprocess.DEVNULL, stderr=subprocess.STDOUT)]
-    if controller:
-        processes.append(subprocess.Popen(controller, stdout=subprocess.DEVNULL, stderr=subprocess.STDOUT))
+def measure(seconds: float, sim_args: list[str], robots: int) -> dict:
+    """Start sim, subscribe everything, measure over `seconds` of wall time."""
+    sim = subprocess.Popen([executable('sim'), '--ros-args', '-p', 'real_time_factor:=0', *sim_args],
+                           stdout=subprocess.DEVNULL, stderr=subprocess.STDOUT)
     node = Node('bench_sim_node')
     clock: list[float] = []
     received = [0]
@@ -77,11 +74,9 @@ def measure(seconds: float, sim_args: list[str], robots: int, controller: list[s
         received[0] += 1
 
     node.create_subscription(Clock, '/clock', on_clock, 100)
-    if not controller:
-        prefixes = [''] if robots == 1 else [f'epuck{i}/' for i in range(robots)]
-        for prefix in prefixes:
-            for msg_type, topic in ROBOT_TOPICS:
-                node.create_subscription(msg_type, prefix + topic, count, 100)
+    for prefix in [''] if robots == 1 else [f'epuck{i}/' for i in range(robots)]:
+        for msg_type, topic in ROBOT_TOPICS:
+            node.create_subscription(msg_type, prefix + topic, count, 100)
     try:
         deadline = time.monotonic() + 60.0
         while (len(clock) < 50) and time.monotonic() < deadline:
@@ -89,22 +84,16 @@ def measure(seconds: float, sim_args: list[str], robots: int, controller: list[s
         if not clock:
             raise SystemExit('the sim node published no /clock within 60 s')
         first_sim, start, received[0] = clock[-1], time.monotonic(), 0
-        cpu_start = [cpu_seconds(p.pid) for p in processes] + [time.process_time()]
+        cpu_start = [cpu_seconds(sim.pid), time.process_time()]
         while time.monotonic() - start < seconds:
             rclpy.spin_once(node, timeout_sec=0.1)
         wall = time.monotonic() - start
-        cpu = [cpu_seconds(p.pid) for p in processes] + [time.process_time()]
+        cpu = [cpu_seconds(sim.pid), time.process_time()]
         return {'rtf': (clock[-1] - first_sim) / wall, 'messages': received[0] / wall,
                 'cpu': [(b - a) / wall for a, b in zip(cpu_start, cpu)]}
     finally:
         node.destroy_node()
-        for process in reversed(processes):
-            process.send_signal(signal.SIGINT)
-            try:
-                process.wait(timeout=15)
-            except subprocess.TimeoutExpired:
-                process.kill()
-                process.wait()
+        interrupt(sim, 15.0)
 
 
 def report(label: str, result: dict, core: float, names: list[str]) -> None:
@@ -129,14 +118,10 @@ def main() -> None:
         report('sim node, 1 robot, all topics', one, core_one, ['sim', 'subscriber'])
         many = measure(args.seconds, ['-p', f'robots:={args.robots}'], args.robots)
         report(f'sim node, {args.robots} robots, all topics', many, core_many, ['sim', 'subscriber'])
-        loop = measure(args.seconds, ['-p', 'lockstep:=true'], 1,
-                       [executable('avoid'), '--ros-args', '-p', 'use_sim_time:=true'])
-        report('closed loop: sim + avoid, lockstep', loop, core_one, ['sim', 'avoid', 'this process'])
     finally:
         rclpy.try_shutdown()
     print(f'goals: node 1 robot >= 100x: {"met" if one["rtf"] >= 100 else "NOT met"}; '
-          f'{args.robots} robots >= 1x: {"met" if many["rtf"] >= 1 else "NOT met"}; '
-          f'closed loop >= 50x: {"met" if loop["rtf"] >= 50 else "NOT met"}')
+          f'{args.robots} robots >= 1x: {"met" if many["rtf"] >= 1 else "NOT met"}')
 
 
 if __name__ == '__main__':

@@ -15,6 +15,7 @@ from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState, Range
 from std_msgs.msg import Float64MultiArray, String, UInt32
 from std_srvs.srv import Empty
+from visualization_msgs.msg import MarkerArray
 
 from epuck_ros.model import MAX_WHEEL_SPEED, SENSOR_NAMES
 
@@ -253,3 +254,16 @@ def test_repeated_timeouts_are_logged_once_then_counted(launch, test_node):
     output = sim.log_path.read_text()
     assert output.count('no command for 0.1 s') == 1
     assert 'command time-out: wheels stopped 2 more times (epuck 2)' in output
+
+
+def test_one_robot_keeps_its_names_with_a_frame_prefix_and_the_markers_are_latched(launch, test_node):
+    start_sim(launch, frame_prefix='r1/')
+    odom = test_node.collect(Odometry, 'odom')
+    truth = test_node.collect(Odometry, 'ground_truth')
+    ranges = test_node.collect(Range, 'proximity', 1000)
+    markers = test_node.collect(MarkerArray, 'world_markers', LATCHED)
+    test_node.spin_until(lambda: odom and truth and len(ranges) >= 8 and markers, what='odom, ranges, markers')
+    assert (odom[0].header.frame_id, odom[0].child_frame_id) == ('r1/odom', 'r1/base_link')
+    assert (truth[0].header.frame_id, truth[0].child_frame_id) == ('r1/world', 'r1/base_link')
+    assert {m.header.frame_id for m in ranges} == {f'r1/ps{i}' for i in range(8)}
+    assert markers[0].markers and {m.header.frame_id for m in markers[0].markers} == {'r1/world'}

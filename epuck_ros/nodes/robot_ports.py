@@ -70,8 +70,7 @@ class RobotPorts:
         topics = topic_prefix(name, several)
         frames = frame_prefix(name, several, frames_prefix)
         self.odom_frame, self.base_frame = frames + 'odom', frames + 'base_link'
-        # A lone robot keeps today's prefixed world frame; several share one `world` (where their markers are).
-        world_frame = (frames_prefix if not several else '') + WORLD_FRAME
+        world_frame = frames_prefix + WORLD_FRAME  # shared by all robots, as are the world's markers
         self._on_command = on_command
         self._logger = node.get_logger()
         self._make_messages(frames, world_frame, model)

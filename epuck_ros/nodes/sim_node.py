@@ -30,7 +30,7 @@ from epuck_ros.markers import world_markers
 from epuck_ros.model import RobotModel
 from epuck_ros.nodes.ack_window import AckWindow
 from epuck_ros.nodes.params import ParamSpec, Usage, declare_parameters, prepare_arguments
-from epuck_ros.nodes.robot_ports import JOINT_NAMES, WARN_PERIOD, RobotPorts, quiet_publisher
+from epuck_ros.nodes.robot_ports import JOINT_NAMES, WARN_PERIOD, WORLD_FRAME, RobotPorts, quiet_publisher
 from epuck_ros.nodes.serialized import Patch
 from epuck_ros.nodes.spinning import spin_until_shutdown
 from epuck_ros.simulation import CommandError, Simulation, StepEvents
@@ -204,7 +204,8 @@ class SimNode(Node):
             for index, name in enumerate(self._sim.names)]
         quiet_publisher(self, String, 'world', latched).publish(
             String(data=yaml.safe_dump(world.to_dict(), sort_keys=False)))
-        quiet_publisher(self, MarkerArray, 'world_markers', latched).publish(world_markers(world))
+        quiet_publisher(self, MarkerArray, 'world_markers', latched).publish(
+            world_markers(world, values['frame_prefix'] + WORLD_FRAME))
         self.create_service(Empty, 'reset', self._on_reset)
         self.create_service(Trigger, 'step', self._on_step)
         self._clock_pub = quiet_publisher(self, Clock, '/clock', stream)
