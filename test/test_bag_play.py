@@ -136,5 +136,6 @@ def test_loop_replays_latched_topics_for_late_subscribers_and_ctrl_c_stops_clean
     worlds = test_node.collect(String, '/world', QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL))
     test_node.spin_until(lambda: bool(worlds), timeout=30, what='the latched world for a late subscriber')
     assert 'arena' in worlds[0].data
-    assert player.stop() == 0, player.output()
-    assert 'Traceback' not in player.log_path.read_text()
+    code = player.stop()
+    log = player.log_path.read_text()
+    assert code == 0 and 'Traceback' not in log, f'exit {code}:\n{log}'
