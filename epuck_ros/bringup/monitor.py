@@ -7,6 +7,7 @@ children's log lines, so rewording a log line cannot break `bringup`.
 from __future__ import annotations
 
 import math
+import time
 
 import rclpy
 import yaml
@@ -97,6 +98,14 @@ class RunMonitor:
 
     def spin_once(self, timeout: float) -> None:
         self._executor.spin_once(timeout_sec=timeout)
+
+    def catch_up(self, timeout: float) -> None:
+        """Take the samples still on their way: until every robot's truth reached the last `/clock` (bounded)."""
+        last = round(self.sim_time * 1e9)
+        deadline = time.monotonic() + timeout
+        while any(not track.stamps or max(track.stamps) < last for track in self.tracks.values()) and \
+                time.monotonic() < deadline:
+            self._executor.spin_once(timeout_sec=0.01)
 
     # --- the graph --------------------------------------------------------------------------------------
     def sim_ready(self) -> bool:

@@ -25,6 +25,8 @@ SETTLE_TIME = 0.5
 """Without lockstep only: wall seconds between seeing the controllers in the graph and resuming, for the
 simulator's publishers to match them (the graph does not show matching). In lockstep the simulator re-sends
 its first step until every controller has answered, so no wait is needed there."""
+CATCH_UP_TIMEOUT = 5.0
+"""Wall seconds the end of a run waits for ground-truth samples still on their way."""
 GRAPH_CHECK_PERIOD = 0.5
 """Wall seconds between two looks for another simulator during the run."""
 
@@ -209,11 +211,11 @@ def run(args: argparse.Namespace, plan: Plan) -> int:
         failure = str(error)
     finally:
         # The figures are those of the run, not of the moments the simulator keeps going while stopping.
-        sim_time = monitor.sim_time
         started, ended = supervisor.resumed_at, supervisor.ended_at or time.monotonic()
+        if started is not None and not failure:
+            monitor.catch_up(CATCH_UP_TIMEOUT)
+        sim_time = monitor.sim_time
         problems = children.stop(STOP_ORDER, failed_child)
-        for _ in range(20):  # samples already on their way in
-            monitor.spin_once(0.0)
         lines = report(supervisor, sim_time, ended - started) if started is not None and not failure else []
         monitor.close()
     for line in lines:
