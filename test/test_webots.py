@@ -117,7 +117,10 @@ class ControllerRun:
             else []
         latched = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
         self.collisions: list[UInt32] = test_node.collect(UInt32, prefix + 'collisions', latched)
-        params = {'real_time_factor': 0.0, 'lockstep': True, 'paused': True, 'pause_at': float(duration),
+        # lockstep_timeout 10 s: even a machine so loaded that the controller waits a second for the CPU does
+        # not make the simulator step without its answer.
+        params = {'real_time_factor': 0.0, 'lockstep': True, 'lockstep_timeout': 10.0, 'paused': True,
+                  'pause_at': float(duration),
                   'noise': noise, **({'world': str(world)} if world else {}), **(sim_params or {})}
         self.sim = launch(SIM, *ros_args(params))
         self.sim.wait_for_output('sim ready')

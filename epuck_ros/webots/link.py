@@ -3,8 +3,8 @@
 Webots runs a controller in lockstep: `step()` hands the motor commands over, the world advances, the sensors
 are read. Over ROS the same exchange is: publish `wheel_cmd` (the answer to the step the controller has seen),
 then wait until the simulator's next step is complete here: its `/clock`, its `joint_states` (stamped with
-that time) and a fresh `ir_raw` (one per step, unstamped, published before `/clock`). With the simulator in
-lockstep nothing of a later step exists before the answer, so every reading belongs to the step asked for.
+that time) and its `ir_raw` (unstamped: matched by count, see `_complete`). With the simulator in lockstep
+nothing of a later step exists before the answer, so every reading belongs to the step asked for.
 Waiting spins this node's executor in the calling (main) thread: a script that does not call `step` leaves
 messages queued and the simulator, after its `cmd_timeout`, stops the robot.
 """
@@ -28,6 +28,8 @@ QOS = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
 COMMAND_TOPIC = 'wheel_cmd'
 SPIN_PERIOD = 0.1
 """Seconds one wait on the executor lasts at most, so that Ctrl-C and a vanished simulator are noticed."""
+MISMATCH_GIVE_UP = 3
+"""/clock messages since the answer after which an ir_raw count that does not match is accepted anyway."""
 ROBOT_CHOICE_GRACE = 3.0
 """Wall seconds the simulator's other robots may be in the graph without ours before `--robot` is refused."""
 
@@ -66,7 +68,8 @@ class SimLink:
         self._clock_ns: int | None = None
         self._joints: JointState | None = None
         self._ir_raw: tuple[float, ...] | None = None
-        self._fresh_ir = False
+        self._clocks_since_answer = 0
+        self._ir_since_answer = 0
         self._consumed_ns = -1
         self._subscriptions = [
             self.node.create_subscription(Clock, '/clock', self._on_clock, QOS),
@@ -77,13 +80,14 @@ class SimLink:
 
     def _on_clock(self, msg: Clock) -> None:
         self._clock_ns = _nanoseconds(msg.clock)
+        self._clocks_since_answer += 1
 
     def _on_joints(self, msg: JointState) -> None:
         self._joints = msg
 
     def _on_ir_raw(self, msg: Float64MultiArray) -> None:
         self._ir_raw = tuple(msg.data)
-        self._fresh_ir = True
+        self._ir_since_answer += 1
 
     # --- connecting -------------------------------------------------------------------------------------------
 
@@ -186,15 +190,23 @@ class SimLink:
 
     def answer_and_wait(self, left: float, right: float) -> StepData | None:
         """Send the wheel speeds for the step last returned, then wait for the next one (None: stop or sim gone)."""
-        self._fresh_ir = False  # an ir_raw received before the answer belongs to an earlier step
+        self._clocks_since_answer = self._ir_since_answer = 0
         self._command.data = [float(left), float(right)]
         self._publisher.publish(self._command)
         return self._next_step()
 
     def _complete(self) -> bool:
-        clock = self._clock_ns
-        return clock is not None and clock > self._consumed_ns and self._fresh_ir and \
-            self._joints is not None and _nanoseconds(self._joints.header.stamp) >= clock
+        """The newest /clock, joint_states and ir_raw are one publication of the simulator, newer than the last.
+
+        The simulator sends one of each per publication (ir_raw before /clock), in order on each topic. Joint states
+        carry the stamp; ir_raw does not, so it is matched by count: as many since the answer as /clock messages.
+        That also holds when the simulator went on without waiting (its lockstep_timeout): the readings then are
+        those of its newest step, all three. Three publications without the counts meeting (a re-sent first step
+        straddling the answer) and the newest ir_raw is taken as it is."""
+        clock, clocks = self._clock_ns, self._clocks_since_answer
+        return clock is not None and clock > self._consumed_ns and self._joints is not None and \
+            _nanoseconds(self._joints.header.stamp) == clock and self._ir_since_answer > 0 and \
+            (self._ir_since_answer == clocks or clocks >= MISMATCH_GIVE_UP)
 
     def _next_step(self) -> StepData | None:
         last_check = time.monotonic()
