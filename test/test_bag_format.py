@@ -432,3 +432,18 @@ def test_stamp_gaps_of_two_clusters_of_steps():
     stamps = np.cumsum([0, 10, 10] + [1000] * 10)
     gaps = find_gaps('/clustered', stamps)
     assert (gaps.period_ns, gaps.gaps, gaps.missing_steps) == (10, 10, 990)
+
+
+def test_a_zero_filled_tail_ends_the_readable_part(tmp_path):
+    """A crash can leave a file extended with zeros: they are not records (opcode 0), so reading stops there
+    instead of walking them nine bytes at a time (a GB of zeros took minutes)."""
+    write_bag(tmp_path / 'run')
+    whole = (tmp_path / 'run' / 'run_0.mcap').read_bytes()
+    cut = tmp_path / 'cut.mcap'
+    cut.write_bytes(whole[:len(whole) // 2])
+    with Bag(cut) as bag:
+        complete, ignored = bag.message_count, bag.files[0].ignored_bytes
+    cut.write_bytes(whole[:len(whole) // 2] + bytes(1_000_000))
+    with Bag(cut) as bag:
+        assert bag.message_count == complete and complete > 0
+        assert bag.files[0].ignored_bytes == ignored + 1_000_000

@@ -361,7 +361,7 @@ class McapFile:
         while position < size:
             opcode, length = _RECORD.unpack_from(data, position) if position + 9 <= size else (0, size)
             end = position + 9 + length
-            if end > size:
+            if end > size or opcode == 0:  # cut short, or zeros (a crash can leave a zero-filled tail)
                 self.ignored_bytes = size - position
                 break
             if opcode in (Opcode.FOOTER, Opcode.DATA_END):
@@ -488,7 +488,7 @@ class McapFile:
                 raise BagError(f'{self.path}: record cut short {position} bytes into the part at byte {where}')
             opcode, length = unpack_record(buffer, position)
             record_end = position + 9 + length
-            if record_end > end or opcode == Opcode.MESSAGE:
+            if record_end > end or opcode in (Opcode.MESSAGE, 0):
                 raise BagError(f'{self.path}: record {position} bytes into the chunk or file part at byte '
                                f'{where} runs past its end')
             if opcode == Opcode.SCHEMA:
