@@ -77,14 +77,15 @@ def test_keys_drive_the_chosen_robot_and_end_of_input_stops_it(test_node, teleop
     other = test_node.collect(Twist, '/cmd_vel', 100)
     process = teleop('--robot', 'epuck3')
     process.type(b'w')  # held commands are re-sent (repeat_rate), so nothing depends on when DDS matched
-    test_node.spin_until(lambda: _last(received) == (0.1, 0.0), what='forward Twist')
+    test_node.spin_until(lambda: _last(received) == (0.1, 0.0), what='forward Twist', timeout=60)
     process.type(b'\x1b[D')  # left arrow
-    test_node.spin_until(lambda: _last(received) == (0.0, 1.5), what='left turn Twist')
+    test_node.spin_until(lambda: _last(received) == (0.0, 1.5), what='left turn Twist', timeout=60)
     process.type(b'q')
-    test_node.spin_until(lambda: _last(received) == pytest.approx((0.0, 1.5 * SPEED_STEP)), what='faster turn')
+    test_node.spin_until(lambda: _last(received) == pytest.approx((0.0, 1.5 * SPEED_STEP)),
+                         what='faster turn', timeout=60)
     process.proc.stdin.close()
     assert process.proc.wait(timeout=30) == 0
-    test_node.spin_until(lambda: _last(received) == (0.0, 0.0), what='the stop sent on exit')
+    test_node.spin_until(lambda: _last(received) == (0.0, 0.0), what='the stop sent on exit', timeout=60)
     assert f'turn {1.5 * SPEED_STEP:.2f} rad/s' in process.output()
     assert other == []
 
@@ -93,8 +94,9 @@ def test_interrupt_stops_the_robot(test_node, teleop) -> None:
     received = test_node.collect(Twist, '/cmd_vel', 100)
     process = teleop('--ros-args', '-p', 'speed:=0.05')
     process.type(b'w')
-    test_node.spin_until(lambda: _last(received) == (0.05, 0.0), what='forward Twist at the speed parameter')
+    test_node.spin_until(lambda: _last(received) == (0.05, 0.0),
+                         what='forward Twist at the speed parameter', timeout=60)
     process.proc.send_signal(signal.SIGINT)
     assert process.proc.wait(timeout=30) == 0
-    test_node.spin_until(lambda: _last(received) == (0.0, 0.0), what='the stop sent on Ctrl-C')
+    test_node.spin_until(lambda: _last(received) == (0.0, 0.0), what='the stop sent on Ctrl-C', timeout=60)
     assert 'stopped' in process.output()

@@ -88,7 +88,8 @@ class Page:
     def __init__(self, driver: webdriver.Chrome, url: str) -> None:
         self.driver = driver
         driver.get(url)
-        self.wait_until(lambda: self.script('return view.frame && view.frame.paused !== null && view.world'),
+        self.wait_until(lambda: self.script('return view.world && view.world.robots && view.frame '
+                                            '&& view.frame.paused !== null'),
                         'the page to show the world and the simulator settings')
 
     def script(self, code: str) -> object:
@@ -139,7 +140,7 @@ def _open_view(launch, *sim_params: str) -> str:
 
 def _settings(test_node, client: AsyncParameterClient) -> dict:
     future = client.get_parameters(['paused', 'real_time_factor'])
-    test_node.spin_until(future.done, what='the simulator parameters')
+    test_node.spin_until(future.done, what='the simulator parameters', timeout=60)
     values = future.result().values
     return {'paused': values[0].bool_value, 'real_time_factor': values[1].double_value}
 
@@ -154,7 +155,7 @@ def test_page_draws_ground_truth_steps_pauses_and_drives(launch, test_node, brow
     # Paused: a Step is exactly one time step, and the robot is drawn where ground_truth says.
     first = _step_until_heard(page, test_node, [truth])
     assert page.step() == pytest.approx(first + STEP, abs=1e-9)
-    test_node.spin_until(lambda: _ns(first + STEP) in truth.poses, what='ground_truth of the second step')
+    test_node.spin_until(lambda: _ns(first + STEP) in truth.poses, what='ground_truth of the second step', timeout=60)
     drawn = page.drawn()['robots']['epuck']
     assert _ns(drawn['stamp']) == _ns(first + STEP)
     assert drawn['pose'] == pytest.approx(truth.poses[_ns(first + STEP)], abs=1e-12)
@@ -162,12 +163,13 @@ def test_page_draws_ground_truth_steps_pauses_and_drives(launch, test_node, brow
     # A held arrow key drives the robot: cmd_vel from the page, then the next steps move it forward.
     page.click('arena')
     ActionChains(browser).key_down(Keys.ARROW_UP).perform()
-    test_node.spin_until(lambda: commands and commands[-1].linear.x > 0.0, what='a forward cmd_vel from the page')
+    test_node.spin_until(lambda: commands and commands[-1].linear.x > 0.0,
+                         what='a forward cmd_vel from the page', timeout=60)
     assert commands[-1].angular.z == 0.0
     start_x = truth.poses[_ns(first + STEP)][0]
     for _ in range(5):  # the command reaches the sim with the page's next message at the latest
         stepped = page.step()
-        test_node.spin_until(lambda: _ns(stepped) in truth.poses, what='ground_truth of the step')
+        test_node.spin_until(lambda: _ns(stepped) in truth.poses, what='ground_truth of the step', timeout=60)
         if truth.poses[_ns(stepped)][0] > start_x:
             break
     moved = truth.poses[_ns(stepped)]
@@ -175,7 +177,7 @@ def test_page_draws_ground_truth_steps_pauses_and_drives(launch, test_node, brow
     assert page.drawn()['robots']['epuck']['pose'] == pytest.approx(moved, abs=1e-12)
     ActionChains(browser).key_up(Keys.ARROW_UP).perform()
     test_node.spin_until(lambda: commands[-1].linear.x == 0.0 and commands[-1].angular.z == 0.0,
-                         what='the stop sent when the key is released')
+                         what='the stop sent when the key is released', timeout=60)
 
     # Real-time factor, resume and pause go to the simulator's parameters.
     rtf_input = browser.find_element(By.ID, 'rtf-input')
@@ -183,13 +185,13 @@ def test_page_draws_ground_truth_steps_pauses_and_drives(launch, test_node, brow
     rtf_input.send_keys('0')
     page.click('rtf-set')
     test_node.spin_until(lambda: _settings(test_node, sim_parameters)['real_time_factor'] == 0.0,
-                         what='real_time_factor 0 on the sim')
+                         what='real_time_factor 0 on the sim', timeout=60)
     page.click('pause')  # labelled Resume while paused
     page.wait_until(lambda: (page.drawn().get('time') or 0.0) > stepped + 1.0, 'simulated time to run on')
     assert not _settings(test_node, sim_parameters)['paused']
     page.wait_until(lambda: page.text('pause') == 'Pause', 'the button to offer Pause')
     page.click('pause')
-    test_node.spin_until(lambda: _settings(test_node, sim_parameters)['paused'], what='paused on the sim')
+    test_node.spin_until(lambda: _settings(test_node, sim_parameters)['paused'], what='paused on the sim', timeout=60)
     page.wait_until(lambda: page.text('run-state') == 'paused', 'the page to show paused')
     # Paused at a real-time factor of 0: time stands still, two Steps are exactly one step apart.
     after_pause = page.step()
@@ -210,10 +212,11 @@ def test_several_robots_each_drawn_and_only_the_selected_one_driven(launch, test
     page.click('arena')
     ActionChains(browser).key_down(Keys.ARROW_UP).key_down(Keys.ARROW_LEFT).perform()
     test_node.spin_until(lambda: commands['epuck1'] and commands['epuck1'][-1].linear.x > 0.0
-                         and commands['epuck1'][-1].angular.z > 0.0, what='an arc cmd_vel for epuck1')
+                         and commands['epuck1'][-1].angular.z > 0.0, what='an arc cmd_vel for epuck1', timeout=60)
     for _ in range(5):
         stepped = page.step()
-        test_node.spin_until(lambda: all(_ns(stepped) in truths[n].poses for n in names), what='every ground_truth')
+        test_node.spin_until(lambda: all(_ns(stepped) in truths[n].poses for n in names),
+                             what='every ground_truth', timeout=60)
         if truths['epuck1'].poses[_ns(stepped)][1] > 0.1:
             break
     assert truths['epuck1'].poses[_ns(stepped)][1] > 0.1  # epuck1 faces +y: forward is up

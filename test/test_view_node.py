@@ -44,18 +44,19 @@ def test_view_follows_placed_robots_and_relays_step_and_drive(launch, test_node)
     launch('sim', '--ros-args', '-p', 'paused:=true', '-p', 'robots:=3', '-p', 'seed:=5')
     address = _url(launch('view', '--ros-args', '-p', 'port:=0'))
     test_node.spin_until(lambda: [r['name'] for r in _call(address, 'GET', '/world')[1].get('robots', [])]
-                         == list(names), what='the view to know the three placed robots')
+                         == list(names), what='the view to know the three placed robots', timeout=60)
 
-    test_node.spin_until(lambda: _call(address, 'GET', '/state')[1]['paused'] is True, what='the sim settings')
+    test_node.spin_until(lambda: _call(address, 'GET', '/state')[1]['paused'] is True,
+                         what='the sim settings', timeout=60)
     # A page showing epuck1 in detail (polling for it): the view subscribes to epuck1's odometry and wheels only.
-    test_node.spin_until(lambda: _call(address, 'GET', '/state?robot=epuck1')[0] == 200, what='a poll')
+    assert _call(address, 'GET', '/state?robot=epuck1')[0] == 200
     for _ in range(10):  # until the test node's own subscriptions have matched and received a step
         status, answer = _call(address, 'POST', '/api/step', {})
         assert status == 200, answer
         stepped = round(float(answer['message'].split('t=')[1].split()[0]) * 1e9)
         test_node.spin_until(lambda: all(robot['stamp'] is not None and round(robot['stamp'] * 1e9) == stepped
                                          for robot in _call(address, 'GET', '/state')[1]['robots'].values()),
-                             what='the view to hold the step')
+                             what='the view to hold the step', timeout=60)
         test_node.spin_for(0.2)
         if all(stepped in truth[name] for name in names):
             break
@@ -67,7 +68,8 @@ def test_view_follows_placed_robots_and_relays_step_and_drive(launch, test_node)
     def details() -> dict:
         _call(address, 'POST', '/api/step', {})  # paused: the next step brings them
         return _call(address, 'GET', '/state?robot=epuck1')[1]['robots']
-    test_node.spin_until(lambda: details()['epuck1']['wheel_speeds'] is not None, what="epuck1's wheel speeds")
+    test_node.spin_until(lambda: details()['epuck1']['wheel_speeds'] is not None,
+                         what="epuck1's wheel speeds", timeout=60)
     robots = _call(address, 'GET', '/state?robot=epuck1')[1]['robots']
     assert robots['epuck1']['odom'] == [0.0, 0.0, 0.0] and robots['epuck1']['odom_error']['distance'] == 0.0
     assert robots['epuck1']['wheel_speeds'] == [0.0, 0.0]
@@ -75,7 +77,7 @@ def test_view_follows_placed_robots_and_relays_step_and_drive(launch, test_node)
 
     status, answer = _call(address, 'POST', '/api/drive', {'robot': 'epuck2', 'linear': 0.05, 'angular': -0.5})
     assert status == 200
-    test_node.spin_until(lambda: bool(driven), what='the Twist on epuck2/cmd_vel')
+    test_node.spin_until(lambda: bool(driven), what='the Twist on epuck2/cmd_vel', timeout=60)
     assert (driven[-1].linear.x, driven[-1].angular.z) == (0.05, -0.5)
     status, answer = _call(address, 'POST', '/api/drive', {'robot': 'epuck7', 'linear': 0.0, 'angular': 0.0})
     assert status == 400 and 'epuck7' in answer['error']
@@ -84,7 +86,7 @@ def test_view_follows_placed_robots_and_relays_step_and_drive(launch, test_node)
     assert status == 400 and answer['error'].startswith('real_time_factor refused'), answer
     assert _call(address, 'POST', '/api/real_time_factor', {'value': 2})[0] == 200
     test_node.spin_until(lambda: _call(address, 'GET', '/state')[1]['real_time_factor'] == 2.0,
-                         what='the new real-time factor back from the sim')
+                         what='the new real-time factor back from the sim', timeout=60)
 
 
 def test_a_port_in_use_is_one_line_and_exit_code_2(launch) -> None:
