@@ -55,7 +55,9 @@ class RobotTrack:
 class RunMonitor:
     """Follows the graph, `/clock`, the sim's `world` and each robot's `ground_truth`."""
 
-    def __init__(self, namespace: str) -> None:
+    def __init__(self, namespace: str, follow_robots: bool = True) -> None:
+        """`follow_robots`: tally every robot's ground truth (not needed when the run is recorded: the bag holds
+        it, and each reliable reader is one more the simulator waits for)."""
         self.context = Context()
         remap = ['-r', f'__ns:=/{namespace.strip("/")}'] if namespace else []
         rclpy.init(args=['--ros-args', *remap], context=self.context,
@@ -68,6 +70,7 @@ class RunMonitor:
         self.world_error = ''
         self.tracks: dict[str, RobotTrack] = {}
         self.tally: RunTally | None = None
+        self._follow_robots = follow_robots
         """Distance and contacts of every robot so far (the same tally `bag summary` makes from a bag)."""
         self._parameters = AsyncParameterClient(self.node, SIM_NODE)
         self.node.create_subscription(Clock, '/clock', self._on_clock, 10)
@@ -85,6 +88,8 @@ class RunMonitor:
             self.world = world_from_dict(yaml.safe_load(msg.data) or {}, source='the sim\'s world topic')
         except (WorldError, yaml.YAMLError) as error:
             self.world_error = str(error)
+            return
+        if not self._follow_robots:
             return
         qos = QoSProfile(depth=SAMPLE_DEPTH, reliability=ReliabilityPolicy.RELIABLE)
         several = len(self.world.robots) > 1

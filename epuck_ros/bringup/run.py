@@ -197,7 +197,7 @@ def _time_step(plan: Plan) -> float:
 
 def run(args: argparse.Namespace, plan: Plan) -> int:
     print(f'[bringup] {ros_domain()}', flush=True)
-    monitor = RunMonitor(args.namespace)
+    monitor = RunMonitor(args.namespace, follow_robots=plan.record_dir is None)
     children = Children()
     supervisor = Supervisor(args, plan, monitor, children)
     for signum in (signal.SIGINT, signal.SIGTERM):
