@@ -164,8 +164,9 @@ def _plot_one(figure: plt.Figure, axes: plt.Axes, run: RunData, length: float, b
     handles = []
     odom = run.odom_in_world() if run.truth is not None else None
     if odom is not None:
-        axes.plot(odom.x, odom.y, '--', color='0.45', linewidth=1.2, zorder=2, gid='odometry')
-        handles.append(Line2D([], [], linestyle='--', color='0.45', label='odometry, from the start pose'))
+        # over the true path (thin and dashed): where odometry agrees with the truth it would vanish under it
+        axes.plot(odom.x, odom.y, '--', color='0.25', linewidth=1.0, zorder=4, gid='odometry')
+        handles.append(Line2D([], [], linestyle='--', color='0.25', label='odometry, from the start pose'))
     points = np.column_stack([path.x, path.y])
     # round caps: butt-ended segments leave antialiasing seams that make the line look dotted
     lines = LineCollection(np.stack([points[:-1], points[1:]], axis=1), cmap=TIME_COLORMAP, linewidth=2.5,
