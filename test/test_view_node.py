@@ -5,8 +5,11 @@ import http.client
 import json
 import math
 import subprocess
+from pathlib import Path
 
 from geometry_msgs.msg import Twist
+from mcap.reader import make_reader
+from mcap_ros2.decoder import DecoderFactory
 from nav_msgs.msg import Odometry
 
 from conftest import BIN_DIR
@@ -103,3 +106,31 @@ def test_help_lists_the_parameters() -> None:
     assert result.returncode == 0
     for text in ('host', 'port', '8765', 'sim_node', 'example'):
         assert text in result.stdout
+
+
+def test_view_draws_a_played_bag_recorded_before_ir_raw(launch, test_node) -> None:
+    """`bag play` of a sample run into the view: poses as recorded, IR rays from the 8 Range messages."""
+    bag = Path(__file__).resolve().parents[1] / 'bags' / 'avoid'
+    poses, ranges = {}, {f'ps{i}': set() for i in range(8)}
+    with open(next(bag.glob('*.mcap')), 'rb') as stream:  # read by mcap_ros2, not by our own reader
+        read = list(make_reader(stream, decoder_factories=[DecoderFactory()]).iter_decoded_messages(
+            topics=['/ground_truth', '/proximity']))
+    for _, channel, _, msg in read:
+        if channel.topic == '/ground_truth':
+            q, stamp = msg.pose.pose.orientation, msg.header.stamp
+            poses[stamp.sec * 10**9 + stamp.nanosec] = [msg.pose.pose.position.x, msg.pose.pose.position.y,
+                                                        2 * math.atan2(q.z, q.w)]
+        else:
+            ranges[msg.header.frame_id].add(round(min(msg.range, 0.07), 5))  # inf (nothing seen): full length
+
+    address = _url(launch('view', '--ros-args', '-p', 'port:=0'))
+    launch('bag', 'play', str(bag), '--rate', '2')
+
+    def drawn() -> dict | None:
+        robot = _call(address, 'GET', '/state')[1]['robots'].get('epuck')
+        return robot if robot and robot['pose'] and robot['ir_range'] and robot['stamp'] > 1.0 else None
+    test_node.spin_until(lambda: drawn() is not None, what='the played run in the view', timeout=60)
+    robot = drawn()
+    assert robot['pose'] == poses[round(robot['stamp'] * 1e9)]
+    for sensor, drawn_range in enumerate(robot['ir_range']):
+        assert drawn_range in ranges[f'ps{sensor}']
