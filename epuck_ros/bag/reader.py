@@ -354,7 +354,10 @@ class McapFile:
                 yield from self._walk_chunk(offset, self.size, channel_ids)
 
     def _walk(self, channel_ids: frozenset[int] | None) -> Iterator[tuple]:
-        """Top-level records from the start; stops at the data end or at the first incomplete record."""
+        """Top-level records from the start; stops at the data end or at the first incomplete record.
+
+        A chunk that does not check out (CRC, size) also ends the readable part: in a file without a usable
+        summary that is the chunk being written when the writer died, its pages never written (zeros)."""
         data, size = self._map, self.size
         schemas: dict[int, Schema] = {}
         position = len(MAGIC)
@@ -367,7 +370,12 @@ class McapFile:
             if opcode in (Opcode.FOOTER, Opcode.DATA_END):
                 break
             if opcode == Opcode.CHUNK:
-                yield from self._walk_chunk(position, end, channel_ids, schemas)
+                try:
+                    records = self._chunk_records(position, end)
+                except BagError:
+                    self.ignored_bytes = size - position
+                    break
+                yield from self._walk_records(records, 0, len(records), channel_ids, schemas, position)
             elif opcode == Opcode.HEADER:
                 self.profile, self.library = self._strings(position + 9, end, 2)
             elif opcode == Opcode.METADATA:
@@ -392,12 +400,10 @@ class McapFile:
             offset += 4 + length
         return found
 
-    def _walk_chunk(self, offset: int, limit: int, channel_ids: frozenset[int] | None,
-                    schemas: dict[int, Schema] | None = None) -> Iterator[tuple]:
+    def _walk_chunk(self, offset: int, limit: int, channel_ids: frozenset[int] | None) -> Iterator[tuple]:
         """The messages of the chunk record at `offset`, which must end by `limit`."""
         buffer = self._chunk_records(offset, limit)
-        yield from self._walk_records(buffer, 0, len(buffer), channel_ids,
-                                      schemas if schemas is not None else {}, offset)
+        yield from self._walk_records(buffer, 0, len(buffer), channel_ids, {}, offset)
 
     def _chunk_records(self, offset: int, limit: int) -> bytes | memoryview:
         """The records of the chunk at `offset` (ending by `limit`), decompressed and checked against its CRC."""
