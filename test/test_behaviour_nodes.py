@@ -4,6 +4,7 @@ and tolerances are those of the pure closed-loop tests in test_behaviours.py."""
 from __future__ import annotations
 
 import math
+import re
 
 import numpy as np
 import pytest
@@ -79,6 +80,12 @@ class Run:
                                   timeout=timeout, what=f'{process.name} to print {text!r}')
         assert text in process.output(), process.output()
 
+    def logged_time(self, process: object, text: str) -> float:
+        """The simulated time of the behaviour's log line containing `text` ("... (t=12.345 s)"): the test node's
+        view of ground_truth may lag the simulator, so waits for what followed start from this time."""
+        line = next(line for line in process.output().splitlines() if text in line)
+        return float(re.search(r'\(t=([0-9.]+) s\)', line).group(1))
+
     def sim_time(self) -> float:
         stamp = self.truth[-1].header.stamp if self.truth else None
         return stamp.sec + 1e-9 * stamp.nanosec if stamp else 0.0
@@ -92,7 +99,7 @@ class Run:
 def test_forward_stops_at_its_goal_over_dds(launch: object, test_node: object) -> None:
     run = Run(launch, test_node, 'forward', {'goal_distance': 0.2})
     run.wait_for(run.behaviour, 'goal reached', timeout=20.0)
-    run.until(run.sim_time() + 1.0)
+    run.until(run.logged_time(run.behaviour, 'goal reached') + 1.0)
     truth, odom = trajectory(run.truth), trajectory(run.odom)
     travelled = float(np.hypot(*(truth[-1, 1:3] - truth[0, 1:3])))
     on_odom = float(np.hypot(*(odom[-1, 1:3] - odom[0, 1:3])))
@@ -132,7 +139,7 @@ def test_circle_has_the_course_radius_over_dds(launch: object, test_node: object
 def test_rectangle_closes_with_true_right_angles_over_dds(launch: object, test_node: object) -> None:
     run = Run(launch, test_node, 'rectangle', {'laps': 1})
     run.wait_for(run.behaviour, 'finished 1 lap', timeout=30.0)
-    run.until(run.sim_time() + 0.5)
+    run.until(run.logged_time(run.behaviour, 'finished 1 lap') + 0.5)
     rows = trajectory(run.truth)
     turning = np.abs(np.diff(rows[:, 3])) > 0.0
     starts = np.flatnonzero(np.diff(turning.astype(int)) == 1) + 1

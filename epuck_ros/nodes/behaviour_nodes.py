@@ -9,6 +9,13 @@ One robot: the node's namespace is the robot's (`avoid --ros-args -r __ns:=/epuc
 process: `avoid --robots epuck0 epuck1` (or `--robots all`, every robot of the simulator's world) makes one
 node per robot, named like the executable, in the namespace `<namespace>/<robot>`, all on one executor;
 `-p` parameters apply to every one of them.
+
+The nodes spin on rclpy's EventsExecutor (experimental in Jazzy, in rclpy since 7.1.4): it queues each ready
+entity's event in C++ instead of rebuilding a wait set of every node's subscriptions, timers and parameter
+services in Python before each callback. Measured with benchmarks/bench_lockstep.py (lockstep, real_time_factor
+0, alternating runs with SingleThreadedExecutor on a busy 2-core machine), `avoid` CPU per step: one robot on
+`ir_raw` 0.52-0.54 ms instead of 1.09-1.24 ms, on the eight Ranges 0.84-0.93 ms instead of 2.6-2.9 ms, 20 robots in
+one process 6.7-8.4 ms instead of 17-21 ms.
 """
 from __future__ import annotations
 
@@ -25,6 +32,7 @@ from nav_msgs.msg import Odometry
 from rclpy.clock import Clock, ClockType
 from rclpy.duration import Duration
 from rclpy.exceptions import InvalidNamespaceException, ParameterException
+from rclpy.experimental import EventsExecutor
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.signals import SignalHandlerOptions
@@ -312,7 +320,7 @@ def main(name: str, args: list[str] | None = None) -> None:
         for namespace in robot_namespaces(name, robots):
             nodes.append(BehaviourNode(name, spec, namespace))
         if nodes and not shutdown_requested():
-            spin_until_shutdown(*nodes)
+            spin_until_shutdown(*nodes, executor_type=EventsExecutor)
     except (ConfigError, ParameterException, InvalidNamespaceException, WorldError) as error:
         rclpy.logging.get_logger(name).fatal(f'cannot start: {error}')
         raise SystemExit(2)

@@ -13,7 +13,8 @@ import signal
 import threading
 from collections.abc import Callable
 
-from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.context import Context
+from rclpy.executors import Executor, ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.signals import SignalHandlerOptions, get_current_signal_handlers_options, uninstall_signal_handlers
 
@@ -39,15 +40,17 @@ def shutdown_requested() -> bool:
     return _requested.is_set()
 
 
-def spin_until_shutdown(*nodes: Node, until: Callable[[], bool] | None = None) -> None:
+def spin_until_shutdown(*nodes: Node, until: Callable[[], bool] | None = None,
+                        executor_type: Callable[..., Executor] = SingleThreadedExecutor) -> None:
     """Spin `nodes` on one executor until SIGINT / SIGTERM, the context's shutdown, or `until()` is true.
 
     Returns with the context still usable (unless something else shut it down). A failure inside a callback
     once the context is gone is part of someone else shutting it down, not an error; any other is re-raised.
+    `executor_type` is called with `context=`: SingleThreadedExecutor, or rclpy's EventsExecutor.
     """
     handle_shutdown_signals()
-    context = nodes[0].context
-    executor = SingleThreadedExecutor(context=context)
+    context: Context = nodes[0].context
+    executor = executor_type(context=context)
     for node in nodes:
         executor.add_node(node)
     try:
