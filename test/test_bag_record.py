@@ -260,3 +260,17 @@ def test_a_full_disk_stops_the_recorder_with_one_line_and_a_readable_bag(test_no
         assert not recorded.closed_properly and 'not closed properly' in format_info(recorded)
         values = [int.from_bytes(m.data[16:20], 'little') for m in recorded.messages()]  # data[0]
     assert len(values) >= 500 and values == list(range(len(values)))
+
+
+def test_ctrl_c_takes_what_dds_already_holds_before_closing(launch, test_node, tmp_path):
+    """Everything DDS has acknowledged to the recorder is in the bag, even when Ctrl-C comes right after."""
+    recorder = start_recorder(launch, tmp_path / 'bag', '/count')
+    count = test_node.node.create_publisher(UInt32, 'count', QoSProfile(depth=5000))
+    wait_until_subscribed(test_node, count)
+    for i in range(5000):
+        count.publish(UInt32(data=i))
+    assert count.wait_for_all_acked(Duration(seconds=60))
+    assert recorder.stop() == 0
+    with Bag(tmp_path / 'bag') as bag:
+        values = [int.from_bytes(m.data[4:8], 'little') for m in bag.messages()]
+    assert values == list(range(5000))

@@ -20,6 +20,7 @@ import importlib
 import math
 import signal
 import sys
+import threading
 import time
 from functools import partial
 from pathlib import Path
@@ -30,6 +31,7 @@ from rclpy.exceptions import InvalidTopicNameException
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.event_handler import QoSMessageLostInfo, SubscriptionEventCallbacks, UnsupportedEventTypeError
 from rclpy.node import Node
+from rclpy.signals import SignalHandlerOptions
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.topic_or_service_is_hidden import topic_or_service_is_hidden
 from rclpy.utilities import remove_ros_args
@@ -44,6 +46,10 @@ DISCOVERY_PERIOD = 0.2
 """s of wall time between two looks at the graph (rosbag2 polls every 0.1 s)."""
 SUBSCRIPTION_DEPTH = 1000
 """Messages DDS may hold for the recorder while it is busy: bursts must never overflow it."""
+DRAIN_LIMIT = 10.0
+"""s of wall time the recorder keeps taking messages DDS holds for it after Ctrl-C (the sim may still run)."""
+DRAIN_IDLE_SPINS = 3
+"""Spins without a message that end that draining (a timer may take a spin)."""
 NOTHING_RECORDED_WARNING = 5.0
 """s of wall time without a single message before `record` says it may be on the wrong domain."""
 DEFAULT_BAG_FOLDER = Path('bags')
@@ -264,16 +270,22 @@ def main(args: list[str] | None = None) -> None:
     except (BagExistsError, OSError) as error:
         print(f'record: error: {error}', file=sys.stderr)
         raise SystemExit(2)
-    rclpy.init(args=argv)
+    # Ctrl-C / SIGTERM ask to stop rather than shut the context down at once (rclpy's handler): the
+    # recorder then takes what DDS already holds for it before closing the bag.
+    stop = threading.Event()
+    for signum in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(signum, lambda *_: stop.set())
+    rclpy.init(args=argv, signal_handler_options=SignalHandlerOptions.NO)
     node = None
     failure = None
     try:
         node = Recorder(writer, options.topics, options.max_duration)
-        spin_until_finished(node)
+        spin_until_finished(node, stop)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     finally:
-        signal.signal(signal.SIGINT, signal.SIG_IGN)  # a second Ctrl-C must not cut the bag short
+        for signum in (signal.SIGINT, signal.SIGTERM):
+            signal.signal(signum, signal.SIG_IGN)  # a second Ctrl-C must not cut the bag short
         try:
             if node is None:
                 writer.close()
@@ -290,12 +302,20 @@ def main(args: list[str] | None = None) -> None:
         raise SystemExit(EXIT_WRITE_FAILED)
 
 
-def spin_until_finished(node: Recorder) -> None:
-    """Spin until --max-duration is reached, the bag cannot be written, or the context shuts down."""
+def spin_until_finished(node: Recorder, stop: threading.Event | None = None) -> None:
+    """Spin until --max-duration is reached, the bag cannot be written, or `stop` is set; after a stop,
+    take the messages DDS already holds for the recorder (for at most DRAIN_LIMIT s) so none is lost."""
     executor = SingleThreadedExecutor()
     executor.add_node(node)
-    while not node.finished and rclpy.ok():
+    while not node.finished and not (stop is not None and stop.is_set()) and rclpy.ok():
         executor.spin_once()
+    if stop is None or not stop.is_set() or node.failure is not None:
+        return
+    idle, deadline = 0, time.monotonic() + DRAIN_LIMIT
+    while idle < DRAIN_IDLE_SPINS and time.monotonic() < deadline and rclpy.ok():
+        before = node.received
+        executor.spin_once(timeout_sec=0.05)
+        idle = idle + 1 if node.received == before else 0
 
 
 if __name__ == '__main__':
