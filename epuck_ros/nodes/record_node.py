@@ -46,8 +46,9 @@ DISCOVERY_PERIOD = 0.2
 """s of wall time between two looks at the graph (rosbag2 polls every 0.1 s)."""
 SUBSCRIPTION_DEPTH = 1000
 """Messages DDS may hold for the recorder while it is busy: bursts must never overflow it."""
-DRAIN_LIMIT = 10.0
-"""s of wall time the recorder keeps taking messages DDS holds for it after Ctrl-C (the sim may still run)."""
+DRAIN_LIMIT = 5.0
+"""s of wall time the recorder keeps taking messages DDS holds for it after Ctrl-C (the sim may still run);
+well within the 10 s bringup allows a child to stop."""
 DRAIN_IDLE_SPINS = 3
 """Spins without a message that end that draining (a timer may take a spin)."""
 NOTHING_RECORDED_WARNING = 5.0
