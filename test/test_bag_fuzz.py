@@ -308,3 +308,20 @@ def test_deeply_nested_schema_types_are_refused(tmp_path):
         writer.finish()
     code, _, err = run_bag('csv', str(tmp_path / 'deep.mcap'), '/deep')
     assert code == 2 and 'types nested more than 64 levels deep' in err
+
+
+def test_a_zstd_chunk_of_zeros_cannot_become_gigabytes_of_values(tmp_path):
+    """A few KB of zstd inflate to 50 MB of zeros: read as one uint8[] that would be 50 million Python ints
+    (about 2 GB)."""
+    from mcap.writer import CompressionType, Writer
+    with open(tmp_path / 'zeros.mcap', 'wb') as stream:
+        writer = Writer(stream, compression=CompressionType.ZSTD, chunk_size=100 * 2**20)
+        writer.start(profile='ros2', library='fuzz')
+        schema = writer.register_schema('pkg/msg/Blob', 'ros2msg', b'uint8[] data\n')
+        size = 50 * 2**20
+        writer.add_message(writer.register_channel('/blob', 'cdr', schema), 1,
+                           b'\x00\x01\x00\x00' + struct.pack('<I', size) + bytes(size), 1)
+        writer.finish()
+    assert (tmp_path / 'zeros.mcap').stat().st_size < 100_000
+    code, _, err = run_bag('csv', str(tmp_path / 'zeros.mcap'), '/blob', '-o', str(tmp_path / 'blob.csv'))
+    assert code == 2 and 'more than 4,000,000 array elements in one message' in err

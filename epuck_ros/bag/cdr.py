@@ -7,7 +7,7 @@ the only variable-length parts before the numbers are the frame_id strings.
 
 Message data is untrusted: every read is checked against the message's end, sequence counts are
 bounded by the bytes left (every element takes at least one byte: an empty struct is serialised
-as one uint8, as rosidl does), and type nesting is bounded, so a corrupt or hostile bag gives a
+as one uint8, as rosidl does) and in total per message, and type nesting is bounded, so a corrupt or hostile bag gives a
 `CdrError` rather than a traceback, gigabytes of memory, or figures read from the next message.
 """
 from __future__ import annotations
@@ -32,6 +32,9 @@ _FIELD_TYPE = re.compile(r'^([A-Za-z0-9_/]+)(?:<=\d+)?(?:\[(<=)?(\d*)\])?$')
 _SEPARATOR = re.compile(r'^={3,}$', re.MULTILINE)
 MAX_DEPTH = 64
 """Deepest nesting of message types accepted (ROS messages nest a handful of levels)."""
+MAX_ELEMENTS = 4_000_000
+"""Most array elements decoded from one message (a 640x480 RGB image has 921,600): each becomes a Python
+object, and a few KB of zstd can inflate to a chunk of hundreds of MB of zeros."""
 _EMPTY_STRUCT = [('uint8', 'structure_needs_at_least_one_member', None)]
 """What rosidl puts in an empty message, so that it serialises as one byte."""
 
@@ -193,6 +196,7 @@ class CdrDecoder:
         self._order = '<' if kind == CDR_LE else '>'
         self._base = start + ENCAPSULATION
         self._end = end
+        self._elements_left = MAX_ELEMENTS
         try:
             value, position = self._read_message(buffer, self.type_name, self._base)
         except struct.error:
@@ -213,6 +217,9 @@ class CdrDecoder:
                 position += 4
             if array > self._end - position:  # each element takes at least one byte
                 raise _cut_short(self.type_name)
+            self._elements_left -= array
+            if self._elements_left < 0:
+                raise CdrError(f'{self.type_name}: more than {MAX_ELEMENTS:,} array elements in one message')
             message[field_name], position = self._read_array(buffer, field_type, array, position)
         if name in _TIME_TYPES:
             return TimeValue(message['sec'] * 1_000_000_000 + message['nanosec']), position
