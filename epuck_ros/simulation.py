@@ -197,16 +197,16 @@ class Simulation:
         self._cover_pairs(start[:, :2], refresh=True)
         obstacle = np.zeros(len(start), dtype=bool)
         robot = np.zeros(len(start), dtype=bool)
-        x, y, yaw = start[:, 0], start[:, 1], start[:, 2]
+        xy, yaw = start[:, :2], start[:, 2]
         substep = self.time_step / self._substeps
         for _ in range(self._substeps):
-            clear = np.column_stack([x, y])
-            x, y, yaw = integrate_arc(x, y, yaw, v, w, substep)
+            clear = xy
+            x, y, yaw = integrate_arc(xy[:, 0], xy[:, 1], yaw, v, w, substep)
             xy, hit = self.world.resolve_collision(np.column_stack([x, y]), radius, clear)
             obstacle |= hit
             robot |= self._separate_robots(xy, clear, obstacle)
-            x, y = xy[:, 0], xy[:, 1]
-        self._true[:, 0], self._true[:, 1], self._true[:, 2] = x, y, yaw
+        self._true[:, :2], self._true[:, 2] = xy, yaw
+        x, y = xy[:, 0], xy[:, 1]
         self._true_twist[:, 0], self._true_twist[:, 1] = v, w
         moved = obstacle | robot
         if moved.any():
@@ -299,6 +299,8 @@ class Simulation:
         """A contact is counted once, when it begins: with a wall or obstacle, and with another robot apart."""
         if obstacle is False and robot is False and not self._in_contact[0]:
             return   # the one robot touches nothing, as before: nothing begins or ends (no array work)
+        if isinstance(obstacle, np.ndarray) and not (obstacle.any() or robot.any() or self._in_contact.any()):
+            return   # no robot touches anything, nor did: the common case in a swarm
         new_obstacle = obstacle & ~self._touching_obstacle
         new_robot = robot & ~self._touching_robot
         self._collisions += new_obstacle.astype(int) + new_robot.astype(int)

@@ -44,6 +44,8 @@ _PUSH_ITERATIONS = 4
 
 _ALL_OBSTACLES_UP_TO = 1024
 """Rays x obstacles up to which every ray is tested against every obstacle: cheaper than the grid's lookups."""
+_ALL_OBSTACLES_BELOW = 16
+"""Fewer obstacles than this: the robots near something test their rays against all of them, no grid lookups."""
 
 MAX_FILE_BYTES = 8 * 2 ** 20
 """A world file larger than this is refused unread (10,000 robots take about 0.6 MB)."""
@@ -170,22 +172,28 @@ class World:
 
     def _nearest_on_grid(self, ox: np.ndarray, oy: np.ndarray, dir_x: np.ndarray, dir_y: np.ndarray,
                          centres: np.ndarray, reach: float) -> np.ndarray:
-        """Distance (G, S) along each group's rays to the walls and to the box edges and cylinders the grid lists
-        for the group's cell; only groups the clearance map puts within `reach` of something are computed."""
+        """Distance (G, S) along each group's rays to the walls and to the box edges and cylinders (all of them, or
+        those the grid lists for the group's cell); only groups the clearance map puts within `reach` of
+        something are computed."""
         g = self._geometry
         nearest = np.full(ox.shape, np.inf)
         rows = np.flatnonzero(g.clearance().near(centres[:, 0], centres[:, 1], reach))
         if not len(rows):
             return nearest
-        x, y, dx, dy = ox[rows], oy[rows], dir_x[rows], dir_y[rows]
-        found = np.minimum((np.copysign(g.half_x, dx) - x) / dx, (np.copysign(g.half_y, dy) - y) / dy)
-        grid = g.grid(reach)
-        cells = grid.cell_of(centres[rows, 0], centres[rows, 1])
-        x, y, dx, dy = x[..., None], y[..., None], dx[..., None], dy[..., None]
-        if g.box_count:
-            found = np.minimum(found, g.rays_to_edges(x, y, dx, dy, grid.edge_ids[cells][:, None, :]).min(axis=2))
-        if g.cylinder_count:
-            found = np.minimum(found, g.rays_to_cylinders(x, y, dx, dy, grid.cylinder_ids[cells][:, None, :]).min(axis=2))
+        x, y, dx, dy = ox[rows, :, None], oy[rows, :, None], dir_x[rows, :, None], dir_y[rows, :, None]
+        if g.box_count + g.cylinder_count <= _ALL_OBSTACLES_BELOW:   # a few: each ray against all, no lookups
+            found = g.rays_to_edges(x, y, dx, dy, slice(0, g.edge_total)).min(axis=2)
+            if g.cylinder_count:
+                found = np.minimum(found, g.rays_to_cylinders(x, y, dx, dy, slice(0, g.cylinder_count)).min(axis=2))
+        else:
+            found = np.minimum((np.copysign(g.half_x, dx) - x) / dx, (np.copysign(g.half_y, dy) - y) / dy)[..., 0]
+            grid = g.grid(reach)
+            cells = grid.cell_of(centres[rows, 0], centres[rows, 1])
+            if g.box_count:
+                found = np.minimum(found, g.rays_to_edges(x, y, dx, dy, grid.edge_ids[cells][:, None, :]).min(axis=2))
+            if g.cylinder_count:
+                found = np.minimum(found, g.rays_to_cylinders(x, y, dx, dy,
+                                                              grid.cylinder_ids[cells][:, None, :]).min(axis=2))
         nearest[rows] = found
         return nearest
 

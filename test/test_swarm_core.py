@@ -8,6 +8,7 @@ import pytest
 from epuck_ros.ir_sensor import raw_from_distance
 from epuck_ros.model import IR_LOOKUP_TABLE, MAX_WHEEL_SPEED, SENSOR_POSES, RobotModel
 from epuck_ros.simulation import CommandError, Simulation
+from epuck_ros.spatial import close_pairs
 from epuck_ros.world import Box, Cylinder, RobotStart, World, WorldError, default_world, place_robots, world_from_dict
 
 MODEL = RobotModel()
@@ -86,7 +87,7 @@ def test_a_row_pushed_into_a_wall_ends_packed_against_it_without_overlap_or_reor
     poses = [(0.1 + i * (DIAMETER + 0.01), 0.0, 0.0) for i in range(4)]
     sim = simulation(*poses, arena=(1.0, 1.0))
     sim.command_wheels(0, FULL, FULL)
-    run_checked(sim, 400)
+    run_checked(sim, 120)   # the pusher needs 43 steps to close the gaps and the 11 cm to the wall
     x = sim.true_pose[:, 0]
     assert np.all(np.diff(x) > 0)                                     # the order along the row is kept
     assert x == pytest.approx([0.5 - RADIUS - DIAMETER * k for k in (3, 2, 1, 0)], abs=1e-5)
@@ -247,6 +248,17 @@ def test_one_robot_moves_the_same_alone_and_among_distant_others():
     among, among_contacts = drive(walled)
     assert alone_contacts > 0 and alone_contacts == among_contacts
     np.testing.assert_allclose(among, alone, atol=1e-9)
+
+
+@pytest.mark.parametrize('count, spread', [(2, 0.1), (40, 0.5), (300, 2.0), (1500, 5.0), (500, 100.0)])
+def test_close_pairs_finds_exactly_the_pairs_within_reach(count, spread):
+    xy = np.random.default_rng(count).uniform(-spread, spread, (count, 2))
+    first, second = close_pairs(xy, 0.15)
+    found = {tuple(sorted(pair)) for pair in zip(first.tolist(), second.tolist())}
+    assert len(found) == len(first)   # each pair once
+    everyone = np.hypot(*(xy[:, None, :] - xy[None, :, :]).transpose(2, 0, 1))
+    expected = {(i, j) for i, j in zip(*np.nonzero(np.triu(everyone < 0.15, 1)))}
+    assert found == expected
 
 
 # --- placement -------------------------------------------------------------------------------------------------

@@ -314,6 +314,44 @@ def test_a_disc_in_a_gap_narrower_than_itself_goes_back_to_where_it_was_clear():
     np.testing.assert_array_equal(xy, [[0.1, 0.055]])
 
 
+@pytest.mark.parametrize('world', [
+    default_world(),
+    World(arena_size=(1.2, 0.8), boxes=[Box(0.2, 0.1, 0.1, 0.2, 0.3), Box(-0.3, -0.2, 0.05, 0.3, -1.0)],
+          cylinders=[Cylinder(0.0, 0.25, 0.05), Cylinder(-0.1, -0.1, 0.02)]),
+    World(arena_size=(4.0, 4.0),   # enough obstacles that each disc is tested only against its grid cell's
+          boxes=[Box(x, y, 0.08, 0.15, x + y) for x in np.linspace(-1.7, 1.7, 7) for y in (-1.0, 0.2, 1.4)],
+          cylinders=[Cylinder(x, y, 0.04) for x in np.linspace(-1.5, 1.5, 6) for y in (-0.4, 0.8)]),
+])
+def test_many_discs_at_once_move_exactly_like_one_at_a_time(world):
+    """resolve_collision (NumPy, many robots) and push_disc_out (floats, one robot) follow the same rule."""
+    rng = np.random.default_rng(0)
+    half = np.array(world.arena_size) / 2
+    clear = rng.uniform(-half, half, (6000, 2))
+    clear = clear[world.clearance(clear) > RADIUS]            # where robots were, clear of everything
+    step = rng.uniform(0.0, RADIUS / 2, len(clear))           # at most half a radius per substep
+    angle = rng.uniform(-math.pi, math.pi, len(clear))
+    moved = clear + step[:, None] * np.column_stack([np.cos(angle), np.sin(angle)])
+    xy, touching = world.resolve_collision(moved, RADIUS, clear)
+    one_by_one = [world.push_disc_out(x, y, RADIUS, (px, py)) for (x, y), (px, py) in zip(moved, clear)]
+    np.testing.assert_allclose(xy, [(x, y) for x, y, _ in one_by_one], atol=1e-12)
+    assert touching.tolist() == [t for _, _, t in one_by_one]
+    assert 0 < touching.sum() < len(clear)
+
+
+def test_many_rays_at_once_see_what_one_ray_sees_in_a_crowded_world():
+    world = World(arena_size=(4.0, 4.0),
+                  boxes=[Box(x, y, 0.08, 0.15, x + y) for x in np.linspace(-1.7, 1.7, 7) for y in (-1.0, 0.2, 1.4)],
+                  cylinders=[Cylinder(x, y, 0.04) for x in np.linspace(-1.5, 1.5, 6) for y in (-0.4, 0.8)])
+    rng = np.random.default_rng(1)
+    origins = rng.uniform(-1.9, 1.9, (3000, 2))
+    origins = origins[world.clearance(origins) > 0.0]
+    yaws = rng.uniform(-math.pi, math.pi, len(origins))
+    together = world.cast_rays(origins, yaws, 0.3)             # the grid path
+    one_by_one = [cast(world, x, y, yaw, 0.3) for (x, y), yaw in zip(origins, yaws)]   # every obstacle
+    np.testing.assert_allclose(together, one_by_one, atol=1e-12)
+    assert 0 < np.isfinite(together).sum() < len(origins)
+
+
 def test_clearance_is_the_distance_to_the_nearest_surface():
     world = World(boxes=[Box(0.2, 0.0, 0.1, 0.1)], cylinders=[Cylinder(-0.2, 0.0, 0.05)])
     points = np.array([[0.0, 0.0], [0.0, 0.45], [0.2, 0.0], [-0.12, 0.0]])
