@@ -43,12 +43,13 @@ class Observer:
         self.executor = SingleThreadedExecutor(context=self.context)
         self.executor.add_node(self.node)
         self.first_pose: tuple[float, float] | None = None
+        self.sim_seen = False
         self.moved_at: float | None = None
         self.t0 = 0.0
         self.node.create_subscription(Odometry, 'ground_truth', self._on_truth, 100)
 
     def _on_truth(self, msg: Odometry) -> None:
-        if self.t0 == 0.0:  # between measurements: a stopping simulator's last messages
+        if self.t0 == 0.0 or not self.sim_seen:  # a stopping simulator's last messages, from before this one
             return
         xy = (msg.pose.pose.position.x, msg.pose.pose.position.y)
         if self.first_pose is None:
@@ -58,7 +59,7 @@ class Observer:
 
     def measure(self, start: callable, extra_nodes: tuple[str, ...] = ()) -> dict[str, float]:
         """Start the processes, spin until the robot moved; returns the phase times."""
-        self.first_pose, self.moved_at = None, None
+        self.first_pose, self.moved_at, self.sim_seen = None, None, False
         phases: dict[str, float] = {}
         self._wait_until_gone(('sim', 'forward', 'bringup'))
         self.t0 = time.monotonic()
@@ -69,6 +70,7 @@ class Observer:
                 now = time.monotonic() - self.t0
                 if 'sim in graph' not in phases and self._node_seen('sim'):
                     phases['sim in graph'] = now
+                    self.sim_seen = True
                 if 'controller in graph' not in phases and self.node.count_publishers('wheel_cmd') > 0:
                     phases['controller in graph'] = now
                 for name in extra_nodes:

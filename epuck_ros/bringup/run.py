@@ -42,10 +42,10 @@ class RunFailed(Exception):
 class Supervisor:
     """Starts the processes and watches them: a child that dies, or another simulator, ends the run."""
 
-    def __init__(self, args: argparse.Namespace, plan: Plan, monitor: RunMonitor, children: Children) -> None:
+    def __init__(self, args: argparse.Namespace, plan: Plan, children: Children) -> None:
         self.args = args
         self.plan = plan
-        self.monitor = monitor
+        self.monitor: RunMonitor
         self.children = children
         self.stop_requested = threading.Event()
         self.resumed_at: float | None = None
@@ -136,6 +136,10 @@ class Supervisor:
     def run(self) -> None:
         """Start everything, resume the simulation, and watch until the end; RunFailed says what went wrong."""
         args, plan = self.args, self.plan
+        # Our DDS participant first: created before the children's, it hears their first announcements (one
+        # created after them waited for their next periodic announcement, ~3 s later: measured with
+        # benchmarks/bench_startup.py). Then the children, whose own start-up is the longest part.
+        self.monitor = RunMonitor(args.namespace, follow_robots=plan.record_dir is None)
         self.start_all()
         self.watch(self.connected, READY_TIMEOUT, self.waiting_for)
         if self.stop_requested.is_set():
@@ -197,9 +201,8 @@ def _time_step(plan: Plan) -> float:
 
 def run(args: argparse.Namespace, plan: Plan) -> int:
     print(f'[bringup] {ros_domain()}', flush=True)
-    monitor = RunMonitor(args.namespace, follow_robots=plan.record_dir is None)
     children = Children()
-    supervisor = Supervisor(args, plan, monitor, children)
+    supervisor = Supervisor(args, plan, children)
     for signum in (signal.SIGINT, signal.SIGTERM):
         signal.signal(signum, lambda *_: supervisor.stop_requested.set())
     failure, failed_child = '', None
@@ -212,12 +215,14 @@ def run(args: argparse.Namespace, plan: Plan) -> int:
     finally:
         # The figures are those of the run, not of the moments the simulator keeps going while stopping.
         started, ended = supervisor.resumed_at, supervisor.ended_at or time.monotonic()
+        monitor = getattr(supervisor, 'monitor', None)
         if started is not None and not failure:
             monitor.catch_up(CATCH_UP_TIMEOUT)
-        sim_time = monitor.sim_time
+        sim_time = monitor.sim_time if monitor is not None else 0.0
         problems = children.stop(STOP_ORDER, failed_child)
         lines = report(supervisor, sim_time, ended - started) if started is not None and not failure else []
-        monitor.close()
+        if monitor is not None:
+            monitor.close()
     for line in lines:
         print(line, flush=True)
     for problem in ([failure] if failure else []) + problems:
