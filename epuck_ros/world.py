@@ -270,6 +270,21 @@ class World:
         return np.array([max(0.0, min(d for _, d, _, _ in self._geometry.surfaces_within(x, y, math.inf)))
                          for x, y in np.asarray(xy, dtype=float).reshape(-1, 2).tolist()])
 
+    def discs_clear(self, xy: np.ndarray, radius: float) -> np.ndarray:
+        """(N,) whether a disc of `radius` at each point (N, 2) is inside the arena and overlaps no obstacle:
+        every point at once, each against the obstacles the grid lists near it."""
+        g = self._geometry
+        xy = np.asarray(xy, dtype=float).reshape(-1, 2)
+        grid = g.grid(radius)
+        cells = grid.cell_of(xy[:, 0], xy[:, 1])
+        clear = np.empty(len(xy), dtype=bool)
+        for start in range(0, len(xy), 4096):   # in chunks: bounded memory for any number of points
+            rows = slice(start, start + 4096)
+            distance, _, _ = g.surfaces(xy[rows, 0:1], xy[rows, 1:2], grid.box_ids[cells[rows]],
+                                        grid.cylinder_ids[cells[rows]])
+            clear[rows] = distance.min(axis=1) >= radius
+        return clear
+
     def overlapping(self, x: float, y: float, radius: float) -> list[str]:
         """Field paths (`boxes[2]`, `arena.size` for a wall) of everything a disc at (x, y) overlaps."""
         names = (['arena.size'] * 4 + [f'boxes[{i}]' for i in range(len(self.boxes))]
@@ -689,7 +704,9 @@ def _read_cylinder(fields: _FieldReader, item: Mapping[str, Any], path: str) -> 
 def _check_robots_are_clear(world: World, robot_radius: float, source: str, field_name: str) -> None:
     """Each robot must start inside the arena touching nothing (not even another robot), or the first step would
     teleport it; the error names the robot's field (`robots[2].start`, or `robot.start` in the one-robot form)."""
-    for index, robot in enumerate(world.robots):
+    starts = np.array([robot.pose[:2] for robot in world.robots])
+    for index in np.flatnonzero(~world.discs_clear(starts, robot_radius + CONTACT_TOLERANCE))[:1].tolist():
+        robot = world.robots[index]
         path = f'{field_name}[{index}].start' if field_name == 'robots' else 'robot.start'
         overlapping = world.overlapping(robot.x, robot.y, robot_radius + CONTACT_TOLERANCE)
         where = f'the robot {robot.name!r} (radius {robot_radius} m) at ({robot.x}, {robot.y})'
@@ -697,9 +714,7 @@ def _check_robots_are_clear(world: World, robot_radius: float, source: str, fiel
             width, height = world.arena_size
             raise WorldError(f'{source}: {path}: {where} is not inside the {width} m x {height} m arena '
                              f'(|x| < {width / 2 - robot_radius:.4g}, |y| < {height / 2 - robot_radius:.4g})')
-        if overlapping:
-            raise WorldError(f'{source}: {path}: {where} overlaps {", ".join(overlapping)}')
-    starts = np.array([robot.pose[:2] for robot in world.robots])
+        raise WorldError(f'{source}: {path}: {where} overlaps {", ".join(overlapping)}')
     for first, second in zip(*close_pairs(starts, 2.0 * robot_radius + CONTACT_TOLERANCE)):
         first, second = sorted((int(first), int(second)))
         a, b = world.robots[first], world.robots[second]
@@ -729,7 +744,7 @@ def place_robots(world: World, count: int, seed: int, model: RobotModel = RobotM
         spots.append(np.column_stack([xs, np.full(len(xs), y)]))
     spots = np.concatenate(spots) if spots else np.empty((0, 2))
     if len(spots):
-        spots = spots[world.clearance(spots) > radius + jitter + CONTACT_TOLERANCE]
+        spots = spots[world.discs_clear(spots, radius + jitter + 2 * CONTACT_TOLERANCE)]
     if count > len(spots):
         raise WorldError(f'robots: {count} robots do not fit in this world (room for {len(spots)} e-pucks of '
                          f'radius {radius} m with {ROBOT_GAP} m between them)')
