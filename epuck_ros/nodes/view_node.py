@@ -42,10 +42,11 @@ from std_msgs.msg import Float64MultiArray, String, UInt32
 from std_srvs.srv import Empty, Trigger
 
 from epuck_ros.model import SENSOR_NAMES
+from epuck_ros.nodes.behaviour_nodes import yaw_from_quaternion
 from epuck_ros.nodes.params import ParamSpec, Usage, declare_parameters, prepare_arguments
 from epuck_ros.nodes.sim_node import JOINT_NAMES
 from epuck_ros.view.server import Action, ActionError, ViewServer, is_loopback
-from epuck_ros.view.state import ViewState, pose_from_odometry, robot_topic
+from epuck_ros.view.state import ViewState, robot_topic
 from epuck_ros.world import WorldError, world_from_yaml
 
 SPIN_RATE = 30.0
@@ -178,18 +179,15 @@ class ViewNode(Node):
                                          NEWEST_ONLY)]
 
     def _on_truth(self, robot: str, msg: Odometry) -> None:
-        pose, stamp = msg.pose.pose, _seconds(msg.header.stamp)
-        self.state.update(robot, pose=pose_from_odometry(pose.position.x, pose.position.y,
-                                                         pose.orientation.z, pose.orientation.w), stamp=stamp)
+        stamp = _seconds(msg.header.stamp)
+        self.state.update(robot, pose=_planar_pose(msg), stamp=stamp)
         if robot == self._robot_names[0]:
             # The simulated time shown is that of the first robot's pose: every message of a step carries the
             # step's time, and not taking /clock too spares the simulator one send per step.
             self.state.set_time(stamp, time.monotonic())
 
     def _on_odom(self, robot: str, msg: Odometry) -> None:
-        pose = msg.pose.pose
-        self.state.update(robot, odom=pose_from_odometry(pose.position.x, pose.position.y,
-                                                         pose.orientation.z, pose.orientation.w))
+        self.state.update(robot, odom=_planar_pose(msg))
 
     def _on_joints(self, robot: str, msg: JointState) -> None:
         try:
@@ -296,6 +294,12 @@ class ViewNode(Node):
 
     def close(self) -> None:
         self.server.close()
+
+
+def _planar_pose(msg: Odometry) -> tuple[float, float, float]:
+    pose = msg.pose.pose
+    q = pose.orientation
+    return pose.position.x, pose.position.y, yaw_from_quaternion(q.x, q.y, q.z, q.w)
 
 
 def _seconds(stamp: Time) -> float:

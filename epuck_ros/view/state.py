@@ -27,11 +27,6 @@ def robot_topic(robot_names: tuple[str, ...], robot: str, topic: str) -> str:
     return topic if len(robot_names) == 1 else f'{robot}/{topic}'
 
 
-def pose_from_odometry(x: float, y: float, qz: float, qw: float) -> tuple[float, float, float]:
-    """(x, y, yaw) of a planar pose whose orientation is a rotation about z."""
-    return x, y, 2.0 * math.atan2(qz, qw)
-
-
 @dataclass
 class RobotReadings:
     """The newest of everything the view knows about one robot; None until the first message."""
