@@ -1,4 +1,4 @@
-"""Keep the simulator no more than a window of steps ahead of its reliable subscribers (a recorder), so none loses a step.
+"""Keep the simulator at most a window of steps ahead of its reliable subscribers (a recorder): none loses a step.
 
 A reliable KEEP_LAST publisher overwrites the oldest sample of its history even when a reader has not
 acknowledged it yet: a recorder that falls behind at `real_time_factor` 0 silently loses steps. Here a thread
@@ -75,6 +75,7 @@ class AckWindow:
                 self._changed.notify_all()
 
     def _wait_for_readers(self) -> None:
+        deadline = time.monotonic() + GIVE_UP
         for publisher in self._publishers():
             readers = publisher.get_subscription_count()
             if not self._running:
@@ -82,9 +83,11 @@ class AckWindow:
             if readers == 0 or self._given_up.get(publisher) == readers:
                 continue
             self._given_up.pop(publisher, None)
-            started = time.monotonic()
-            while self._running and not publisher.wait_for_all_acked(Duration(seconds=1.0)):
-                if time.monotonic() - started > GIVE_UP:
+            while self._running:
+                left = deadline - time.monotonic()
+                if publisher.wait_for_all_acked(Duration(seconds=max(0.0, min(1.0, left)))):
+                    break
+                if left <= 0.0:
                     self._given_up[publisher] = readers  # until its readers change
                     self._on_stall(publisher.topic_name)
                     break
