@@ -223,6 +223,8 @@ def run(args: argparse.Namespace, plan: Plan) -> int:
         lines = report(supervisor, sim_time, ended - started) if started is not None and not failure else []
         if monitor is not None:
             monitor.close()
+    for signum in (signal.SIGINT, signal.SIGTERM):  # all is stopped: a late Ctrl-C must not change the exit code
+        signal.signal(signum, signal.SIG_IGN)
     for line in lines:
         print(line, flush=True)
     for problem in ([failure] if failure else []) + problems:
