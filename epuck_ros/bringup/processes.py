@@ -27,7 +27,7 @@ STOP_SIGNAL = signal.SIGTERM
 default action ends the process without the KeyboardInterrupt traceback a SIGINT would print."""
 STOP_TIMEOUT = 10.0
 """Wall seconds a child has to end after STOP_SIGNAL before it is killed."""
-ERROR_LINES = 15
+ERROR_LINES = 5
 """Lines of a child's output kept to explain its failure."""
 PR_SET_PDEATHSIG = 1  # <linux/prctl.h>
 CLEAN_EXIT_CODES = (0, -signal.SIGINT, 128 + signal.SIGINT, -signal.SIGTERM, 128 + signal.SIGTERM)
@@ -97,10 +97,11 @@ class Child:
         self.output_done.set()
 
     def failure(self) -> str:
-        """What went wrong, once the process has ended unexpectedly."""
+        """What went wrong, once the process has ended unexpectedly: one line, ending with the child's last line
+        (its own output, shown above with its `[name]` prefix, has the rest)."""
         self.output_done.wait(2.0)  # its last lines explain the failure
-        lines = '\n  '.join(self.tail) or '(no output)'
-        return f'{self.name} exited unexpectedly with code {self.process.returncode}; last lines:\n  {lines}'
+        last = next((line.strip() for line in reversed(self.tail) if line.strip()), '')
+        return f'{self.name} exited unexpectedly with code {self.process.returncode}' + (f': {last}' if last else '')
 
 
 class Watchdog:
