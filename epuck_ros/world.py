@@ -438,7 +438,9 @@ class _ObstacleGrid:
     """
 
     def __init__(self, geometry: _Geometry, reach: float) -> None:
-        self.cell = max(reach, 0.05)
+        # Cells at least `reach` wide (neighbours need not be looked at) and at most ~250,000 of them (a
+        # 10 km arena allowed by MAX_MAGNITUDE must not take gigabytes; its cells then list more obstacles).
+        self.cell = max(reach, 0.05, math.sqrt(4.0 * geometry.half_x * geometry.half_y / 250_000))
         self.columns = max(1, math.ceil(2.0 * geometry.half_x / self.cell))
         self.rows = max(1, math.ceil(2.0 * geometry.half_y / self.cell))
         self.left, self.bottom = -geometry.half_x, -geometry.half_y
@@ -460,25 +462,27 @@ class _ObstacleGrid:
 
     def _lists(self, shapes: list[tuple[float, float, float]], reach: float) -> tuple[np.ndarray, np.ndarray]:
         """(count per cell, ids per cell padded with len(shapes)) for shapes given as bounding circles."""
-        members: list[list[int]] = [[] for _ in range(self.columns * self.rows)]
-        for index, (x, y, bound) in enumerate(shapes):
-            span = bound + reach
-            first_column, last_column = (int(np.clip(math.floor((v - self.left) / self.cell), 0, self.columns - 1))
-                                         for v in (x - span, x + span))
-            first_row, last_row = (int(np.clip(math.floor((v - self.bottom) / self.cell), 0, self.rows - 1))
-                                   for v in (y - span, y + span))
-            for row in range(first_row, last_row + 1):
-                for column in range(first_column, last_column + 1):
-                    low_x, low_y = self.left + column * self.cell, self.bottom + row * self.cell
-                    gap_x = max(low_x - x, 0.0, x - low_x - self.cell)
-                    gap_y = max(low_y - y, 0.0, y - low_y - self.cell)
-                    if math.hypot(gap_x, gap_y) < span:
-                        members[row * self.columns + column].append(index)
-        counts = np.array([len(m) for m in members], dtype=np.int64)
-        ids = np.full((len(members), max(1, int(counts.max(initial=0)))), len(shapes), dtype=np.int64)
-        for cell, m in enumerate(members):
-            ids[cell, :len(m)] = m
-        return counts, ids
+        cells, ids = [np.empty(0, dtype=np.int64)], [np.empty(0, dtype=np.int64)]
+        for index, (x, y, bound) in enumerate(shapes):   # each shape: the cells of its bounding square, then
+            span = bound + reach                         # those whose nearest point is within reach
+            columns = np.arange(*np.clip([math.floor((x - span - self.left) / self.cell),
+                                          math.floor((x + span - self.left) / self.cell) + 1], 0, self.columns))
+            rows = np.arange(*np.clip([math.floor((y - span - self.bottom) / self.cell),
+                                       math.floor((y + span - self.bottom) / self.cell) + 1], 0, self.rows))
+            column, row = (v.ravel() for v in np.meshgrid(columns, rows))
+            low_x, low_y = self.left + column * self.cell, self.bottom + row * self.cell
+            gap_x = np.maximum(np.maximum(low_x - x, x - low_x - self.cell), 0.0)
+            gap_y = np.maximum(np.maximum(low_y - y, y - low_y - self.cell), 0.0)
+            near = np.hypot(gap_x, gap_y) < span
+            cells.append(row[near] * self.columns + column[near])
+            ids.append(np.full(int(near.sum()), index, dtype=np.int64))
+        cells, ids = np.concatenate(cells), np.concatenate(ids)
+        order = np.lexsort((ids, cells))
+        cells, ids = cells[order], ids[order]
+        counts = np.bincount(cells, minlength=self.columns * self.rows)
+        table = np.full((len(counts), max(1, int(counts.max(initial=0)))), len(shapes), dtype=np.int64)
+        table[cells, np.arange(len(cells)) - (np.cumsum(counts) - counts)[cells]] = ids
+        return counts, table
 
 
 class _ClearanceMap:
@@ -734,9 +738,10 @@ def place_robots(world: World, count: int, seed: int, model: RobotModel = RobotM
     if isinstance(count, bool) or not isinstance(count, int) or count < 1:
         raise WorldError(f'robots: the number of robots must be a positive integer, got {_describe(count)}')
     radius = model.body_radius
-    spacing = 2.0 * radius + ROBOT_GAP
     jitter = ROBOT_GAP / 4.0
     half_x, half_y = (size / 2.0 - radius - jitter - CONTACT_TOLERANCE for size in world.arena_size)
+    # at most ~2 million spots, so a huge arena costs no more than a big one (robots then stand farther apart)
+    spacing = max(2.0 * radius + ROBOT_GAP, math.sqrt(max(half_x, 0.0) * max(half_y, 0.0) * 4.0 / 2e6))
     rows = np.arange(-half_y, half_y + 1e-12, spacing * math.sqrt(3.0) / 2.0) if half_y >= 0 else np.empty(0)
     spots = []
     for row, y in enumerate(rows):

@@ -276,6 +276,14 @@ def test_place_robots_is_seeded_clear_and_named():
     assert world_from_dict(world.to_dict()) == world   # checked like a world file
 
 
+def test_a_huge_arena_costs_seconds_and_megabytes_not_hours_and_gigabytes():
+    world = world_from_dict({'arena': {'size': [10000.0, 10000.0]}, 'cylinders': [{'position': [3, 3], 'radius': 0.1}],
+                             'boxes': [{'position': [1, 1], 'size': [0.1, 0.1]}]})
+    sim = Simulation(place_robots(world, 300, seed=0), noise=False)   # grids and maps are bounded in size
+    sim.step()
+    assert np.isfinite(sim.true_pose).all()
+
+
 def test_place_robots_refuses_more_than_fit_naming_the_field():
     with pytest.raises(WorldError, match=r'^robots: 500 robots do not fit'):
         place_robots(default_world(), 500, seed=0)
