@@ -300,3 +300,13 @@ def test_run_sh_view_starts_the_default_run_with_the_view_and_prints_its_url(tmp
             process.wait()
     assert '[bringup] simulated' in log_path.read_text()
     assert processes_in_this_domain() == []
+
+
+def test_readiness_does_not_depend_on_what_the_children_log(launch, monkeypatch, tmp_path):
+    """Every log line of every child reduced to its severity: bringup still sees each process come up (from the
+    graph) and the recorded run is complete."""
+    monkeypatch.setenv('RCUTILS_CONSOLE_OUTPUT_FORMAT', '{severity}')
+    run = launch('bringup', 'spin', '--duration', '2', '--real-time-factor', '0', '--record', str(tmp_path / 'bag'))
+    assert run.proc.wait(timeout=90) == 0, run.output()
+    assert 'sim ready' not in run.output() and 'Recording' not in run.output()
+    assert SIMULATED.search(run.output())[1] == '2.02'
