@@ -31,7 +31,7 @@ from epuck_ros.bag.writer import BagWriter
 SAMPLES = Path(__file__).parent.parent / 'bags'
 BIN_DIR = Path(sys.executable).parent
 BAGS = sorted(p.name for p in SAMPLES.iterdir() if p.is_dir())
-CASES_PER_BAG = 60
+CASES_PER_BAG = 40
 LARGE_BAG = 500_000
 """Bytes; bags larger than this (bags/swarm, five robots) get a fifth of the cases: each costs more."""
 PLOT_EVERY = 15
