@@ -125,7 +125,7 @@ class SimLink:
             if self._publisher.get_subscription_count() > 0:
                 return True
             robots = self._robots_in_graph()
-            if robots:
+            if robots and self._robot not in robots:  # ours in the graph: only the matching is still to come
                 others_since = others_since if others_since is not None else time.monotonic()
                 if time.monotonic() - others_since > ROBOT_CHOICE_GRACE:
                     raise LinkError(self._wrong_robot(robots))
