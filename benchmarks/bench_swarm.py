@@ -107,7 +107,8 @@ def run_ours(n: int, steps: int) -> dict:
 def peer_python() -> Path | None:
     """ir-sim's venv interpreter, creating the venv on first use; None (with a message) if that fails."""
     python = PEER_VENV / 'bin' / 'python'
-    if python.exists():
+    if python.exists() and subprocess.run([str(python), '-c', 'import irsim'], capture_output=True,
+                                          env=dict(os.environ, MPLBACKEND='Agg')).returncode == 0:
         return python
     print(f'creating the ir-sim venv in {PEER_VENV} (pip install ir-sim==2.12.0, about a minute) ...', flush=True)
     try:
@@ -120,28 +121,17 @@ def peer_python() -> Path | None:
     return python
 
 
-def run_peer(counts: list[int], steps: int) -> dict[int, float]:
-    """ir-sim's steps/s for the counts it has scenarios for, measured now by its own script."""
-    wanted = [n for n in counts if n in PEER_SCENARIOS]
-    if not wanted:
-        return {}
-    if not PEER_SCRIPT.exists():
-        print(f'ir-sim peer skipped: {PEER_SCRIPT} not found')
-        return {}
-    python = peer_python()
-    if python is None:
-        return {}
+def run_peer(python: Path, n: int, steps: int) -> float | None:
+    """ir-sim's steps/s for n robots (its scenario lidar<n>), measured now by its own script; None if it failed."""
     with tempfile.TemporaryDirectory() as folder:
         out = Path(folder) / 'irsim.json'
         result = subprocess.run(
-            [str(python), str(PEER_SCRIPT), '--scenarios', ','.join(PEER_SCENARIOS[n] for n in wanted),
-             '--repeats', '1', '--steps', str(steps), '--json', str(out)],
-            env=dict(os.environ, MPLBACKEND='Agg'), capture_output=True, text=True, timeout=1800)
+            [str(python), str(PEER_SCRIPT), '--scenarios', PEER_SCENARIOS[n], '--repeats', '1', '--steps', str(steps),
+             '--json', str(out)], env=dict(os.environ, MPLBACKEND='Agg'), capture_output=True, text=True, timeout=1800)
         if result.returncode != 0 or not out.exists():
-            print(f'ir-sim peer skipped: its script failed: {(result.stderr or result.stdout)[-300:]}')
-            return {}
-        runs = json.loads(out.read_text())['runs']
-    return {n: runs[PEER_SCENARIOS[n]][0]['steps_per_s'] for n in wanted}
+            print(f'ir-sim peer failed for N = {n}: {(result.stderr or result.stdout)[-300:]}')
+            return None
+        return json.loads(out.read_text())['runs'][PEER_SCENARIOS[n]][0]['steps_per_s']
 
 
 def main() -> None:
@@ -152,8 +142,20 @@ def main() -> None:
     parser.add_argument('--peer-steps', type=int, default=2000, help='timed ir-sim steps per scenario')
     args = parser.parse_args()
     counts = [int(c) for c in args.counts.split(',') if c]
-    ours = [run_ours(n, max(10, round(TIMED_STEPS.get(n, 200) * args.scale))) for n in counts]
-    peer = {} if args.no_peer else run_peer(counts, args.peer_steps)
+    python = None
+    if args.no_peer:
+        pass
+    elif not PEER_SCRIPT.exists():
+        print(f'ir-sim peer skipped: {PEER_SCRIPT} not found')
+    else:
+        python = peer_python()
+    ours, peer = [], {}
+    for n in counts:   # ours and the peer's run for each N one after the other: both see the same machine load
+        ours.append(run_ours(n, max(10, round(TIMED_STEPS.get(n, 200) * args.scale))))
+        if python is not None and n in PEER_SCENARIOS:
+            peer[n] = run_peer(python, n, args.peer_steps)
+        print(f'# N = {n}: {ours[-1]["steps_per_s"]:,.0f} steps/s'
+              + (f', ir-sim {peer[n]:,.0f}' if peer.get(n) else ''), flush=True)
     base = next((r for r in ours if r['robots'] == 50), ours[0])
     per_robot_step = 1.0 / (base['steps_per_s'] * base['robots'])
     print(f'\nepuck_ros core, peer scene, {os.cpu_count()} CPUs, 8 IR rays/robot with noise, robot contacts, '

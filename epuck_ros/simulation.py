@@ -353,18 +353,24 @@ class Simulation:
             return
         yaw = self._true[:, 2:3]
         cos, sin = np.cos(yaw), np.sin(yaw)
+        if count == 1:   # nobody else to see: today's one-robot cost
+            self._read_sensors(slice(0, 1), self._cast(xy, yaw, cos, sin).ravel())
+            return
         owner, local_x, local_y = self._robots_in_view(cos[:, 0], sin[:, 0])
         for start in range(0, count, _SENSE_BLOCK):
             rows = slice(start, min(start + _SENSE_BLOCK, count))
-            origins = (xy[rows, None, :] + cos[rows, :, None] * self._sensor_offsets
-                       + sin[rows, :, None] * self._sensor_left)
-            yaws = yaw[rows] + self._sensor_poses[:, 2]
-            distance = self.world.ray_distances(origins, np.cos(yaws), np.sin(yaws), self.model.ir_range, xy[rows],
-                                                self._sensing_reach - self.model.ir_range)
+            distance = self._cast(xy[rows], yaw[rows], cos[rows], sin[rows])
             first, last = np.searchsorted(owner, (rows.start, rows.stop))
             if last > first:
                 self._see_robots(distance, owner[first:last] - rows.start, local_x[first:last], local_y[first:last])
             self._read_sensors(rows, distance.ravel())
+
+    def _cast(self, xy: np.ndarray, yaw: np.ndarray, cos: np.ndarray, sin: np.ndarray) -> np.ndarray:
+        """Distance (n, 8) along each IR ray of robots at xy (n, 2) with yaw, cos, sin (n, 1) to walls and obstacles."""
+        origins = xy[:, None, :] + cos[:, :, None] * self._sensor_offsets + sin[:, :, None] * self._sensor_left
+        yaws = yaw + self._sensor_poses[:, 2]
+        return self.world.ray_distances(origins, np.cos(yaws), np.sin(yaws), self.model.ir_range, xy,
+                                        self._sensing_reach - self.model.ir_range)
 
     def _read_sensors(self, rows: slice, distance: np.ndarray) -> None:
         """Raw values (noisy unless noise is off) and published ranges of the robots `rows` from ray distances."""
@@ -379,8 +385,6 @@ class Simulation:
         Each close pair gives two owners (each robot looks at the other). In the owner's frame its 8 rays are
         constants, so testing them against the other body is one broadcast with no per-ray gathers.
         """
-        if len(cos) == 1:
-            return np.empty(0, dtype=np.int64), np.empty(0), np.empty(0)
         xy = self._true[:, :2]
         self._cover_pairs(xy)
         first, second = self._pairs
