@@ -2,8 +2,9 @@
 
 The arena is Webots' RectangleArena: the floor is centred on the origin and its walls stand outside the floor,
 so the free area is exactly `arena_size`. Geometry is 2-D (everything is taller than the IR rays). A World
-prepares its obstacles once: NumPy arrays for casting all rays in one batch, plain floats for the per-disc
-collision queries (see `_Geometry` for why).
+prepares its obstacles once: plain floats for one disc (one robot), NumPy arrays for many rays and discs, with
+a grid of cells listing the obstacles near each cell and a clearance map saying which points are near anything
+(see `_Geometry` for why), so the cost per robot does not grow with the number of obstacles.
 
 World file. Every section is optional (none at all: an empty 1 m x 1 m arena, one robot `epuck` at the origin
 facing +x); a box needs position and size (yaw defaults to 0), a cylinder position and radius, a robot a start:
