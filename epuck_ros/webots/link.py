@@ -10,6 +10,7 @@ messages queued and the simulator, after its `cmd_timeout`, stops the robot.
 """
 from __future__ import annotations
 
+import math
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -30,6 +31,8 @@ SPIN_PERIOD = 0.1
 """Seconds one wait on the executor lasts at most, so that Ctrl-C and a vanished simulator are noticed."""
 MISMATCH_GIVE_UP = 3
 """/clock messages since the answer after which an ir_raw count that does not match is accepted anyway."""
+PARAMETER_RETRY = 5.0
+"""Wall seconds after which the request for the simulator's time_step is sent again."""
 ROBOT_CHOICE_GRACE = 3.0
 """Wall seconds the simulator's other robots may be in the graph without ours before `--robot` is refused."""
 
@@ -155,8 +158,10 @@ class SimLink:
         if not self._wait(client.services_are_ready, f'the parameter services of {sources[0]}'):
             return None
         future = client.get_parameters(['time_step'])
-        if not self._wait(future.done, f'{sources[0]} to answer'):
-            return None
+        while not self._wait(future.done, f'{sources[0]} to answer', timeout=PARAMETER_RETRY):
+            if self._stop_waiting():
+                return None
+            future = client.get_parameters(['time_step'])  # a busy simulator may have lost the request
         values = future.result().values
         value = values[0].double_value if values else 0.0
         if not value > 0.0:
@@ -169,12 +174,13 @@ class SimLink:
                 for info in self.node.get_publishers_info_by_topic('/clock')
                 if not info.node_name.startswith('_NODE_NAME_UNKNOWN')]
 
-    def _wait(self, done: Callable[[], bool], what: str) -> bool:
-        """Spin until `done()`; False if told to stop first. Says once what it waits for when it takes a while."""
+    def _wait(self, done: Callable[[], bool], what: str, timeout: float = math.inf) -> bool:
+        """Spin until `done()`; False if told to stop or after `timeout` s. Says once what it waits for when it
+        takes a while."""
         said = False
         started = time.monotonic()
         while not done():
-            if self._stop_waiting():
+            if self._stop_waiting() or time.monotonic() - started > timeout:
                 return False
             if not said and time.monotonic() - started > 2.0:
                 print(f'webots_controller: waiting for {what} ...', flush=True)
