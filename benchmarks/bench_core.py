@@ -1,4 +1,4 @@
-"""How fast the pure core steps one e-puck with its 8 IR rays in the default world.
+"""How fast the pure core steps one e-puck with its 8 IR rays in the default world (many robots: bench_swarm.py).
 
 The robot roams: every 50 steps (1.6 s) it gets new forward-biased wheel speeds from a seeded generator, so it
 crosses open floor, drives into walls and boxes, and slides along them, as a student's controller would.
@@ -14,6 +14,7 @@ from __future__ import annotations
 import argparse
 import bisect
 import math
+import os
 import time
 
 import numpy as np
@@ -32,15 +33,16 @@ def wheel_commands(steps: int, seed: int = 1) -> np.ndarray:
     return rng.uniform(-0.3, 1.0, size=(steps // COMMAND_PERIOD + 1, 2)) * RobotModel().max_wheel_speed
 
 
-def run_core(steps: int) -> tuple[float, Simulation]:
+def run_core(steps: int) -> tuple[float, float, Simulation]:
+    """(steps/s by wall clock, steps/s by process time, the simulation) for one robot roaming the default world."""
     sim = Simulation(default_world(), seed=0, noise=True, cmd_timeout=0.5)
     commands = wheel_commands(steps)
-    begin = time.perf_counter()
+    begin, begin_cpu = time.perf_counter(), time.process_time()
     for i in range(steps):
         if i % COMMAND_PERIOD == 0:
             sim.command_wheels(0, *commands[i // COMMAND_PERIOD])
         sim.step()
-    return steps / (time.perf_counter() - begin), sim
+    return steps / (time.perf_counter() - begin), steps / (time.process_time() - begin_cpu), sim
 
 
 def run_naive(steps: int) -> float:
@@ -93,10 +95,11 @@ def main() -> None:
     parser.add_argument('--steps', type=int, default=20000)
     steps = parser.parse_args().steps
     run_core(500)  # warm-up: imports, caches, CPU frequency
-    core, sim = run_core(steps)
+    core, core_cpu, sim = run_core(steps)
     naive = run_naive(steps // 4)
     print(f'core: {core:,.0f} steps/s, {core * 0.032:,.0f}x real time at 32 ms '
-          f'({steps} steps, {int(sim.collisions[0])} collisions, default world, 8 rays, noise on)')
+          f'({steps} steps, {int(sim.collisions[0])} collisions, default world, 8 rays, noise on); '
+          f'by process time {core_cpu:,.0f} steps/s (load average {os.getloadavg()[0]:.1f})')
     print(f'naive Euler + Python ray loop (same run): {naive:,.0f} steps/s -> core is {core / naive:.1f}x faster')
     print(f'ir-sim (external figure, not measured here): {IR_SIM_STEPS_PER_SECOND:,.0f} steps/s '
           f'-> core is {core / IR_SIM_STEPS_PER_SECOND:.1f}x')
