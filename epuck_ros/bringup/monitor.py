@@ -55,7 +55,7 @@ class RobotTrack:
 class RunMonitor:
     """Follows the graph, `/clock`, the sim's `world` and each robot's `ground_truth`."""
 
-    def __init__(self, namespace: str, follow_robots: bool = True) -> None:
+    def __init__(self, namespace: str, sim_enclave: str, follow_robots: bool = True) -> None:
         """`follow_robots`: tally every robot's ground truth (not needed when the run is recorded: the bag holds
         it, and each reliable reader is one more the simulator waits for)."""
         self.context = Context()
@@ -66,11 +66,15 @@ class RunMonitor:
         self._executor = SingleThreadedExecutor(context=self.context)
         self._executor.add_node(self.node)
         self.sim_time = 0.0
+        self.clock_messages = 0
+        """/clock messages received: any before `bringup` resumes its (paused, silent) simulator are another's."""
         self.world: World | None = None
         self.world_error = ''
         self.tracks: dict[str, RobotTrack] = {}
         self.tally: RunTally | None = None
         self._follow_robots = follow_robots
+        self.sim_enclave = sim_enclave
+        """The enclave our simulator was started with: how the graph tells it from another node called sim."""
         """Distance and contacts of every robot so far (the same tally `bag summary` makes from a bag)."""
         self._parameters = AsyncParameterClient(self.node, SIM_NODE)
         self.node.create_subscription(Clock, '/clock', self._on_clock, 10)
@@ -80,6 +84,7 @@ class RunMonitor:
     # --- what the run did -------------------------------------------------------------------------------
     def _on_clock(self, msg: Clock) -> None:
         self.sim_time = msg.clock.sec + msg.clock.nanosec * 1e-9
+        self.clock_messages += 1
 
     def _on_world(self, msg: String) -> None:
         if self.world is not None:
@@ -114,17 +119,28 @@ class RunMonitor:
 
     # --- the graph --------------------------------------------------------------------------------------
     def sim_ready(self) -> bool:
-        """The sim published its world (so its topics exist) and answers parameter requests."""
-        return self.world is not None and self._parameters.services_are_ready()
+        """Our sim is in the graph, published its world (so its topics exist) and answers parameter requests."""
+        return (self.world is not None and self._parameters.services_are_ready() and
+                any(enclave == self.sim_enclave or not self.sim_enclave for _, _, enclave in self._sims()))
+
+    def _sims(self) -> list[tuple[str, str, str]]:
+        return [entry for entry in self.node.get_node_names_and_namespaces_with_enclaves() if entry[0] == SIM_NODE]
 
     def clock_sources(self) -> list[str]:
         """The nodes publishing `/clock` on this domain (ours is one of them once it is up)."""
         return [_full_name(info.node_namespace, info.node_name)
                 for info in self.node.get_publishers_info_by_topic('/clock')]
 
-    def simulators(self) -> list[str]:
-        """Every node called `sim` on this domain, whatever its namespace."""
-        return [_full_name(ns, name) for name, ns in self.node.get_node_names_and_namespaces() if name == SIM_NODE]
+    def world_sources(self) -> int:
+        """Publishers of the `world` topic (each simulator has one)."""
+        return self.node.count_publishers('world')
+
+    def other_simulators(self) -> list[str]:
+        """Nodes called `sim` on this domain, whatever their namespace, other than ours."""
+        sims = self._sims()
+        if not self.sim_enclave:  # no way to tell ours: a second one is another
+            return [_full_name(ns, name) for name, ns, _ in sims] if len(sims) > 1 else []
+        return [_full_name(ns, name) for name, ns, enclave in sims if enclave != self.sim_enclave]
 
     def recorder_subscribed(self) -> bool:
         """The recorder subscribes to every topic the simulator publishes."""

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import os
 import signal
 import sys
 import threading
@@ -51,6 +52,9 @@ class Supervisor:
         self.resumed_at: float | None = None
         self.ended_at: float | None = None
         self.controller_ended = False
+        # With ROS security on, an enclave must exist in the keystore: then the simulator keeps the default one.
+        secure = os.environ.get('ROS_SECURITY_ENABLE', '').lower() == 'true'
+        self.sim_enclave = '' if secure else f'/epuck_ros_bringup_{os.getpid()}'
 
     def ros_args(self, params: list[str], sim_time: bool = True, namespace: str = '') -> list[str]:
         args = ['--ros-args', *(['-p', 'use_sim_time:=true'] if sim_time else [])]
@@ -61,8 +65,10 @@ class Supervisor:
     def start_all(self) -> None:
         """Every process at once: the simulator starts paused, so nothing happens before all are connected."""
         plan, start = self.plan, self.children.start
-        # The clock source never listens to itself: no use_sim_time for the simulator.
-        start('sim', 'sim', [executable('sim'), *self.ros_args(plan.sim_params, sim_time=False)])
+        # The clock source never listens to itself: no use_sim_time for the simulator. Its enclave (a plain name
+        # without ROS security) is how the graph tells it from any other node called sim.
+        start('sim', 'sim', [executable('sim'), *self.ros_args(plan.sim_params, sim_time=False),
+                             *(['--enclave', self.sim_enclave] if self.sim_enclave else [])])
         if plan.record_dir is not None:
             start('record', 'record', [executable('record'), '-o', str(plan.record_dir), '--compression',
                                        self.args.record_compression, *self.ros_args([])])
@@ -96,11 +102,15 @@ class Supervisor:
                 raise RunFailed(f'{what()} within {timeout:.0f} s')
 
     def refuse_other_simulators(self) -> None:
-        clocks, sims = self.monitor.clock_sources(), self.monitor.simulators()
-        if len(clocks) > 1 or len(sims) > 1:
-            others = sorted(set(clocks) | set(sims))
-            raise RunFailed(f'another simulator or /clock source is running on this ROS domain ({", ".join(others)} '
-                            f'seen; {ros_domain()}): stop it, or run with another ROS_DOMAIN_ID')
+        """Our simulator is paused (silent) until the resume, so a /clock message before it is another's; after it,
+        two /clock publishers, `world` publishers or nodes named sim are two simulators."""
+        monitor = self.monitor
+        clocks, sims = monitor.clock_sources(), monitor.other_simulators()
+        ticking = self.resumed_at is None and monitor.clock_messages > 0
+        if ticking or sims or len(clocks) > 1 or monitor.world_sources() > 1:
+            seen = ', '.join(sorted(set(clocks) | set(sims))) or '/clock ticking'
+            raise RunFailed(f'another simulator or /clock source is running on this ROS domain ({seen}; '
+                            f'{ros_domain()}): stop it, or run with another ROS_DOMAIN_ID')
 
     def connected(self) -> bool:
         """Everything the run needs is in the graph: sim up, recorder subscribed, controllers connected, view up."""
@@ -139,7 +149,7 @@ class Supervisor:
         # Our DDS participant first: created before the children's, it hears their first announcements (one
         # created after them waited for their next periodic announcement, ~3 s later: measured with
         # benchmarks/bench_startup.py). Then the children, whose own start-up is the longest part.
-        self.monitor = RunMonitor(args.namespace, follow_robots=plan.record_dir is None)
+        self.monitor = RunMonitor(args.namespace, self.sim_enclave, follow_robots=plan.record_dir is None)
         self.start_all()
         self.watch(self.connected, READY_TIMEOUT, self.waiting_for)
         if self.stop_requested.is_set():
