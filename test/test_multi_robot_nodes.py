@@ -2,6 +2,8 @@
 from __future__ import annotations
 
 import math
+import time
+from collections import Counter
 from collections.abc import Callable
 from pathlib import Path
 
@@ -13,7 +15,7 @@ from geometry_msgs.msg import Twist, Vector3
 from nav_msgs.msg import Odometry
 from rcl_interfaces.msg import Parameter as ParameterMsg, ParameterType, ParameterValue
 from rcl_interfaces.srv import SetParameters
-from rclpy.qos import DurabilityPolicy, QoSProfile
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState, Range
 from std_msgs.msg import Float64MultiArray, String
@@ -289,3 +291,29 @@ def test_real_time_factor_changes_take_effect_at_once_whatever_the_value(launch,
                                                                 integer_value=20))  # an integer is a float too
     test_node.spin_until(lambda: len(clocks) > frozen + 10, timeout=30, what='the clock to resume at 20x')
     assert sim.proc.poll() is None and 'Overflow' not in sim.output()
+
+
+def test_a_slow_reliable_reader_gets_every_step_at_full_speed(launch, test_node):
+    """A KEEP_ALL reader (as the recorder) slower than the sim at real_time_factor 0: the sim waits, nothing is lost
+    (a publisher history holds 300 steps; this run is 600)."""
+    steps = 600
+    sim = launch('sim', *ros_args({'real_time_factor': 0, 'paused': True, 'pause_at': steps * STEP}))
+    sim.wait_for_output('sim ready', timeout=30)
+    keep_all = QoSProfile(history=HistoryPolicy.KEEP_ALL, depth=1, reliability=ReliabilityPolicy.RELIABLE)
+    odom, ranges = [], []
+
+    def slow(received: list) -> Callable[[object], None]:
+        def take(msg: object) -> None:
+            received.append(msg)
+            time.sleep(0.0005)  # a reader slower than the sim
+        return take
+
+    subscriptions = [test_node.node.create_subscription(Odometry, 'odom', slow(odom), keep_all),
+                     test_node.node.create_subscription(Range, 'proximity', slow(ranges), keep_all)]
+    test_node.spin_until(lambda: all(s.get_publisher_count() for s in subscriptions), what='the sim topics')
+    set_parameter(test_node, 'paused', boolean(False))
+    test_node.spin_until(lambda: len(odom) >= steps and len(ranges) >= 8 * steps, timeout=180,
+                         what=f'{steps} steps of odom and proximity')
+    assert [seconds(m.header.stamp) for m in odom] == pytest.approx([STEP * (k + 1) for k in range(steps)])
+    per_stamp = Counter(round(seconds(m.header.stamp) / STEP) for m in ranges)
+    assert per_stamp == {k: 8 for k in range(1, steps + 1)}
