@@ -117,9 +117,9 @@ class ControllerRun:
             else []
         latched = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
         self.collisions: list[UInt32] = test_node.collect(UInt32, prefix + 'collisions', latched)
-        # lockstep_timeout 10 s: even a machine so loaded that the controller waits a second for the CPU does
-        # not make the simulator step without its answer.
-        params = {'real_time_factor': 0.0, 'lockstep': True, 'lockstep_timeout': 10.0, 'paused': True,
+        # lockstep_timeout 3 s: a machine so loaded that the controller waits a second for the CPU does not make
+        # the simulator step without its answer (a first step the controller missed is re-sent after it).
+        params = {'real_time_factor': 0.0, 'lockstep': True, 'lockstep_timeout': 3.0, 'paused': True,
                   'pause_at': float(duration),
                   'noise': noise, **({'world': str(world)} if world else {}), **(sim_params or {})}
         self.sim = launch(SIM, *ros_args(params))
