@@ -80,7 +80,8 @@ def swarm_scene(n: int) -> tuple[World, list[tuple[float, float]]]:
     boxes, cylinders, robots = [], [], []
     for cell in range(columns * rows):
         cx, cy = cell % columns - (columns - 1) / 2, cell // columns - (rows - 1) / 2
-        cylinders += [Cylinder(cx, cy, 0.08), Cylinder(cx - 0.38, cy - 0.38, 0.05), Cylinder(cx + 0.38, cy - 0.38, 0.05)]
+        cylinders += [Cylinder(cx, cy, 0.08), Cylinder(cx - 0.38, cy - 0.38, 0.05),
+                      Cylinder(cx + 0.38, cy - 0.38, 0.05)]
         boxes += [Box(cx + 0.41, cy + 0.41, 0.12, 0.12), Box(cx - 0.41, cy + 0.41, 0.12, 0.12)]
         robots += cell_robots(min(PER_CELL, n - len(robots)), cx, cy) if len(robots) < n else []
     world = World(arena_size=(float(columns), float(rows)), boxes=tuple(boxes), cylinders=tuple(cylinders),

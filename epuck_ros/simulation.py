@@ -237,7 +237,7 @@ class Simulation:
         robot came into the contact this substep: a robot driving into an idle one shoves it along (at its own
         speed), two robots driving at each other share it. Then out of walls and obstacles again (`obstacle`
         records those contacts). A shove reaches one robot further per pass, so a row of a few robots is pushed
-        along as a whole, and packs up against a wall. Whatever still overlaps after the passes (a row packed against a wall) returns to its
+        along as a whole, and packs up against a wall. Whatever still overlaps after the passes returns to its
         clear position of this substep, and so on until nothing overlaps: every clear position was clear, so
         this ends with no overlap and nobody tunnelled.
         """
@@ -376,7 +376,8 @@ class Simulation:
         table = self.model.ir_table
         raw = ir_sensor.noisy_raw(distance, table, self._rng if self.noise else None)
         self._ir_raw[rows] = raw.reshape(-1, self._ir_raw.shape[1])
-        self._ir_range[rows] = ir_sensor.range_from_raw(raw, distance < np.inf, table).reshape(-1, self._ir_raw.shape[1])
+        ranges = ir_sensor.range_from_raw(raw, distance < np.inf, table)
+        self._ir_range[rows] = ranges.reshape(-1, self._ir_range.shape[1])
 
     def _robots_in_view(self, cos: np.ndarray, sin: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Each robot that may see another (owner, sorted) and that other's centre in the owner's frame.

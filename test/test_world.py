@@ -208,7 +208,8 @@ def test_an_oversized_file_is_refused_unread(tmp_path):
     path = tmp_path / 'big.yaml'
     with open(path, 'wb') as file:
         file.truncate(50 * 2 ** 20)   # 50 MB, sparse: refused by its size before any byte is read
-    with pytest.raises(WorldError, match=f'big.yaml: file too large \\({50 * 2 ** 20} bytes, at most {MAX_FILE_BYTES}\\)'):
+    expected = f'big.yaml: file too large \\({50 * 2 ** 20} bytes, at most {MAX_FILE_BYTES}\\)'
+    with pytest.raises(WorldError, match=expected):
         load_world(path)
     with pytest.raises(WorldError, match='too large'):
         world_from_yaml('#' * (MAX_FILE_BYTES + 1), 'bag topic world')
