@@ -103,7 +103,7 @@ class RobotStart:
 ONE_ROBOT = (RobotStart('epuck', 0.0, 0.0, 0.0),)
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, init=False)
 class World:
     """Arena, obstacles and the robots' start poses; built once, then queried every step."""
 
@@ -113,11 +113,18 @@ class World:
     robots: tuple[RobotStart, ...] = ONE_ROBOT
     _geometry: _Geometry = field(init=False, repr=False, compare=False)
 
-    def __post_init__(self) -> None:
-        object.__setattr__(self, 'arena_size', tuple(float(v) for v in self.arena_size))
-        object.__setattr__(self, 'boxes', tuple(self.boxes))
-        object.__setattr__(self, 'cylinders', tuple(self.cylinders))
-        robots = tuple(RobotStart(str(r.name), float(r.x), float(r.y), float(r.yaw)) for r in self.robots)
+    def __init__(self, arena_size: Iterable[float] = (1.0, 1.0), boxes: Iterable[Box] = (),
+                 cylinders: Iterable[Cylinder] = (), robots: Iterable[RobotStart] = ONE_ROBOT,
+                 start_pose: Iterable[float] | None = None) -> None:
+        """`start_pose` is the one-robot form kept for older callers: one robot named `epuck` there."""
+        if start_pose is not None:
+            if robots is not ONE_ROBOT:
+                raise WorldError('robots: give either robots or start_pose, not both')
+            robots = (RobotStart(ONE_ROBOT[0].name, *start_pose),)
+        object.__setattr__(self, 'arena_size', tuple(float(v) for v in arena_size))
+        object.__setattr__(self, 'boxes', tuple(boxes))
+        object.__setattr__(self, 'cylinders', tuple(cylinders))
+        robots = tuple(RobotStart(str(r.name), float(r.x), float(r.y), float(r.yaw)) for r in robots)
         object.__setattr__(self, 'robots', robots)
         problem = _name_problem(robots)
         if problem:

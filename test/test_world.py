@@ -131,6 +131,12 @@ def test_the_one_robot_form_is_one_robot_named_epuck_and_is_written_back_as_such
     assert World().names == ('epuck',)
 
 
+def test_the_one_robot_constructor_form_still_works():
+    assert World(start_pose=(0.1, 0.2, 0.3)) == World(robots=(RobotStart('epuck', 0.1, 0.2, 0.3),))
+    with pytest.raises(WorldError, match='not both'):
+        World(start_pose=(0, 0, 0), robots=(RobotStart('a', 0, 0),))
+
+
 def test_a_world_built_in_code_checks_names():
     with pytest.raises(WorldError, match="robots: robots\\[1\\] and robots\\[0\\] are both named 'a'"):
         World(robots=(RobotStart('a', 0, 0), RobotStart('a', 0.3, 0)))
