@@ -153,18 +153,25 @@ class Children:
         """A child that has ended, if any."""
         return next((c for c in self.started if c.process.poll() is not None), None)
 
-    def stop(self, order: tuple[str, ...], reported: Child | None = None) -> list[str]:
-        """Ask each child to end (roles in `order`, a bounded wait each); returns what went wrong, except for the
-        `reported` child, whose end has been told already."""
-        problems = []
+    def stop(self, order: tuple[str, ...], reported: Child | None = None,
+             lenient: Child | None = None) -> tuple[list[str], list[str]]:
+        """Ask each child to end (roles in `order`, a bounded wait each); returns (problems, notes). The `reported`
+        child's end has been told already; the `lenient` child's unclean exit once asked to stop is only a note
+        (a user's own script, whose shutdown is its own)."""
+        problems, notes = [], []
         for child in sorted(self.started, key=lambda c: order.index(c.role)):
+            running = child.process.poll() is None
             if not interrupt(child.process, STOP_TIMEOUT, STOP_SIGNAL):
                 problems.append(f'{child.name} did not stop within {STOP_TIMEOUT:.0f} s of '
                                 f'{STOP_SIGNAL.name} and was killed')
             elif child is not reported and child.process.returncode not in CLEAN_EXIT_CODES:
-                problems.append(f'{child.name} exited with code {child.process.returncode}')
+                message = f'{child.name} exited with code {child.process.returncode}'
+                if child is lenient and running:
+                    notes.append(f'{message} when asked to stop (see its output above)')
+                else:
+                    problems.append(message)
         self._watchdog.release()
-        return problems
+        return problems, notes
 
 
 def interrupt(process: subprocess.Popen, timeout: float, signum: int = signal.SIGINT) -> bool:

@@ -229,13 +229,15 @@ def run(args: argparse.Namespace, plan: Plan) -> int:
         if started is not None and not failure:
             monitor.catch_up(CATCH_UP_TIMEOUT)
         sim_time = monitor.sim_time if monitor is not None else 0.0
-        problems = children.stop(STOP_ORDER, failed_child)
+        script = next((c for c in children.started if c.role == 'controller'), None) \
+            if plan.controller_kind == 'rclpy' else None
+        problems, notes = children.stop(STOP_ORDER, failed_child, lenient=script)
         lines = report(supervisor, sim_time, ended - started) if started is not None and not failure else []
         if monitor is not None:
             monitor.close()
     for signum in (signal.SIGINT, signal.SIGTERM):  # all is stopped: a late Ctrl-C must not change the exit code
         signal.signal(signum, signal.SIG_IGN)
-    for line in lines:
+    for line in lines + [f'[bringup] note: {note}' for note in notes]:
         print(line, flush=True)
     for problem in ([failure] if failure else []) + problems:
         print(f'[bringup] error: {problem}', file=sys.stderr, flush=True)
