@@ -138,15 +138,19 @@ def test_a_behaviour_commands_a_stop_when_it_ends(launch: object, test_node: obj
     commands: list[Float64MultiArray] = test_node.collect(Float64MultiArray, '/wheel_cmd', HISTORY)
     launch('sim', *ros_args({'real_time_factor': 10.0, 'cmd_timeout': 0.0}))
     forward = launch('forward', *ros_args({'use_sim_time': True}))
-    test_node.spin_until(lambda: joints and joints[-1].velocity[0] > 1.0, timeout=TIMEOUT, what='the robot to drive')
+    test_node.spin_until(lambda: commands and joints and joints[-1].velocity[0] > 1.0, timeout=TIMEOUT,
+                         what='the robot to drive and the test node to hear its commands')
     forward.proc.send_signal(signum)
     test_node.spin_until(lambda: forward.proc.poll() is not None, timeout=TIMEOUT, what='forward to end')
     assert forward.proc.returncode == 0
     assert 'Traceback' not in forward.output()
+    test_node.spin_until(lambda: commands and list(commands[-1].data) == [0.0, 0.0], timeout=TIMEOUT,
+                         what='the last wheel command to be [0, 0]')
+    test_node.spin_until(lambda: list(joints[-1].velocity) == [0.0, 0.0], timeout=TIMEOUT,
+                         what='the simulated wheels to stop')
     count = len(joints)
-    test_node.spin_until(lambda: len(joints) > count + 5, timeout=TIMEOUT, what='joint states after the end')
-    assert list(commands[-1].data) == [0.0, 0.0]
-    assert list(joints[-1].velocity) == [0.0, 0.0]
+    test_node.spin_until(lambda: len(joints) > count + 10, timeout=TIMEOUT, what='more joint states')
+    assert all(list(joint.velocity) == [0.0, 0.0] for joint in joints[count:])
 
 
 @pytest.mark.parametrize('name', ['forward', 'avoid'])
