@@ -232,7 +232,8 @@ OPEN_FLOOR = World(arena_size=(4.0, 4.0))
 """Nothing to bump into: the kinematic behaviours are judged on kinematics alone."""
 
 
-def drive(behaviour: Behaviour, sim: Simulation, seconds: float, from_raw: bool = False) -> tuple[np.ndarray, list[str]]:
+def drive(behaviour: Behaviour, sim: Simulation, seconds: float,
+          from_raw: bool = False) -> tuple[np.ndarray, list[str]]:
     """Run the behaviour on the simulator as a node would; the true pose before and after every step (unwrapped
     yaw), and the behaviour's state during each step. `from_raw`: ranges from the raw readings, as a node reading
     `ir_raw` gets them, instead of the simulator's ranges (its `proximity` topic)."""
@@ -359,7 +360,8 @@ def test_closed_loop_avoid_explores_the_default_world_for_5_minutes_without_a_co
     poses, _ = drive(Avoid(AvoidConfig(mode=mode)), sim, 300.0, from_raw)
     distance = path_length(poses)
     cells = len(set(map(tuple, np.floor((poses[:, :2] + 0.5) / 0.1).astype(int))))
-    print(f'avoid {mode} on {"raw readings" if from_raw else "ranges"}: {sim.collisions[0]} collisions, {distance:.2f} m driven, {cells} of 100 cells visited')
+    print(f'avoid {mode} on {"raw readings" if from_raw else "ranges"}: {sim.collisions[0]} collisions, '
+          f'{distance:.2f} m driven, {cells} of 100 cells visited')
     assert sim.collisions[0] == 0
     assert distance > 0.5 * 0.0628 * 300.0
     assert cells >= 40
