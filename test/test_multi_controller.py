@@ -54,9 +54,9 @@ class Robots:
             lambda: all(node.count_publishers(f'/{name}/wheel_cmd') and node.count_subscribers(f'/{name}/ir_raw')
                         for name in driven), timeout=TIMEOUT, what=f'controllers of {driven}')
 
-    def run_until_paused(self) -> dict[str, np.ndarray]:
+    def run_until_paused(self, sim: object) -> dict[str, np.ndarray]:
         """Resume the simulator and spin until it paused itself at PAUSE_AT; each robot's (t, x, y, yaw) rows."""
-        set_sim_parameter(self.test_node, 'paused', False)
+        set_sim_parameter(self.test_node, sim, 'paused', False)
         self.test_node.spin_until(lambda: all(self.sim_time(name) >= PAUSE_AT - 1e-6 for name in self.names),
                                   timeout=TIMEOUT, what=f'{PAUSE_AT} simulated seconds')
         return {name: trajectory(messages) for name, messages in self.truth.items()}
@@ -66,11 +66,16 @@ class Robots:
         return messages[-1].header.stamp.sec + 1e-9 * messages[-1].header.stamp.nanosec if messages else 0.0
 
 
-def set_sim_parameter(test_node: object, name: str, value: object) -> None:
+def set_sim_parameter(test_node: object, sim: object, name: str, value: object) -> None:
+    """Set a parameter of the running `sim` process (failing at once, with its output, if it ended)."""
     client = AsyncParameterClient(test_node.node, 'sim')
-    test_node.spin_until(lambda: client.services_are_ready(), timeout=TIMEOUT, what='the sim parameter services')
+    test_node.spin_until(lambda: client.services_are_ready() or sim.proc.poll() is not None, timeout=TIMEOUT,
+                         what='the sim parameter services')
+    assert sim.proc.poll() is None, sim.output()
     future = client.set_parameters([Parameter(name, value=value)])
-    test_node.spin_until(future.done, timeout=TIMEOUT, what=f'sim to accept {name}')
+    test_node.spin_until(lambda: future.done() or sim.proc.poll() is not None, timeout=TIMEOUT,
+                         what=f'sim to accept {name}')
+    assert future.done(), sim.output()
     assert all(result.successful for result in future.result().results)
 
 
@@ -91,7 +96,7 @@ def test_one_process_drives_three_robots_the_same_way_twice(launch: object, test
         test_node.spin_until(lambda: sorted(ns for name, ns in test_node.node.get_node_names_and_namespaces()
                                             if name == 'avoid') == ['/a', '/b', '/c'],
                              timeout=TIMEOUT, what='nodes /a/avoid, /b/avoid, /c/avoid')
-        runs.append(robots.run_until_paused())
+        runs.append(robots.run_until_paused(sim))
         assert 'reading the eight proximity' not in avoid.output()  # the one-message-per-step ir_raw path
         assert avoid.stop() == 0 and sim.stop() == 0
     for name in ('a', 'b', 'c'):
@@ -106,10 +111,10 @@ def test_a_namespace_remap_drives_only_that_robot(launch: object, test_node: obj
     """`avoid --ros-args -r __ns:=/epuck1` in a 3-robot simulator: epuck1 drives, the others (no controller)
     stay where they are and do not hold the lockstep simulator up."""
     robots = Robots(test_node, ['epuck0', 'epuck1', 'epuck2'])
-    launch('sim', *ros_args({**LOCKSTEP, 'robots': 3}))
+    sim = launch('sim', *ros_args({**LOCKSTEP, 'robots': 3}))
     launch('avoid', '--ros-args', '-r', '__ns:=/epuck1', '-p', 'use_sim_time:=true')
     robots.wait_for_controllers(['epuck1'])
-    rows = robots.run_until_paused()
+    rows = robots.run_until_paused(sim)
     moved = {name: path_length(rows[name]) for name in robots.names}
     print(f'distances driven: {moved}')
     assert moved['epuck1'] > 0.1
@@ -122,9 +127,9 @@ def test_robots_all_finds_every_robot_of_the_simulator(launch: object, test_node
     avoid = launch('avoid', '--robots', 'all', *ros_args({'use_sim_time': True, 'cruise_speed': 1}))
     test_node.spin_until(lambda: 'waiting for the simulator' in avoid.output(), timeout=TIMEOUT,
                          what='avoid to wait for the simulator')
-    launch('sim', *ros_args({**LOCKSTEP, 'robots': 3}))
+    sim = launch('sim', *ros_args({**LOCKSTEP, 'robots': 3}))
     robots.wait_for_controllers(robots.names)
-    rows = robots.run_until_paused()
+    rows = robots.run_until_paused(sim)
     assert 'cruise_speed=1.0' in avoid.output()  # an integer for a float parameter, on every robot's node
     for name in robots.names:
         assert path_length(rows[name]) > 0.1, name
