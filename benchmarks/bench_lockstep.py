@@ -7,9 +7,11 @@ run, for the same simulated seconds (the simulator starts paused and pauses itse
   here by remapping `ir_raw` away, as on a robot whose driver publishes no `ir_raw`);
 - `avoid` reading `ir_raw`, one message per step (the issue's goal: >= 50x real time);
 - N robots, all driven by one `avoid --robots all` process.
-Printed per configuration: real-time factor, steps/s, robot-steps/s and the CPU each process used per step.
+Printed per configuration: real-time factor, steps/s, robot-steps/s and the CPU each process used per step,
+each the median of `--repeat` runs taken in turn (on a shared 2-core machine one run's wall time varies by 2x;
+the CPU per step much less).
 
-Run: . scripts/env.sh; ROS_DOMAIN_ID=43 python benchmarks/bench_lockstep.py [--seconds S] [--swarm N]
+Run: . scripts/env.sh; ROS_DOMAIN_ID=43 python benchmarks/bench_lockstep.py [--seconds S] [--swarm N] [--repeat R]
 """
 from __future__ import annotations
 
@@ -17,6 +19,7 @@ import argparse
 import os
 import shutil
 import signal
+import statistics
 import subprocess
 import sys
 import time
@@ -108,21 +111,33 @@ def run(node: Node, label: str, seconds: float, robots: int, ir_raw: bool) -> Re
                 process.wait()
 
 
+def median(runs: list[Result]) -> Result:
+    """Field by field median of runs of one configuration."""
+    first = runs[0]
+    return Result(first.label, first.robots, statistics.median(r.rtf for r in runs),
+                  statistics.median(r.sim_cpu_us for r in runs), statistics.median(r.controller_cpu_us for r in runs))
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument('--seconds', type=float, default=60.0, help='simulated seconds per run (default 60)')
+    parser.add_argument('--seconds', type=float, default=30.0, help='simulated seconds per run (default 30)')
     parser.add_argument('--swarm', type=int, default=10, help='robots of the one-process run (default 10; 0 = skip)')
+    parser.add_argument('--repeat', type=int, default=3, help='runs of each configuration, in turn (default 3)')
     args = parser.parse_args()
     os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
     rclpy.init()
     node = rclpy.create_node('bench_lockstep')
+    configurations = [('avoid on 8 proximity Ranges/step', 1, False), ('avoid on 1 ir_raw/step', 1, True)]
+    if args.swarm > 1:
+        configurations.append(('avoid --robots all, ir_raw', args.swarm, True))
     try:
-        baseline = run(node, 'avoid on 8 proximity Ranges/step', args.seconds, 1, ir_raw=False)
-        print(baseline.line(None), flush=True)
-        print(run(node, 'avoid on 1 ir_raw/step', args.seconds, 1, ir_raw=True).line(baseline), flush=True)
-        if args.swarm > 1:
-            print(run(node, 'avoid --robots all, ir_raw', args.seconds, args.swarm, ir_raw=True).line(baseline),
-                  flush=True)
+        results: dict[str, list[Result]] = {label: [] for label, _, _ in configurations}
+        for _ in range(args.repeat):
+            for label, robots, ir_raw in configurations:
+                results[label].append(run(node, label, args.seconds, robots, ir_raw))
+        medians = [median(runs) for runs in results.values()]
+        for result in medians:
+            print(result.line(None if result is medians[0] else medians[0]), flush=True)
     finally:
         node.destroy_node()
         rclpy.try_shutdown()
