@@ -32,8 +32,8 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import yaml
 
+from epuck_ros import untrusted_yaml
 from epuck_ros.model import RobotModel
 from epuck_ros.spatial import close_pairs
 
@@ -598,61 +598,10 @@ def world_from_yaml(text: str, source: str = '<yaml>', robot_radius: float = Rob
     if len(text) > MAX_FILE_BYTES:
         raise WorldError(f'{source}: too large ({len(text)} characters, at most {MAX_FILE_BYTES})')
     try:
-        _check_yaml_shape(text, source)
-        data = yaml.load(text, Loader=_YAML_LOADER)
-    except WorldError:
-        raise
-    except yaml.YAMLError as error:
-        raise WorldError(f'{source}: not valid YAML: {_cut(" ".join(str(error).split()), 200)}') from None
-    except (ValueError, RecursionError, OverflowError) as error:  # e.g. an integer beyond Python's digit limit
-        raise WorldError(f'{source}: not valid YAML: {_cut(str(error), 200)}') from None
+        data = untrusted_yaml.load(text, MAX_NESTING)
+    except untrusted_yaml.UntrustedYamlError as error:
+        raise WorldError(f'{source}: {error}') from None
     return world_from_dict({} if data is None else data, source, robot_radius)
-
-
-_YAML_LOADER = getattr(yaml, 'CSafeLoader', yaml.SafeLoader)
-
-
-def _check_yaml_shape(text: str, source: str) -> None:
-    """Refuse aliases (a few hundred bytes of them expand to gigabytes) and deep nesting, from the event stream.
-
-    Events come from libyaml before any Python object is built, so the check costs little whatever the input.
-    The error names the field being read when the offending node appears.
-    """
-    path: list[list[Any]] = []   # one [is_mapping, key or index, expecting_a_key] per open collection
-
-    def where() -> str:
-        text = ''.join(f'.{key}' if is_map else f'[{key}]' for is_map, key, _ in path).lstrip('.')
-        return text or '<top level>'
-
-    def value_done() -> None:
-        if path:
-            if path[-1][0]:
-                path[-1][2] = True
-            else:
-                path[-1][1] += 1
-
-    for event in yaml.parse(text, Loader=_YAML_LOADER):
-        if isinstance(event, (yaml.StreamStartEvent, yaml.StreamEndEvent, yaml.DocumentStartEvent,
-                              yaml.DocumentEndEvent)):
-            continue
-        if path and path[-1][0] and path[-1][2] and not isinstance(event, yaml.CollectionEndEvent):
-            path[-1][2] = False   # this node is a key
-            path[-1][1] = _cut(str(event.value), 40) if isinstance(event, yaml.ScalarEvent) else '?'
-            if isinstance(event, yaml.ScalarEvent):
-                continue
-        if isinstance(event, yaml.AliasEvent):
-            raise WorldError(f'{source}: {where()}: YAML aliases (*{_cut(event.anchor, 40)}) are not allowed '
-                             f'in a world file')
-        if isinstance(event, yaml.CollectionStartEvent):
-            if len(path) >= MAX_NESTING:
-                raise WorldError(f'{source}: {where()}: nested deeper than {MAX_NESTING} levels')
-            is_map = isinstance(event, yaml.MappingStartEvent)
-            path.append([is_map, None if is_map else 0, is_map])
-        elif isinstance(event, yaml.CollectionEndEvent):
-            path.pop()
-            value_done()
-        else:
-            value_done()
 
 
 def world_from_dict(data: Any, source: str = '<dict>', robot_radius: float = RobotModel().body_radius) -> World:
@@ -695,7 +644,7 @@ def _name_problem(robots: tuple[RobotStart, ...]) -> str | None:
     seen: dict[str, int] = {}
     for index, robot in enumerate(robots):
         if not ROBOT_NAME.match(robot.name) or '__' in robot.name:
-            return f'robots[{index}].name {_cut(repr(robot.name), 40)} is not a ROS name'
+            return f'robots[{index}].name {untrusted_yaml.cut(repr(robot.name), 40)} is not a ROS name'
         if robot.name in seen:
             return f'robots[{index}] and robots[{seen[robot.name]}] are both named {robot.name!r}'
         seen[robot.name] = index
@@ -815,7 +764,7 @@ class _FieldReader:
         if isinstance(value, float) and not math.isfinite(value):
             raise self.fail(path, f'must be finite, got {value}')
         if not -MAX_MAGNITUDE <= value <= MAX_MAGNITUDE:
-            raise self.fail(path, f'must be within +-{MAX_MAGNITUDE:g}, got {_cut(repr(value), 24)}')
+            raise self.fail(path, f'must be within +-{MAX_MAGNITUDE:g}, got {untrusted_yaml.cut(repr(value), 24)}')
         if positive and value <= 0.0:
             raise self.fail(path, f'must be positive, got {value}')
         return float(value)
@@ -833,8 +782,4 @@ _SHORT_REPR.maxstring = _SHORT_REPR.maxother = _SHORT_REPR.maxlong = 30
 
 def _describe(value: Any) -> str:
     """Type and a short repr; reprlib stops early, so a huge value is never formatted in full."""
-    return f'{type(value).__name__} {_cut(_SHORT_REPR.repr(value), 40)}'
-
-
-def _cut(text: str, limit: int) -> str:
-    return text if len(text) <= limit else text[:limit - 3] + '...'
+    return f'{type(value).__name__} {untrusted_yaml.cut(_SHORT_REPR.repr(value), 40)}'

@@ -252,7 +252,7 @@ def test_a_yaml_alias_bomb_in_metadata_is_refused(tmp_path):
     shutil.copytree(SAMPLES / 'spin', tmp_path / 'spin')
     (tmp_path / 'spin' / 'metadata.yaml').write_text(alias_bomb())
     code, _, err = run_bag('info', str(tmp_path / 'spin'))
-    assert code == 2 and 'YAML aliases are not accepted' in err
+    assert code == 2 and 'YAML aliases' in err and 'not allowed' in err
 
 
 def empty_struct_bomb(path: Path) -> None:

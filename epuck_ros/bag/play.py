@@ -10,13 +10,14 @@ import math
 from collections.abc import Sequence
 from dataclasses import replace
 
-import yaml
-
+from epuck_ros import untrusted_yaml
 from epuck_ros.bag.qos import QosProfile
 
 PLAY_DEPTH = 1000
 """History of every replayed topic: a burst (eight Range messages per step, at a high rate) must never
 overwrite messages a reliable subscriber has not acknowledged yet."""
+QOS_YAML_DEPTH = 8
+"""Deepest nesting accepted in a channel's recorded QoS profiles (rosbag2 writes 3 levels)."""
 CLOCK_TOPIC = '/clock'
 """Not replayed from the bag: the player publishes /clock itself, from the log time."""
 
@@ -79,8 +80,8 @@ def replay_profile(offered_qos_profiles: str) -> QosProfile:
     """
     default = QosProfile(depth=PLAY_DEPTH)
     try:
-        profiles = yaml.safe_load(offered_qos_profiles) if offered_qos_profiles else []
-    except yaml.YAMLError:
+        profiles = untrusted_yaml.load(offered_qos_profiles, QOS_YAML_DEPTH) if offered_qos_profiles else []
+    except untrusted_yaml.UntrustedYamlError:
         return default
     if not isinstance(profiles, list):
         return default

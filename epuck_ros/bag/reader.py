@@ -23,13 +23,14 @@ from pathlib import Path, PurePath
 
 import lz4.frame
 import numpy as np
-import yaml
 import zstandard
 from mcap.data_stream import ReadDataStream
 from mcap.exceptions import McapError
 from mcap.opcode import Opcode
 from mcap.reader import SeekingReader
 from mcap.records import Channel, Metadata, Schema
+
+from epuck_ros import untrusted_yaml
 
 MAGIC = b'\x89MCAP0\r\n'
 _RECORD = struct.Struct('<BQ')
@@ -48,7 +49,6 @@ MAX_METADATA_BYTES = 2**20
 """Largest metadata.yaml / rosbag2 metadata record parsed; rosbag2's own are a few KiB."""
 MAX_YAML_DEPTH = 32
 """Deepest nesting accepted in metadata YAML (rosbag2's is 5 levels)."""
-_YAML_LOADER = getattr(yaml, 'CSafeLoader', yaml.SafeLoader)
 
 RawMessage = tuple[str, int, int, bytes, int, int]
 """(topic, log_time ns, publish_time ns, buffer, data start, data end): the CDR bytes are buffer[start:end],
@@ -97,21 +97,11 @@ class BagMessage:
 
 
 def load_yaml(text: str, where: str) -> object:
-    """A YAML document from an untrusted file: no aliases (no expansion bombs), bounded nesting, libyaml speed."""
-    depth = 0
+    """A YAML document from an untrusted file: no aliases (no expansion bombs), bounded nesting."""
     try:
-        for event in yaml.parse(text, Loader=_YAML_LOADER):
-            if isinstance(event, yaml.AliasEvent):
-                raise BagError(f'{where}: YAML aliases are not accepted (rosbag2 never writes them)')
-            if isinstance(event, (yaml.SequenceStartEvent, yaml.MappingStartEvent)):
-                depth += 1
-                if depth > MAX_YAML_DEPTH:
-                    raise BagError(f'{where}: YAML nested deeper than {MAX_YAML_DEPTH} levels')
-            elif isinstance(event, (yaml.SequenceEndEvent, yaml.MappingEndEvent)):
-                depth -= 1
-        return yaml.load(text, Loader=_YAML_LOADER)
-    except yaml.YAMLError as error:
-        raise BagError(f'{where}: not valid YAML: {" ".join(str(error).split())}') from None
+        return untrusted_yaml.load(text, MAX_YAML_DEPTH)
+    except untrusted_yaml.UntrustedYamlError as error:
+        raise BagError(f'{where}: {error}') from None
 
 
 def _read_record(body: bytes, cls: type, where: str) -> object:
