@@ -59,6 +59,9 @@ publisher, or a node with its name) before it steps or publishes anything. DDS d
 takes well under a second after rclpy starts (measured: 0-0.3 s idle; 1-2 s, rarely 5 s, with the two cores
 overloaded). A simulator discovered later is caught by the announcements on SIMULATORS_TOPIC: the later of two
 refuses then, the earlier goes on. The window overlaps rclpy's own start-up."""
+ANNOUNCEMENT_WAIT = 3.0
+"""Wall seconds a `/clock` publisher seen in the graph during the discovery window may go unexplained by a newer
+simulator's announcement before this simulator refuses (a bag player, or an older simulator, never announces later)."""
 SIMULATORS_TOPIC = '/simulators'
 """Latched: every simulator announces itself there (wall start time, host, pid). Two simulators that hear each other
 however late discovery is, agree on which started first; the later one refuses (and the earlier one goes on)."""
@@ -195,6 +198,8 @@ class SimNode(Node):
         self.refusal = ''
         """Why this simulator will not run (another one is there); main() exits 2 with it."""
         self._warned_newcomer = False
+        self._newer_simulator_seen = False
+        """A simulator that started after this one announced itself: it refuses, this one goes on."""
         self._running = threading.Event()
         self._thread = threading.Thread(target=self._run, name='sim_loop', daemon=True)
         self._timeouts = RepeatedCondition(self.get_logger().info, 'command time-out: wheels stopped')
@@ -260,21 +265,35 @@ class SimNode(Node):
             return  # not one of ours
         if (other_ns, other) < (own_ns, own):
             self.refusal = self._refusal(f'the simulator {other} started {(own_ns - other_ns) * 1e-9:.1f} s earlier')
-        elif not self._warned_newcomer:
-            self._warned_newcomer = True
-            self.get_logger().warning(f'another simulator appeared ({other}): it refuses to run')
+        else:
+            self._newer_simulator_seen = True
+            if not self._warned_newcomer:
+                self._warned_newcomer = True
+                self.get_logger().warning(f'another simulator appeared ({other}): it refuses to run')
 
     def _refusal(self, found: str) -> str:
         return (f'another simulator runs on ROS domain {os.environ.get("ROS_DOMAIN_ID", "0")}: {found}; '
                 'stop it or use another ROS_DOMAIN_ID')
 
     def _alone_on_the_domain(self) -> bool:
-        """Before the first step: look for another simulator until the discovery window ends; refuse if there is."""
-        while self._running.is_set() and time.monotonic() < self._started + DISCOVERY_WINDOW:
-            found = self._another_simulator()
-            if found or self.refusal:
-                self.refusal = self.refusal or self._refusal(found)
+        """Before the first step: look for another simulator until the discovery window ends; refuse if there is.
+
+        Another `/clock` publisher in the graph may be a simulator that started after this one (under load this
+        one's window can outlast a newcomer's start-up): that one refuses by the announcements. So the graph alone
+        refuses only if no newer simulator's announcement explains it within ANNOUNCEMENT_WAIT."""
+        seen_at = None
+        while self._running.is_set():
+            if self.refusal:
                 return False
+            now = time.monotonic()
+            found = '' if self._newer_simulator_seen else self._another_simulator()
+            if found:
+                seen_at = now if seen_at is None else seen_at
+                if now - seen_at >= ANNOUNCEMENT_WAIT:
+                    self.refusal = self._refusal(found)
+                    return False
+            elif now >= self._started + DISCOVERY_WINDOW:
+                return True
             time.sleep(0.05)
         return True
 
