@@ -2,7 +2,9 @@
 # Creates .venv with ROS 2 Jazzy from PyPI and installs epuck_ros into it (editable).
 # Idempotent: it reinstalls only when requirements.txt or setup.py changed.
 set -euo pipefail
-cd "$(dirname "$0")/.."
+# The real checkout, even when called through a symlinked scripts/ (test_readme runs commands in a scratch copy):
+# an editable install from elsewhere would point the executables at that copy.
+cd "$(dirname "$(readlink -f "$0")")/.."
 python=${PYTHON:-python3}
 if [ ! -x .venv/bin/python ]; then
   echo "[setup] creating .venv with $($python --version)" >&2
