@@ -30,7 +30,6 @@ from pathlib import Path
 from typing import Any
 
 import rclpy
-import yaml
 from nav_msgs.msg import Odometry
 from rclpy.clock import Clock, ClockType
 from rclpy.duration import Duration
@@ -48,7 +47,7 @@ from epuck_ros.behaviours.base import describe, ranges_from_raw
 from epuck_ros.model import SENSOR_NAMES
 from epuck_ros.nodes.params import ParamSpec, Usage, declare_parameters, prepare_arguments, user_arguments
 from epuck_ros.nodes.spinning import handle_shutdown_signals, shutdown_requested, spin_until_shutdown
-from epuck_ros.world import WorldError, world_from_dict
+from epuck_ros.world import WorldError, world_from_yaml
 
 CONTROL_PERIOD = 0.032
 """Seconds between two commands: the course's controllers run once per Webots basicTimeStep (32 ms)."""
@@ -336,7 +335,7 @@ def _world_robots(probe: Node) -> list[str] | None:
     spin_until_shutdown(probe, until=lambda: bool(received))
     if not received:
         return None
-    world = world_from_dict(yaml.safe_load(received[-1].data), source=probe.resolve_topic_name('world'))
+    world = world_from_yaml(received[-1].data, source=probe.resolve_topic_name('world'))
     names = [robot.name for robot in world.robots]
     probe.get_logger().info(f'driving {len(names)} robot(s): {" ".join(names)}')
     return names
