@@ -20,20 +20,14 @@ import time
 from pathlib import Path
 from tempfile import TemporaryDirectory
 
+from measure import cpu_seconds
+
 os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
 os.environ.setdefault('ROS_DOMAIN_ID', '48')
 
 BIN = Path(sys.executable).parent
 SPEED = re.compile(r'\[bringup\] simulated ([\d.]+) s in ([\d.]+) s wall \(([\d.]+)x real time\)')
-TICKS = os.sysconf('SC_CLK_TCK')
 
-
-def cpu_seconds(pid: int) -> float | None:
-    try:
-        fields = Path(f'/proc/{pid}/stat').read_text().rsplit(')', 1)[1].split()
-    except OSError:
-        return None
-    return (int(fields[11]) + int(fields[12])) / TICKS
 
 
 def children_of(pid: int) -> list[int]:

@@ -18,7 +18,6 @@ from __future__ import annotations
 import argparse
 import os
 import shutil
-import signal
 import statistics
 import subprocess
 import sys
@@ -31,6 +30,9 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.parameter_client import AsyncParameterClient
 
+from epuck_ros.bringup.processes import interrupt
+from measure import cpu_seconds
+
 STEP = 0.032
 TIMEOUT = 60.0
 POLL = 0.01
@@ -40,10 +42,6 @@ POLL = 0.01
 def executable(name: str) -> str:
     return shutil.which(name) or str(Path(sys.executable).parent / name)
 
-
-def cpu_seconds(pid: int) -> float:
-    fields = Path(f'/proc/{pid}/stat').read_text().rsplit(')', 1)[1].split()
-    return (int(fields[11]) + int(fields[12])) / os.sysconf('SC_CLK_TCK')
 
 
 @dataclass
@@ -103,12 +101,7 @@ def run(node: Node, label: str, seconds: float, robots: int, ir_raw: bool) -> Re
         return Result(label, robots, seconds / wall, sim_cpu / steps * 1e6, avoid_cpu / steps * 1e6)
     finally:
         for process in (avoid, sim):
-            process.send_signal(signal.SIGINT)
-            try:
-                process.wait(timeout=15)
-            except subprocess.TimeoutExpired:
-                process.kill()
-                process.wait()
+            interrupt(process, 15)
 
 
 def median(runs: list[Result]) -> Result:

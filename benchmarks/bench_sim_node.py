@@ -31,6 +31,7 @@ from epuck_ros.bringup.processes import interrupt
 from epuck_ros.model import RobotModel
 from epuck_ros.simulation import Simulation
 from epuck_ros.world import default_world, place_robots
+from measure import cpu_seconds
 
 STEP = 0.032
 ROBOT_TOPICS = [(Odometry, 'odom'), (Odometry, 'ground_truth'), (Range, 'proximity'), (JointState, 'joint_states'),
@@ -40,11 +41,6 @@ ROBOT_TOPICS = [(Odometry, 'odom'), (Odometry, 'ground_truth'), (Range, 'proximi
 def executable(name: str) -> str:
     return shutil.which(name) or str(Path(sys.executable).parent / name)
 
-
-def cpu_seconds(pid: int) -> float:
-    """User + system CPU seconds of a process so far (from /proc)."""
-    fields = Path(f'/proc/{pid}/stat').read_text().rsplit(')', 1)[1].split()
-    return (int(fields[11]) + int(fields[12])) / os.sysconf('SC_CLK_TCK')
 
 
 def core_steps_per_second(robots: int, steps: int) -> float:

@@ -21,7 +21,6 @@ import http.client
 import json
 import os
 import shutil
-import signal
 import subprocess
 import sys
 import threading
@@ -33,6 +32,9 @@ from pathlib import Path
 import rclpy
 from rclpy.qos import QoSProfile, qos_profile_sensor_data
 from rosgraph_msgs.msg import Clock
+
+from epuck_ros.bringup.processes import interrupt
+from measure import cpu_seconds
 
 
 def _executable(name: str) -> str:
@@ -142,19 +144,6 @@ def wait_for(condition: Callable[[], bool], what: str, timeout: float = 60.0) ->
         time.sleep(0.05)
 
 
-def cpu_seconds(pid: int) -> float:
-    """User + system CPU time a process has used (Linux /proc)."""
-    fields = Path(f'/proc/{pid}/stat').read_text().rsplit(')', 1)[1].split()
-    return (int(fields[11]) + int(fields[12])) / os.sysconf('SC_CLK_TCK')
-
-
-def stop(process: subprocess.Popen) -> None:
-    process.send_signal(signal.SIGINT)
-    try:
-        process.wait(timeout=10)
-    except subprocess.TimeoutExpired:
-        process.kill()
-        process.wait()
 
 
 def main() -> None:
@@ -186,12 +175,12 @@ def main() -> None:
                 phases['sim + view + page'].append(phase)
                 page.close()
             finally:
-                stop(view)
+                interrupt(view, 10)
             print(f'sim + view + page:    {phases["sim + view + page"][-1]}', flush=True)
     finally:
         sampler.node.destroy_node()
         rclpy.try_shutdown()
-        stop(sim)
+        interrupt(sim, 10)
     means = {name: Phase(*(sum(getattr(p, f) for p in runs) / len(runs) for f in
                            ('rtf', 'sim_cpu_per_sim_second', 'view_cores', 'page_events')))
              for name, runs in phases.items()}
