@@ -7,6 +7,8 @@ import math
 import subprocess
 from pathlib import Path
 
+import pytest
+
 from geometry_msgs.msg import Twist
 from mcap.reader import make_reader
 from mcap_ros2.decoder import DecoderFactory
