@@ -169,9 +169,13 @@ def test_a_dying_behaviour_stops_the_rest_and_fails_the_run(launch):
     assert processes_in_this_domain() == []
 
 
-def test_another_simulator_on_the_domain_is_refused(launch, test_node):
+@pytest.mark.parametrize('discovered', [True, False], ids=['other-sim-discovered', 'other-sim-just-started'])
+def test_another_simulator_on_the_domain_is_refused(launch, test_node, discovered):
+    """Whether or not the other simulator is past its discovery window (silent in it) when bringup starts, the run
+    is refused: it must never run on the other one's clock."""
     other = launch('sim')
-    test_node.spin_until(lambda: test_node.node.count_publishers('/clock') == 1, 60, "the other sim's /clock")
+    if discovered:
+        test_node.spin_until(lambda: test_node.node.count_publishers('/clock') == 1, 60, "the other sim's /clock")
     run = launch('bringup', 'forward', '--duration', '2')
     assert run.proc.wait(timeout=90) == 1, run.output()
     assert 'another simulator' in run.output()

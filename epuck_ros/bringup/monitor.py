@@ -23,6 +23,7 @@ from std_msgs.msg import String
 
 from epuck_ros.bag.cdr import odometry_fields
 from epuck_ros.bag.run_summary import RunTally
+from epuck_ros.nodes.announcements import SIMULATORS_TOPIC, Announcement, parse_announcement
 from epuck_ros.nodes.robot_ports import topic_prefix
 from epuck_ros.world import World, WorldError, world_from_dict
 
@@ -72,19 +73,28 @@ class RunMonitor:
         self.world_error = ''
         self.tracks: dict[str, RobotTrack] = {}
         self.tally: RunTally | None = None
+        """Distance and contacts of every robot so far (the same tally `bag summary` makes from a bag)."""
         self._follow_robots = follow_robots
         self.sim_enclave = sim_enclave
         """The enclave our simulator was started with: how the graph tells it from another node called sim."""
-        """Distance and contacts of every robot so far (the same tally `bag summary` makes from a bag)."""
+        self.announcements: set[Announcement] = set()
+        """Every simulator that announced itself on this domain (ours among them once it is up)."""
         self._parameters = AsyncParameterClient(self.node, SIM_NODE)
         self.node.create_subscription(Clock, '/clock', self._on_clock, 10)
         latched = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
         self.node.create_subscription(String, 'world', self._on_world, latched)
+        self.node.create_subscription(String, SIMULATORS_TOPIC, self._on_announcement,
+                                      QoSProfile(depth=10, durability=DurabilityPolicy.TRANSIENT_LOCAL))
 
     # --- what the run did -------------------------------------------------------------------------------
     def _on_clock(self, msg: Clock) -> None:
         self.sim_time = msg.clock.sec + msg.clock.nanosec * 1e-9
         self.clock_messages += 1
+
+    def _on_announcement(self, msg: String) -> None:
+        announced = parse_announcement(msg.data)
+        if announced is not None:
+            self.announcements.add(announced)
 
     def _on_world(self, msg: String) -> None:
         if self.world is not None:

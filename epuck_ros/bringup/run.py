@@ -16,6 +16,7 @@ from epuck_ros.bringup import summary
 from epuck_ros.bringup.cli import Plan, parse_args, ros_domain
 from epuck_ros.bringup.monitor import RunMonitor, samples_missing
 from epuck_ros.bringup.processes import Child, Children, executable
+from epuck_ros.nodes.announcements import Announcement
 
 STOP_ORDER = ('controller', 'view', 'record', 'sim')
 """Controllers stop first (a behaviour commands a stop as it ends) while the simulator still runs and the recorder
@@ -101,21 +102,34 @@ class Supervisor:
             if time.monotonic() > deadline:
                 raise RunFailed(f'{what()} within {timeout:.0f} s')
 
+    def own_announcement(self) -> Announcement | None:
+        """Our simulator's announcement, once heard: its start time orders it among the others."""
+        sim = next(child for child in self.children.started if child.role == 'sim')
+        return next((a for a in self.monitor.announcements if a.is_process(sim.process.pid)), None)
+
+    def older_simulators(self) -> list[str]:
+        """Simulators that announced a start before ours: ours refuses to run when it hears them (perhaps only
+        after the resume, when discovery is slow), so the run cannot be ours."""
+        own = self.own_announcement()
+        return [f'the simulator pid {other.pid} on {other.host}' for other in sorted(self.monitor.announcements)
+                if own is not None and other < own]
+
     def refuse_other_simulators(self) -> None:
         """Our simulator is paused (silent) until the resume, so a /clock message before it is another's; after it,
-        two /clock publishers, `world` publishers or nodes named sim are two simulators."""
+        two /clock publishers, `world` publishers or nodes named sim are two simulators; and so is an older
+        simulator's announcement, at any time."""
         monitor = self.monitor
-        clocks, sims = monitor.clock_sources(), monitor.other_simulators()
+        clocks, sims, older = monitor.clock_sources(), monitor.other_simulators(), self.older_simulators()
         ticking = self.resumed_at is None and monitor.clock_messages > 0
-        if ticking or sims or len(clocks) > 1 or monitor.world_sources() > 1:
-            seen = ', '.join(sorted(set(clocks) | set(sims))) or '/clock ticking'
+        if ticking or sims or older or len(clocks) > 1 or monitor.world_sources() > 1:
+            seen = ', '.join(older or sorted(set(clocks) | set(sims))) or '/clock ticking'
             raise RunFailed(f'another simulator or /clock source is running on this ROS domain ({seen}; '
                             f'{ros_domain()}): stop it, or run with another ROS_DOMAIN_ID')
 
     def connected(self) -> bool:
         """Everything the run needs is in the graph: sim up, recorder subscribed, controllers connected, view up."""
         monitor = self.monitor
-        if not monitor.sim_ready():
+        if not monitor.sim_ready() or self.own_announcement() is None:
             return False
         if self.plan.record_dir is not None and not monitor.recorder_subscribed():
             return False
@@ -135,7 +149,7 @@ class Supervisor:
     def waiting_for(self) -> str:
         """What is still missing, for the timeout message."""
         monitor = self.monitor
-        if not monitor.sim_ready():
+        if not monitor.sim_ready() or self.own_announcement() is None:
             return 'the simulator did not come up'
         if self.plan.record_dir is not None and not monitor.recorder_subscribed():
             return 'the recorder did not subscribe to the simulator\'s topics'
@@ -173,6 +187,20 @@ class Supervisor:
                        math.inf, lambda: '')
         finally:
             self.ended_at = time.monotonic()
+        if args.duration and not self.stop_requested.is_set() and not self.controller_ended:
+            self.check_the_end(args.duration)
+
+    def check_the_end(self, duration: float) -> None:
+        """The time that ended the run was our simulator's: it pauses itself on the first step at or after
+        `duration`, so a later `/clock`, an older simulator or its death means another clock source ran the run."""
+        self.refuse_other_simulators()
+        dead = self.children.dead()
+        if dead is not None:
+            raise RunFailed(dead.failure(), dead)
+        if self.monitor.sim_time > duration + _time_step(self.plan) + 1e-6:
+            raise RunFailed(f'/clock reached {self.monitor.sim_time:.3f} s, past the {duration:g} s our simulator '
+                            f'pauses at: another /clock source is running on this ROS domain ({ros_domain()}): stop '
+                            'it, or run with another ROS_DOMAIN_ID')
 
 
 def report(supervisor: Supervisor, sim_time: float, wall_time: float) -> list[str]:

@@ -8,7 +8,6 @@ time, and `/clock` goes out last. Each robot's topics belong to its `RobotPorts`
 from __future__ import annotations
 
 import os
-import socket
 import sys
 import threading
 import time
@@ -32,6 +31,7 @@ from visualization_msgs.msg import MarkerArray
 from epuck_ros.markers import world_markers
 from epuck_ros.model import RobotModel
 from epuck_ros.nodes.ack_window import AckWindow
+from epuck_ros.nodes.announcements import SIMULATORS_TOPIC, announcement, parse_announcement
 from epuck_ros.nodes.params import ParamSpec, Usage, declare_parameters, prepare_arguments
 from epuck_ros.nodes.robot_ports import JOINT_NAMES, WARN_PERIOD, WORLD_FRAME, RobotPorts, quiet_publisher
 from epuck_ros.nodes.serialized import Patch
@@ -62,9 +62,6 @@ refuses then, the earlier goes on. The window overlaps rclpy's own start-up."""
 ANNOUNCEMENT_WAIT = 3.0
 """Wall seconds a `/clock` publisher seen in the graph during the discovery window may go unexplained by a newer
 simulator's announcement before this simulator refuses (a bag player, or an older simulator, never announces later)."""
-SIMULATORS_TOPIC = '/simulators'
-"""Latched: every simulator announces itself there (wall start time, host, pid). Two simulators that hear each other
-however late discovery is, agree on which started first; the later one refuses (and the earlier one goes on)."""
 WATCH_PERIOD = 2.0
 """Wall seconds between two looks for another `/clock` publisher once running."""
 SUMMARY_PERIOD = 30.0
@@ -222,8 +219,8 @@ class SimNode(Node):
         self._clock_pub = quiet_publisher(self, Clock, '/clock', stream)
         announced = QoSProfile(depth=10, durability=DurabilityPolicy.TRANSIENT_LOCAL)
         started_ns = time.time_ns() - round((time.monotonic() - self._started) * 1e9)
-        self._identity = f'{started_ns} pid {os.getpid()} on {socket.gethostname()}'
-        quiet_publisher(self, String, SIMULATORS_TOPIC, announced).publish(String(data=self._identity))
+        self._identity = announcement(started_ns, os.getpid())
+        quiet_publisher(self, String, SIMULATORS_TOPIC, announced).publish(String(data=self._identity.text()))
         self.create_subscription(String, SIMULATORS_TOPIC, self._on_simulator, announced)
         self._clock_message = Patch(Clock(), [('clock.sec', 'i'), ('clock.nanosec', 'I')])
         self._acks = AckWindow(self._stream_publishers, ACK_WINDOW_STEPS, self._on_ack_stall)
@@ -256,20 +253,18 @@ class SimNode(Node):
 
     def _on_simulator(self, msg: String) -> None:
         """Another simulator's announcement: the one that started later refuses to run."""
-        if msg.data == self._identity or self.refusal:
+        other = parse_announcement(msg.data)
+        if other is None or other == self._identity or self.refusal:
             return
-        try:
-            (other_ns, other), (own_ns, own) = ((int(a), b) for a, _, b in (
-                text.partition(' ') for text in (msg.data, self._identity)))
-        except ValueError:
-            return  # not one of ours
-        if (other_ns, other) < (own_ns, own):
-            self.refusal = self._refusal(f'the simulator {other} started {(own_ns - other_ns) * 1e-9:.1f} s earlier')
+        who = f'pid {other.pid} on {other.host}'
+        if other < self._identity:
+            self.refusal = self._refusal(
+                f'the simulator {who} started {(self._identity.started_ns - other.started_ns) * 1e-9:.1f} s earlier')
         else:
             self._newer_simulator_seen = True
             if not self._warned_newcomer:
                 self._warned_newcomer = True
-                self.get_logger().warning(f'another simulator appeared ({other}): it refuses to run')
+                self.get_logger().warning(f'another simulator appeared ({who}): it refuses to run')
 
     def _refusal(self, found: str) -> str:
         return (f'another simulator runs on ROS domain {os.environ.get("ROS_DOMAIN_ID", "0")}: {found}; '
