@@ -24,6 +24,7 @@ from std_msgs.msg import String
 from epuck_ros.bag.cdr import odometry_fields
 from epuck_ros.bag.run_summary import RunTally
 from epuck_ros.nodes.announcements import SIMULATORS_TOPIC, Announcement, parse_announcement
+from epuck_ros.nodes.dds_profile import use_package_profile
 from epuck_ros.nodes.robot_ports import topic_prefix
 from epuck_ros.world import World, WorldError, world_from_dict
 
@@ -59,6 +60,7 @@ class RunMonitor:
     def __init__(self, namespace: str, sim_enclave: str, follow_robots: bool = True) -> None:
         """`follow_robots`: tally every robot's ground truth (not needed when the run is recorded: the bag holds
         it, and each reliable reader is one more the simulator waits for)."""
+        use_package_profile()   # before our participant; the children inherit it
         self.context = Context()
         remap = ['-r', f'__ns:=/{namespace.strip("/")}'] if namespace else []
         rclpy.init(args=['--ros-args', *remap], context=self.context,

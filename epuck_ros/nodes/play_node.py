@@ -23,6 +23,7 @@ from std_srvs.srv import Trigger
 
 from epuck_ros.bag.play import CLOCK_TOPIC, PlaybackClock, replay_profile
 from epuck_ros.bag.reader import Bag, BagError, Topic
+from epuck_ros.nodes.dds_profile import use_package_profile
 from epuck_ros.nodes.record_node import message_class
 
 MATCH_TIMEOUT = 2.0
@@ -165,6 +166,7 @@ def _enter_toggles(player: Player) -> None:
 def play(args: argparse.Namespace) -> None:
     """`bag play` (see `epuck_ros.bag.cli`): plays until the end (or Ctrl-C / SIGTERM with --loop)."""
     with Bag(args.path) as bag:
+        use_package_profile()
         rclpy.init(args=['bag', *args.ros_args])
         player, executor, services = None, None, None
         try:

@@ -41,6 +41,7 @@ from epuck_ros.bag.gaps import bag_gaps
 from epuck_ros.bag.qos import QosProfile
 from epuck_ros.bag.reader import Bag, BagError
 from epuck_ros.bag.writer import COMPRESSIONS, BackgroundWriter, BagExistsError, BagWriteError, BagWriter
+from epuck_ros.nodes.dds_profile import use_package_profile
 
 DISCOVERY_PERIOD = 0.2
 """s of wall time between two looks at the graph (rosbag2 polls every 0.1 s)."""
@@ -276,6 +277,7 @@ def main(args: list[str] | None = None) -> None:
     stop = threading.Event()
     for signum in (signal.SIGINT, signal.SIGTERM):
         signal.signal(signum, lambda *_: stop.set())
+    use_package_profile()
     rclpy.init(args=argv, signal_handler_options=SignalHandlerOptions.NO)
     node = None
     failure = None

@@ -26,6 +26,7 @@ from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.signals import SignalHandlerOptions
 
+from epuck_ros.nodes.dds_profile import use_package_profile
 from epuck_ros.nodes.params import ParamSpec, Usage, declare_parameters, prepare_arguments, user_arguments
 
 SPEED_STEP = 1.1
@@ -175,6 +176,7 @@ def main(args: list[str] | None = None) -> None:
     options = parse_options(argv)
     # rclpy's own handlers would shut the context down at once, before the stop could be sent: Ctrl-C and
     # SIGTERM become KeyboardInterrupt here, and the `finally` below stops the robot, then shuts down.
+    use_package_profile()
     rclpy.init(args=ros_argv, signal_handler_options=SignalHandlerOptions.NO)
     for signum in (signal.SIGINT, signal.SIGTERM):
         signal.signal(signum, _interrupt)

@@ -43,6 +43,7 @@ from std_srvs.srv import Empty, Trigger
 
 from epuck_ros.model import SENSOR_NAMES
 from epuck_ros.nodes.behaviour_nodes import yaw_from_quaternion
+from epuck_ros.nodes.dds_profile import use_package_profile
 from epuck_ros.nodes.params import ParamSpec, Usage, declare_parameters, prepare_arguments
 from epuck_ros.nodes.sim_node import JOINT_NAMES
 from epuck_ros.view.server import Action, ActionError, ViewServer, is_loopback
@@ -348,7 +349,9 @@ def spin_thinned(node: ViewNode) -> None:
 
 
 def main(args: list[str] | None = None) -> None:
-    rclpy.init(args=prepare_arguments(args, PARAMETERS, USAGE))
+    argv = prepare_arguments(args, PARAMETERS, USAGE)
+    use_package_profile()
+    rclpy.init(args=argv)
     node = None
     try:
         node = ViewNode()

@@ -22,6 +22,7 @@ import rclpy
 from rclpy.signals import SignalHandlerOptions
 
 from epuck_ros.model import SENSOR_NAMES, RobotModel
+from epuck_ros.nodes.dds_profile import use_package_profile
 from epuck_ros.webots.devices import (
     LED, NANOSECONDS_PER_MS, Device, DistanceSensor, Motor, PositionSensor, public_methods, report, unsupported)
 from epuck_ros.webots.link import SimLink, StepData
@@ -50,6 +51,7 @@ class Session:
     def start(self) -> None:
         """rclpy without its own signal handling: Ctrl-C inside step() is step's -1, elsewhere KeyboardInterrupt."""
         if not rclpy.ok():
+            use_package_profile()
             rclpy.init(args=['webots_controller', *self.ros_args], signal_handler_options=SignalHandlerOptions.NO)
         if threading.current_thread() is threading.main_thread():
             for signum in (signal.SIGINT, signal.SIGTERM):
