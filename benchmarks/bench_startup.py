@@ -5,7 +5,8 @@ baseline in the same run, the stand-alone way (`sim` and `forward` started at th
 bringup). An observer node in this process watches the graph and `ground_truth`; the robot moves when the true
 pose first changes. Phases: the simulator node in the graph, the controller's command publisher in the graph,
 bringup resuming the simulation (its `running` line), first motion. The floor is a bare rclpy process that
-creates one node and is seen in the graph (interpreter, imports, DDS participant, discovery).
+creates one node and is seen in the graph (interpreter, imports, DDS participant, discovery). Every process here,
+the observer included, uses the package's Fast DDS profile (epuck_ros/nodes/dds_profile.py).
 
     python benchmarks/bench_startup.py [--repeats 3]
 """
@@ -28,6 +29,8 @@ from nav_msgs.msg import Odometry  # noqa: E402
 from rclpy.context import Context  # noqa: E402
 from rclpy.executors import SingleThreadedExecutor  # noqa: E402
 from rclpy.node import Node  # noqa: E402
+
+from epuck_ros.nodes.dds_profile import use_package_profile  # noqa: E402
 
 BIN = Path(sys.executable).parent
 TIMEOUT = 120.0
@@ -145,6 +148,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument('--repeats', type=int, default=3)
     repeats = parser.parse_args().repeats
+    use_package_profile()   # the observer and the bare node discover as the package's processes do
     observer = Observer()
     results: dict[str, list[dict[str, float]]] = {'bringup forward': [], 'sim + forward by hand': []}
     bringup_lines: list[float] = []
