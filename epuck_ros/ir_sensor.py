@@ -30,8 +30,17 @@ def noise_from_distance(distance: ArrayLike, table: np.ndarray) -> np.ndarray:
 
 def distance_from_raw(raw: ArrayLike, table: np.ndarray) -> np.ndarray:
     """Distance (m) for a raw value: the inverse table, extrapolated linearly beyond both ends (may leave [0, 0.07])."""
+    return _from_inverse(raw, _inverse(table))
+
+
+def _inverse(table: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The table's rows by increasing raw value: (raw values, distances, slope of each segment)."""
     raws, distances = table[::-1, 1], table[::-1, 0]
-    slopes = (distances[1:] - distances[:-1]) / (raws[1:] - raws[:-1])
+    return raws, distances, (distances[1:] - distances[:-1]) / (raws[1:] - raws[:-1])
+
+
+def _from_inverse(raw: ArrayLike, inverse: tuple[np.ndarray, np.ndarray, np.ndarray]) -> np.ndarray:
+    raws, distances, slopes = inverse
     segment = np.searchsorted(raws[1:-1], raw, side='right')  # below the 2nd raw: 0; from the last but one: last
     return distances[segment] + (raw - raws[segment]) * slopes[segment]
 
@@ -44,40 +53,43 @@ def noisy_raw(distance: np.ndarray, table: np.ndarray, rng: np.random.Generator 
     return raw * (1.0 + noise_from_distance(distance, table) * rng.standard_normal(np.shape(distance)))
 
 
-def range_from_raw(raw: np.ndarray, hit: np.ndarray, table: np.ndarray) -> np.ndarray:
+def range_from_raw(raw: np.ndarray, hit: np.ndarray, table: np.ndarray,
+                   inverse: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None) -> np.ndarray:
     """The published range (m): inf where the ray hit nothing (REP 117), else the inverse table clipped to the table.
 
     Webots' own driver publishes ~0.07 m for a free sensor; `inf` tells a ROS consumer "nothing there" instead.
+    `inverse`: the table's inverse computed once (LookupTable), to spare the simulator its NumPy calls every step.
     """
     if not hit.any():
         return np.full(np.shape(raw), np.inf)
-    distance = np.minimum(np.maximum(distance_from_raw(raw, table), 0.0), table[-1, 0])
+    distance = np.minimum(np.maximum(_from_inverse(raw, inverse or _inverse(table)), 0.0), table[-1, 0])
     return np.where(hit, distance, np.inf)
 
 
-class OneRobotTable:
-    """`noisy_raw` and `range_from_raw` for one robot's eight rays on Python floats, equal to them to the bit.
+class LookupTable:
+    """A table prepared once for the simulator: its inverse for `range_from_raw`, and the table as Python floats for
+    `read_one`, one robot's eight readings.
 
-    NumPy's per-call cost dominates on eight values: the two calls take about 10 us per step, this about 3 us
-    (measured with benchmarks/bench_core.py, where it lifts one robot's steps/s by a fifth). Each value is computed
-    with the arithmetic np.interp and `distance_from_raw` use, operation for operation (slope * (x - x_j) + y_j,
-    the exact row value at a table distance), so the one-robot path reads exactly what the array path reads
-    (test_ir_sensor checks).
+    NumPy's per-call cost dominates on eight values: `noisy_raw` and `range_from_raw` take about 10 us per step,
+    `read_one` about 3 us (measured with benchmarks/bench_core.py, where it lifts one robot's steps/s by a fifth).
+    It computes each value with the arithmetic np.interp and `distance_from_raw` use, operation for operation
+    (slope * (x - x_j) + y_j, the exact row value at a table distance), so the one-robot path reads exactly what
+    the array path reads (test_ir_sensor checks).
     """
 
     def __init__(self, table: np.ndarray) -> None:
+        self.table = table
+        self.inverse = _inverse(table)
         self._distances, self._raws, self._noises = (table[:, k].tolist() for k in range(3))
         rises = [b - a for a, b in zip(self._distances, self._distances[1:])]
         self._raw_slopes = [(b - a) / d for a, b, d in zip(self._raws, self._raws[1:], rises)]
         self._noise_slopes = [(b - a) / d for a, b, d in zip(self._noises, self._noises[1:], rises)]
-        raws, distances = table[::-1, 1], table[::-1, 0]   # the inverse, as distance_from_raw builds it
-        self._inverse_raws, self._inverse_distances = raws.tolist(), distances.tolist()
-        self._inverse_slopes = ((distances[1:] - distances[:-1]) / (raws[1:] - raws[:-1])).tolist()
+        self._inverse_raws, self._inverse_distances, self._inverse_slopes = (a.tolist() for a in self.inverse)
         self._inner_raws = self._inverse_raws[1:-1]
         self._far_raw, self._far_noise, self._far_distance = self._raws[-1], self._noises[-1], self._distances[-1]
 
-    def read(self, distances: list[float] | None, normals: list[float] | None,
-             count: int) -> tuple[list[float], list[float]]:
+    def read_one(self, distances: list[float] | None, normals: list[float] | None,
+                 count: int) -> tuple[list[float], list[float]]:
         """(raw values, published ranges) of `count` rays at `distances` (None: every ray hit nothing), with one
         standard normal draw per ray (None: noise off)."""
         if distances is None:

@@ -79,7 +79,8 @@ class Simulation:
         self._sensor_rows = rows.tolist()
         # ... and as columns (8, 1) for many robots: offset x, y, offset turned 90 deg x, y, yaw.
         self._sensor_columns = tuple(column[:, None].copy() for column in rows.T)
-        self._one_robot_table = ir_sensor.OneRobotTable(model.ir_table)
+        self._sensor_index = np.arange(len(rows))[:, None]
+        self._ir_table = ir_sensor.LookupTable(model.ir_table)
         # Beyond this distance from the body's centre no IR ray can reach anything: the sensor farthest out plus
         # the ray. Farther from every surface, a step casts no rays at all.
         self._sensing_reach = float(np.hypot(*self._sensor_poses[:, :2].T).max()) + model.ir_range
@@ -89,8 +90,12 @@ class Simulation:
         self._true_twist, self._odom_twist = np.empty((n, 2)), np.empty((n, 2))
         self._wheel_rotation, self._encoders = np.empty((n, 2)), np.empty((n, 2))
         self._wheel_speeds, self._command = np.empty((n, 2)), np.empty((n, 2))
+        self._command_twist = np.empty((n, 2))
+        """(v, w) of each robot's command, kept with it: many robots' steps then need no conversion."""
         self._ir_raw, self._ir_range = np.empty((n, sensors)), np.empty((n, sensors))
         self._touching_obstacle, self._touching_robot = np.zeros(n, dtype=bool), np.zeros(n, dtype=bool)
+        self._touching_none = np.zeros(n, dtype=bool)
+        self._touching_none.setflags(write=False)
         self._in_contact = np.zeros(n, dtype=bool)
         self._collisions, self._robot_collisions = np.zeros(n, dtype=int), np.zeros(n, dtype=int)
         self._last_command_time = np.zeros(n)
@@ -130,7 +135,9 @@ class Simulation:
     def _set_command(self, robot: int, left: float, right: float) -> None:
         if isinstance(robot, bool) or not isinstance(robot, (int, np.integer)) or not 0 <= robot < len(self._command):
             raise CommandError(f'command rejected: no robot {robot!r} (robots 0..{len(self._command) - 1})')
-        self._command[robot] = clamp_wheels(float(left), float(right), self.model.max_wheel_speed)
+        left, right = clamp_wheels(float(left), float(right), self.model.max_wheel_speed)
+        self._command[robot] = left, right
+        self._command_twist[robot] = twist_from_wheels(left, right, self.model)
         self._last_command_time[robot] = self.time
         self._commanded[robot] = True
         self._earliest_command = min(self._earliest_command, self.time)
@@ -164,7 +171,7 @@ class Simulation:
         expired = self._commanded & (self.time - self._last_command_time > self.cmd_timeout)
         if expired.any():
             events.timed_out = np.flatnonzero(expired).tolist()
-            self._command[expired] = 0.0
+            self._command[expired] = self._command_twist[expired] = 0.0
             self._commanded[expired] = False
         self._earliest_command = float(self._last_command_time[self._commanded].min(initial=math.inf))
 
@@ -174,8 +181,7 @@ class Simulation:
         The true twist is the commanded one unless the body touched something; then its forward speed is what
         the body really covered along its heading (zero when blocked head-on).
         """
-        (left, right), = self._command.tolist()
-        v, w = twist_from_wheels(left, right, self.model)
+        (v, w), = self._command_twist.tolist()
         (start_x, start_y, start_yaw), = self._true.tolist()
         x, y, yaw = start_x, start_y, start_yaw
         touching = False
@@ -196,7 +202,7 @@ class Simulation:
     def _move_many(self) -> tuple[np.ndarray, np.ndarray]:
         """All robots along their arcs, out of obstacles and apart, per substep; (touching obstacle, robot) (N,)."""
         radius = self.model.body_radius
-        v, w = twist_from_wheels(self._command[:, 0], self._command[:, 1], self.model)
+        v, w = self._command_twist[:, 0], self._command_twist[:, 1]
         start = self._true.copy()
         self._cover_pairs(start[:, :2], refresh=True)
         obstacle = np.zeros(len(start), dtype=bool)
@@ -253,6 +259,8 @@ class Simulation:
             first, second = self._pairs
             delta = xy[first] - xy[second]
             distance = np.hypot(delta[:, 0], delta[:, 1])
+            if not len(distance) or distance.min() >= diameter + CONTACT_TOLERANCE:
+                return self._touching_none   # nobody overlaps or touches: the common case
             over = np.flatnonzero(distance < diameter - _OVERLAP_TOLERANCE)
             if not len(over):
                 break
@@ -344,25 +352,26 @@ class Simulation:
     def _sense(self) -> None:
         """Cast one ray per IR sensor from its pose on the true body: walls, obstacles and the other robots.
 
-        With one robot far from everything no ray is cast at all (a cheap float test). Otherwise every ray is
-        cast against walls and the obstacles near its robot (World.ray_distances) and against the bodies of the
-        robots within reach (the step's pairs), each robot's own body excepted. Robots go in blocks of
-        _SENSE_BLOCK: NumPy's temporaries then stay in the CPU cache (4x faster than whole (10,000, 8, k)
-        arrays, measured), and one block is all of them up to 512 robots.
+        One robot: plain floats (_sense_one). Many: every ray is cast against walls and the obstacles near its
+        robot (World.ray_distances) and against the bodies of the robots within reach (the step's pairs), each
+        robot's own body excepted. The walls and obstacles take the robots in blocks of _SENSE_BLOCK: NumPy's
+        temporaries then stay in the CPU cache (4x faster than whole (10,000, 8, k) arrays, measured), and one
+        block is all of them up to 512 robots.
         """
         count = len(self._true)
         if count == 1:
             self._sense_one()
             return
         cos, sin = np.cos(self._true[:, 2]), np.sin(self._true[:, 2])
-        owner, local_x, local_y = self._robots_in_view(cos, sin)
-        for start in range(0, count, _SENSE_BLOCK):
-            rows = slice(start, min(start + _SENSE_BLOCK, count))
-            distance = self._cast(rows, cos[rows], sin[rows])
-            first, last = np.searchsorted(owner, (rows.start, rows.stop))
-            if last > first:
-                self._see_robots(distance, owner[first:last] - rows.start, local_x[first:last], local_y[first:last])
-            self._read_sensors(rows, distance.T.ravel())   # robot by robot, the order the noise is drawn in
+        if count <= _SENSE_BLOCK:
+            distance = np.ascontiguousarray(self._cast(slice(0, count), cos, sin))   # _see_robots writes a flat view
+        else:
+            distance = np.empty((len(self._sensor_rows), count))
+            for start in range(0, count, _SENSE_BLOCK):
+                rows = slice(start, min(start + _SENSE_BLOCK, count))
+                distance[:, rows] = self._cast(rows, cos[rows], sin[rows])
+        self._see_robots(distance, cos, sin)
+        self._read_sensors(distance.T.ravel())   # robot by robot, the order the noise is drawn in
 
     def _sense_one(self) -> None:
         """The only robot's rays and readings on Python floats, with `_cast` and `_read_sensors`' arithmetic.
@@ -382,7 +391,7 @@ class Simulation:
             distances = self.world.cast_near(surfaces, rays, self.model.ir_range)
         sensors = len(self._sensor_rows)
         normals = self._rng.standard_normal(sensors).tolist() if self.noise else None
-        self._ir_raw[0], self._ir_range[0] = self._one_robot_table.read(distances, normals, sensors)
+        self._ir_raw[0], self._ir_range[0] = self._ir_table.read_one(distances, normals, sensors)
 
     def _cast(self, rows: slice, cos: np.ndarray, sin: np.ndarray) -> np.ndarray:
         """Distance (8, n) along each IR ray of the robots `rows` (cos, sin of their yaws (n,)) to walls and
@@ -394,45 +403,37 @@ class Simulation:
                                         np.cos(yaws), np.sin(yaws), self.model.ir_range, self._true[rows, :2],
                                         self._sensing_reach - self.model.ir_range)
 
-    def _read_sensors(self, rows: slice, distance: np.ndarray) -> None:
-        """Raw values (noisy unless noise is off) and published ranges of the robots `rows` from ray distances."""
-        table = self.model.ir_table
-        raw = ir_sensor.noisy_raw(distance, table, self._rng if self.noise else None)
-        self._ir_raw[rows] = raw.reshape(-1, self._ir_raw.shape[1])
-        ranges = ir_sensor.range_from_raw(raw, distance < np.inf, table)
-        self._ir_range[rows] = ranges.reshape(-1, self._ir_range.shape[1])
+    def _read_sensors(self, distance: np.ndarray) -> None:
+        """Raw values (noisy unless noise is off) and published ranges of every robot from its ray distances
+        (N * 8,), robot by robot."""
+        table = self._ir_table
+        raw = ir_sensor.noisy_raw(distance, table.table, self._rng if self.noise else None)
+        self._ir_raw[:] = raw.reshape(self._ir_raw.shape)
+        ranges = ir_sensor.range_from_raw(raw, distance < np.inf, table.table, table.inverse)
+        self._ir_range[:] = ranges.reshape(self._ir_range.shape)
 
-    def _robots_in_view(self, cos: np.ndarray, sin: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Each robot that may see another (owner, sorted) and that other's centre in the owner's frame.
+    def _see_robots(self, distance: np.ndarray, cos: np.ndarray, sin: np.ndarray) -> None:
+        """Lower `distance` (8, N) where a ray meets another robot's body first; cos, sin (N,) of the yaws.
 
-        Each close pair gives two owners (each robot looks at the other). In the owner's frame its 8 rays are
-        constants, so testing them against the other body is one broadcast with no per-ray gathers.
+        Each close pair gives two viewers (each robot looks at the other), the other's centre turned into the
+        viewer's frame, where the viewer's 8 rays are constants: one broadcast (8, viewers) with no per-ray
+        gathers. np.minimum.at then keeps each ray's nearest hit, whatever the order of the pairs (no sort).
         """
-        xy = self._true[:, :2]
-        self._cover_pairs(xy)
-        first, second = self._pairs
-        dx, dy = xy[second, 0] - xy[first, 0], xy[second, 1] - xy[first, 1]
+        x, y = self._true[:, 0], self._true[:, 1]
+        first, second = self._pairs   # they cover the robots where they are: _separate_robots or reset saw to it
+        dx, dy = x[second] - x[first], y[second] - y[first]
         near = np.flatnonzero(dx * dx + dy * dy < (self._sensing_reach + self.model.body_radius) ** 2)
-        owner = np.concatenate([first[near], second[near]])
-        order = np.argsort(owner, kind='stable')
-        owner = owner[order]
-        dx, dy = np.concatenate([dx[near], -dx[near]])[order], np.concatenate([dy[near], -dy[near]])[order]
-        return owner, cos[owner] * dx + sin[owner] * dy, cos[owner] * dy - sin[owner] * dx
-
-    def _see_robots(self, distance: np.ndarray, owner: np.ndarray, local_x: np.ndarray, local_y: np.ndarray) -> None:
-        """Lower `distance` (8, robots) where a ray of robot `owner` (sorted) meets the other body first, which
-        sits at (local_x, local_y) in the owner's frame; one reduceat keeps each owner's nearest hit per ray."""
+        if not len(near):
+            return
+        viewer = np.concatenate([first[near], second[near]])
+        dx, dy = dx[near], dy[near]
+        dx, dy = np.concatenate([dx, -dx]), np.concatenate([dy, -dy])
+        cos, sin = cos[viewer], sin[viewer]
         offset_x, offset_y, *_ = self._sensor_columns
-        hits = ray_circle(offset_x, offset_y, self._sensor_cos[:, None], self._sensor_sin[:, None], local_x, local_y,
-                          self.model.body_radius)
-        first = np.empty(len(owner), dtype=bool)   # where each owner's run begins
-        first[0] = True
-        np.not_equal(owner[1:], owner[:-1], out=first[1:])
-        starts = np.flatnonzero(first)
-        seen = owner[starts]
-        nearest = np.minimum(distance[:, seen], np.minimum.reduceat(hits, starts, axis=1))
-        nearest[nearest > self.model.ir_range] = np.inf
-        distance[:, seen] = nearest
+        hits = ray_circle(offset_x, offset_y, self._sensor_cos[:, None], self._sensor_sin[:, None],
+                          cos * dx + sin * dy, cos * dy - sin * dx, self.model.body_radius)
+        hits[hits > self.model.ir_range] = np.inf
+        np.minimum.at(distance.reshape(-1), (viewer + self._sensor_index * len(x)).ravel(), hits.ravel())
 
     def reset(self) -> None:
         """Every robot back to its start pose with odometry, wheel angles and command zeroed; time and collision
@@ -440,7 +441,7 @@ class Simulation:
         self._true[:] = self._start
         self._cover_pairs(self._true[:, :2], refresh=True)
         for state in (self._odom, self._true_twist, self._odom_twist, self._wheel_rotation, self._encoders,
-                      self._wheel_speeds, self._command):
+                      self._wheel_speeds, self._command, self._command_twist):
             state.fill(0.0)
         for flags in (self._in_contact, self._touching_obstacle, self._touching_robot, self._commanded):
             flags.fill(False)

@@ -187,7 +187,7 @@ class World:
         something are computed."""
         g = self._geometry
         nearest = np.full(ox.shape, np.inf)
-        rows = np.flatnonzero(g.clearance().near(centres[:, 0], centres[:, 1], reach))
+        rows = np.flatnonzero(g.clearance().near(centres, reach))
         if not len(rows):
             return nearest
         x, y, dx, dy = ox[:, rows], oy[:, rows], dir_x[:, rows], dir_y[:, rows]
@@ -217,7 +217,7 @@ class World:
         g = self._geometry
         xy = np.array(xy, dtype=float).reshape(-1, 2)
         touching = np.zeros(len(xy), dtype=bool)
-        rows = np.flatnonzero(g.clearance().near(xy[:, 0], xy[:, 1], radius + CONTACT_TOLERANCE))
+        rows = np.flatnonzero(g.clearance().near(xy, radius + CONTACT_TOLERANCE))
         if not len(rows):
             return xy, touching
         # Candidates within a diameter (not just a radius) of the cell: a disc pushed by up to its radius
@@ -596,12 +596,12 @@ class _ClearanceMap:
             distance, _, _ = geometry.surfaces(x[:, None], y[:, None], grid.box_ids[cells], grid.cylinder_ids[cells])
             self.bound[row * self.columns:row * self.columns + len(x)] = np.minimum(distance.min(axis=1), self.CAP)
         self.bound -= self.cell * math.sqrt(0.5)
+        self._half, self._last = np.array([self.half_x, self.half_y]), np.array([self.columns - 1, self.rows - 1])
 
-    def near(self, x: np.ndarray, y: np.ndarray, reach: float) -> np.ndarray:
-        """(K,) whether a wall or obstacle may be within `reach` (< CAP) of each point (K,); False means surely not."""
-        column = np.minimum(np.maximum(((x + self.half_x) / self.cell).astype(np.int64), 0), self.columns - 1)
-        row = np.minimum(np.maximum(((y + self.half_y) / self.cell).astype(np.int64), 0), self.rows - 1)
-        return self.bound[row * self.columns + column] < reach
+    def near(self, xy: np.ndarray, reach: float) -> np.ndarray:
+        """(K,) whether a wall or obstacle may be within `reach` (< CAP) of each point (K, 2); False means surely not."""
+        cells = np.minimum(np.maximum(((xy + self._half) / self.cell).astype(np.int64), 0), self._last)
+        return self.bound[cells[:, 1] * self.columns + cells[:, 0]] < reach
 
 
 def ray_circle(ox: np.ndarray, oy: np.ndarray, dir_x: np.ndarray, dir_y: np.ndarray, centre_x: np.ndarray,
