@@ -92,35 +92,32 @@ class LookupTable:
                  count: int) -> tuple[list[float], list[float]]:
         """(raw values, published ranges) of `count` rays at `distances` (None: every ray hit nothing), with one
         standard normal draw per ray (None: noise off)."""
+        far_raw, far_noise, far_distance = self._far_raw, self._far_noise, self._far_distance
         if distances is None:
-            raws = [self._far_raw] * count
-            if normals is not None:
-                raws = [self._far_raw * (1.0 + self._far_noise * n) for n in normals]
+            raws = [far_raw] * count if normals is None else [far_raw * (1.0 + far_noise * n) for n in normals]
             return raws, [math.inf] * count
         raws, ranges = [], []
         for k, distance in enumerate(distances):
-            raw, noise = self._raw_and_noise(distance)
+            if distance >= far_distance:   # np.interp: the end rows beyond the table
+                raw, noise = far_raw, far_noise
+            elif distance < self._distances[0]:
+                raw, noise = self._raws[0], self._noises[0]
+            else:
+                j = bisect.bisect_right(self._distances, distance) - 1
+                below = self._distances[j]
+                if below == distance:
+                    raw, noise = self._raws[j], self._noises[j]
+                else:
+                    raw = self._raw_slopes[j] * (distance - below) + self._raws[j]
+                    noise = self._noise_slopes[j] * (distance - below) + self._noises[j]
             if normals is not None:
                 raw = raw * (1.0 + noise * normals[k])
             raws.append(raw)
-            ranges.append(self._range(raw) if distance < math.inf else math.inf)
+            if distance < math.inf:   # range_from_raw: the inverse table, clipped to the table
+                segment = bisect.bisect_right(self._inner_raws, raw)
+                inverse = (self._inverse_distances[segment]
+                           + (raw - self._inverse_raws[segment]) * self._inverse_slopes[segment])
+                ranges.append(min(max(inverse, 0.0), far_distance))
+            else:
+                ranges.append(math.inf)
         return raws, ranges
-
-    def _raw_and_noise(self, distance: float) -> tuple[float, float]:
-        """np.interp of the raw and noise columns at one distance (end rows beyond the table)."""
-        if distance >= self._far_distance:
-            return self._far_raw, self._far_noise
-        if distance < self._distances[0]:
-            return self._raws[0], self._noises[0]
-        j = bisect.bisect_right(self._distances, distance) - 1
-        below = self._distances[j]
-        if below == distance:
-            return self._raws[j], self._noises[j]
-        return (self._raw_slopes[j] * (distance - below) + self._raws[j],
-                self._noise_slopes[j] * (distance - below) + self._noises[j])
-
-    def _range(self, raw: float) -> float:
-        """distance_from_raw, clipped to the table, for one raw value."""
-        segment = bisect.bisect_right(self._inner_raws, raw)
-        distance = self._inverse_distances[segment] + (raw - self._inverse_raws[segment]) * self._inverse_slopes[segment]
-        return min(max(distance, 0.0), self._far_distance)

@@ -325,8 +325,13 @@ class Simulation:
 
     def _count_contacts(self, obstacle: np.ndarray, robot: np.ndarray, events: StepEvents) -> None:
         """A contact is counted once, when it begins: with a wall or obstacle, and with another robot apart."""
-        if obstacle is False and robot is False and not self._in_contact[0]:
-            return   # the one robot touches nothing, as before: nothing begins or ends (no array work)
+        if isinstance(obstacle, bool):   # the one robot (robot is False): plain bools, no array work
+            if obstacle and not self._touching_obstacle[0]:
+                self._collisions[0] += 1
+                events.new_contacts = [0]
+            if obstacle or self._in_contact[0]:
+                self._touching_obstacle[0] = self._in_contact[0] = obstacle
+            return
         if isinstance(obstacle, np.ndarray) and not (obstacle.any() or robot.any() or self._in_contact.any()):
             return   # no robot touches anything, nor did: the common case in a swarm
         new_obstacle = obstacle & ~self._touching_obstacle

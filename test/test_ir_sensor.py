@@ -2,7 +2,8 @@
 import numpy as np
 import pytest
 
-from epuck_ros.ir_sensor import distance_from_raw, noise_from_distance, noisy_raw, range_from_raw, raw_from_distance
+from epuck_ros.ir_sensor import (LookupTable, distance_from_raw, noise_from_distance, noisy_raw, range_from_raw,
+                                 raw_from_distance)
 from epuck_ros.model import IR_LOOKUP_TABLE as TABLE
 
 
@@ -65,3 +66,17 @@ def test_range_is_inf_without_a_hit_and_clipped_to_the_table_with_one():
     assert ranges[2] == 0.07         # noise pushed the raw value below the far end: at most max_range
     assert ranges[3] == pytest.approx(0.02563, abs=5e-6)
     assert np.all(range_from_raw(raw, np.zeros(4, dtype=bool), TABLE) == np.inf)
+
+
+def test_one_robots_readings_on_floats_equal_the_numpy_readings_to_the_bit():
+    """LookupTable.read_one (the one-robot path) gives exactly noisy_raw's and range_from_raw's values."""
+    table = LookupTable(TABLE)
+    distances = np.concatenate([TABLE[:, 0], np.random.default_rng(3).uniform(-0.01, 0.09, 400), [np.inf] * 8])
+    for noise in (False, True):
+        for start in range(0, len(distances), 8):
+            rays = distances[start:start + 8]
+            raw = noisy_raw(rays, TABLE, np.random.default_rng(start) if noise else None)
+            expected = raw.tolist(), range_from_raw(raw, rays < np.inf, TABLE).tolist()
+            normals = np.random.default_rng(start).standard_normal(len(rays)).tolist() if noise else None
+            assert table.read_one(None if np.isinf(rays).all() else rays.tolist(), normals, len(rays)) == expected
+    assert table.read_one(None, None, 8) == ([TABLE[-1, 1]] * 8, [np.inf] * 8)

@@ -359,6 +359,34 @@ def test_many_rays_at_once_see_what_one_ray_sees_in_a_crowded_world():
     assert 0 < np.isfinite(together).sum() < len(origins)
 
 
+@pytest.mark.parametrize('world', [
+    default_world(),
+    World(arena_size=(1.2, 0.8), boxes=[Box(0.2, 0.1, 0.1, 0.2, 0.3), Box(-0.3, -0.2, 0.05, 0.3, -1.0)],
+          cylinders=[Cylinder(0.0, 0.25, 0.05), Cylinder(-0.1, -0.1, 0.02)]),
+    World(arena_size=(4.0, 4.0),   # so many obstacles that the rays go to ray_distances' grid
+          boxes=[Box(x, y, 0.08, 0.15, x + y) for x in np.linspace(-1.7, 1.7, 7) for y in np.linspace(-1.6, 1.6, 5)],
+          cylinders=[Cylinder(x, y, 0.04) for x in np.linspace(-1.5, 1.5, 6) for y in (-0.4, 0.8)]),
+])
+def test_one_robots_rays_on_floats_equal_the_numpy_rays_to_the_bit(world):
+    """cast_near (plain floats, the surfaces near one robot) gives exactly ray_distances' values, parallel rays too."""
+    rng = np.random.default_rng(2)
+    half = np.array(world.arena_size) / 2
+    centres = rng.uniform(-half, half, (1500, 2))
+    centres = centres[world.clearance(centres) > RADIUS]
+    reach, max_range, hits = 0.11, 0.07, 0
+    for x, y in centres.tolist():
+        angles = rng.uniform(-math.pi, math.pi, 8)
+        angles[:2] = 0.0, math.pi / 2   # along the walls' edges
+        offsets = rng.uniform(-0.03, 0.03, (8, 2))
+        ox, oy, dx, dy = x + offsets[:, 0], y + offsets[:, 1], np.cos(angles), np.sin(angles)
+        expected = world.ray_distances(ox, oy, dx, dy, max_range)
+        surfaces = world.surfaces_near(x, y, reach)
+        found = world.cast_near(surfaces, list(zip(ox.tolist(), oy.tolist(), dx.tolist(), dy.tolist())), max_range)
+        assert found == expected.tolist() or not surfaces and np.isinf(expected).all()
+        hits += int(np.isfinite(expected).sum())
+    assert hits > 100
+
+
 def test_clearance_is_the_distance_to_the_nearest_surface():
     world = World(boxes=[Box(0.2, 0.0, 0.1, 0.1)], cylinders=[Cylinder(-0.2, 0.0, 0.05)])
     points = np.array([[0.0, 0.0], [0.0, 0.45], [0.2, 0.0], [-0.12, 0.0]])
