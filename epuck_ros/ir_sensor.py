@@ -41,7 +41,7 @@ def _inverse(table: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 
 def _from_inverse(raw: ArrayLike, inverse: tuple[np.ndarray, np.ndarray, np.ndarray]) -> np.ndarray:
     raws, distances, slopes = inverse
-    segment = np.searchsorted(raws[1:-1], raw, side='right')  # below the 2nd raw: 0; from the last but one: last
+    segment = raws[1:-1].searchsorted(raw, side='right')  # below the 2nd raw: 0; from the last but one: last
     return distances[segment] + (raw - raws[segment]) * slopes[segment]
 
 

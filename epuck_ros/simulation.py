@@ -228,7 +228,9 @@ class Simulation:
                 x, y, yaw = x[:count], y[:count], yaw[:count]
             else:
                 x, y, yaw = integrate_arc(xy[:, 0], xy[:, 1], yaw, v, w, substep)
-            xy, hit = self.world.resolve_collision(np.column_stack([x, y]), radius, clear)
+            arc_end = np.empty((count, 2))
+            arc_end[:, 0], arc_end[:, 1] = x, y
+            xy, hit = self.world.resolve_collision(arc_end, radius, clear)
             obstacle |= hit
             robot |= self._separate_robots(xy, clear, obstacle)
         self._true[:, :2], self._true[:, 2] = xy, yaw
@@ -252,7 +254,8 @@ class Simulation:
             return
         if not refresh:
             moved = xy - self._pairs_origin
-            refresh = float(np.einsum('ij,ij->i', moved, moved).max()) > self._slack ** 2
+            moved *= moved
+            refresh = float((moved[:, 0] + moved[:, 1]).max()) > self._slack ** 2
         if refresh:
             self._pairs = close_pairs(xy, self._pair_reach)
             self._pairs_origin = xy.copy()
@@ -277,7 +280,7 @@ class Simulation:
             distance = np.hypot(delta[:, 0], delta[:, 1])
             if not len(distance) or distance.min() >= diameter + CONTACT_TOLERANCE:
                 return self._touching_none   # nobody overlaps or touches: the common case
-            over = np.flatnonzero(distance < diameter - _OVERLAP_TOLERANCE)
+            over = (distance < diameter - _OVERLAP_TOLERANCE).nonzero()[0]
             if not len(over):
                 break
             pushed, pusher, delta, distance = first[over], second[over], delta[over], distance[over]
@@ -444,7 +447,7 @@ class Simulation:
         x, y = self._true[:, 0], self._true[:, 1]
         first, second = self._pairs   # they cover the robots where they are: _separate_robots or reset saw to it
         dx, dy = x[second] - x[first], y[second] - y[first]
-        near = np.flatnonzero(dx * dx + dy * dy < (self._sensing_reach + self.model.body_radius) ** 2)
+        near = (dx * dx + dy * dy < (self._sensing_reach + self.model.body_radius) ** 2).nonzero()[0]
         if not len(near):
             return
         viewer = np.concatenate([first[near], second[near]])

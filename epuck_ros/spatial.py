@@ -27,7 +27,7 @@ def close_pairs(xy: np.ndarray, reach: float) -> tuple[np.ndarray, np.ndarray]:
         first, second = _grid_candidates(xy, reach)
     x, y = xy[:, 0].copy(), xy[:, 1].copy()   # 1-D gathers are several times faster than row gathers
     dx, dy = x[first] - x[second], y[first] - y[second]
-    keep = np.flatnonzero(dx * dx + dy * dy < reach * reach)
+    keep = (dx * dx + dy * dy < reach * reach).nonzero()[0]
     return first[keep], second[keep]
 
 

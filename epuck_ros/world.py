@@ -187,7 +187,7 @@ class World:
         something are computed."""
         g = self._geometry
         nearest = np.full(ox.shape, np.inf)
-        rows = np.flatnonzero(g.clearance().near(centres, reach))
+        rows = g.clearance().near(centres, reach).nonzero()[0]
         if not len(rows):
             return nearest
         x, y, dx, dy = ox[:, rows], oy[:, rows], dir_x[:, rows], dir_y[:, rows]
@@ -217,7 +217,7 @@ class World:
         g = self._geometry
         xy = np.array(xy, dtype=float).reshape(-1, 2)
         touching = np.zeros(len(xy), dtype=bool)
-        rows = np.flatnonzero(g.clearance().near(xy, radius + CONTACT_TOLERANCE))
+        rows = g.clearance().near(xy, radius + CONTACT_TOLERANCE).nonzero()[0]
         if not len(rows):
             return xy, touching
         # Candidates within a diameter (not just a radius) of the cell: a disc pushed by up to its radius
