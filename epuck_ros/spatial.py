@@ -16,19 +16,26 @@ _ALL_PAIRS_BELOW = 64
 
 
 def close_pairs(xy: np.ndarray, reach: float) -> tuple[np.ndarray, np.ndarray]:
-    """Index arrays (i, j) of every unordered pair of points (N, 2) closer than `reach`; each pair once.
+    """Index arrays (i, j), i < j, of every pair of points (N, 2) closer than `reach`, sorted by (i, j).
 
-    The order is deterministic (it depends only on the input), so the simulation repeats to the bit.
+    The order depends only on which pairs are close, not on how they were found: a caller that keeps a wider
+    list for a while (the simulator, see Simulation._cover_pairs) and filters it by distance gets exactly what a
+    fresh search would give, so a simulation repeats to the bit however often it searched.
     """
     count = len(xy)
     if count < _ALL_PAIRS_BELOW:
-        first, second = _all_pairs(count)
+        first, second = _all_pairs(count)   # already in that order
     else:
         first, second = _grid_candidates(xy, reach)
     x, y = xy[:, 0].copy(), xy[:, 1].copy()   # 1-D gathers are several times faster than row gathers
     dx, dy = x[first] - x[second], y[first] - y[second]
     keep = (dx * dx + dy * dy < reach * reach).nonzero()[0]
-    return first[keep], second[keep]
+    first, second = first[keep], second[keep]
+    if count >= _ALL_PAIRS_BELOW:
+        first, second = np.minimum(first, second), np.maximum(first, second)
+        order = np.argsort(first * count + second)   # keys are unique: any sort gives this order
+        first, second = first[order], second[order]
+    return first, second
 
 
 @functools.lru_cache(maxsize=_ALL_PAIRS_BELOW)

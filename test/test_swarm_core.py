@@ -228,6 +228,29 @@ def test_same_seed_same_run_to_the_bit():
     assert not np.array_equal(first, crowd_run(seed=5))
 
 
+@pytest.mark.parametrize('count, size', [(30, 0.6), (120, 1.1)])   # all pairs tested, and the cell-list search
+def test_searching_the_robot_pairs_only_when_needed_changes_nothing(count, size, monkeypatch):
+    """The simulator keeps a wider list of robot pairs for a few steps; a crowd pushing each other runs to the bit as
+    with a fresh search every step (the 120 robots differ if close_pairs' order depends on the positions)."""
+    def run() -> np.ndarray:
+        world = place_robots(World(arena_size=(size, size), boxes=(Box(0.1, 0.1, 0.1, 0.05, 0.3),)), count, seed=2)
+        sim = Simulation(world, seed=1, noise=True, cmd_timeout=0.0)
+        rng = np.random.default_rng(6)
+        states = []
+        for block in range(3):
+            for robot, (left, right) in enumerate(rng.uniform(-1.0, 1.0, (count, 2)) * FULL):
+                sim.command_wheels(robot, left, right)
+            for _ in range(25):
+                sim.step()
+                states.append(np.concatenate([sim.true_pose.ravel(), sim.ir_raw.ravel(), sim.collisions]))
+        assert sim.robot_collisions.sum() > 0
+        return np.array(states)
+    lazy = run()
+    cover = Simulation._cover_pairs
+    monkeypatch.setattr(Simulation, '_cover_pairs', lambda sim, xy, refresh=False: cover(sim, xy, refresh=True))
+    np.testing.assert_array_equal(lazy, run())
+
+
 def test_one_robot_moves_the_same_alone_and_among_distant_others():
     """The one-robot float path and the many-robot NumPy path implement the same physics."""
     def drive(world):
@@ -254,8 +277,9 @@ def test_one_robot_moves_the_same_alone_and_among_distant_others():
 def test_close_pairs_finds_exactly_the_pairs_within_reach(count, spread):
     xy = np.random.default_rng(count).uniform(-spread, spread, (count, 2))
     first, second = close_pairs(xy, 0.15)
-    found = {tuple(sorted(pair)) for pair in zip(first.tolist(), second.tolist())}
+    found = set(zip(first.tolist(), second.tolist()))
     assert len(found) == len(first)   # each pair once
+    assert np.all(first < second) and np.all(np.diff(first * count + second) > 0)   # in the one canonical order
     everyone = np.hypot(*(xy[:, None, :] - xy[None, :, :]).transpose(2, 0, 1))
     expected = {(i, j) for i, j in zip(*np.nonzero(np.triu(everyone < 0.15, 1)))}
     assert found == expected
