@@ -110,6 +110,8 @@ class Simulation:
         self._pair_reach = self._sensing_reach + model.body_radius + 2.0 * self._slack
         self._pairs = (np.empty(0, dtype=np.int64), np.empty(0, dtype=np.int64))
         self._pairs_origin = self._start[:, :2].copy()
+        self._pair_offsets: np.ndarray | None = None
+        """The pairs' centre offsets (first minus second) where the robots are, when the step already has them."""
         self.reset()
 
     @property
@@ -274,12 +276,14 @@ class Simulation:
         """
         diameter = 2.0 * self.model.body_radius
         blocked = np.zeros(len(xy), dtype=bool)
+        self._pair_offsets = None
         for _ in range(_SEPARATION_PASSES):
             self._cover_pairs(xy)
             first, second = self._pairs
             delta = xy[first] - xy[second]
             distance = np.hypot(delta[:, 0], delta[:, 1])
             if not len(distance) or distance.min() >= diameter + CONTACT_TOLERANCE:
+                self._pair_offsets = delta   # where the robots stay: _see_robots needs them too
                 return self._touching_none   # nobody overlaps or touches: the common case
             over = (distance < diameter - _OVERLAP_TOLERANCE).nonzero()[0]
             if not len(over):
@@ -445,13 +449,15 @@ class Simulation:
         viewer's frame, where the viewer's 8 rays are constants: one broadcast (8, viewers) with no per-ray
         gathers. np.minimum.at then keeps each ray's nearest hit, whatever the order of the pairs (no sort).
         """
-        x, y = self._true[:, 0], self._true[:, 1]
         first, second = self._pairs   # they cover the robots where they are: _separate_robots or reset saw to it
-        dx, dy = x[second] - x[first], y[second] - y[first]
+        offsets = self._pair_offsets   # first's centre minus second's, if _separate_robots has them
+        if offsets is None:
+            offsets = self._true[first, :2] - self._true[second, :2]
+        dx, dy = offsets[:, 0], offsets[:, 1]
         near = (dx * dx + dy * dy < (self._sensing_reach + self.model.body_radius) ** 2).nonzero()[0]
         if not len(near):
             return
-        viewer = np.concatenate([first[near], second[near]])
+        viewer = np.concatenate([second[near], first[near]])   # second sees first at +offset, first sees second at -
         dx, dy = dx[near], dy[near]
         dx, dy = np.concatenate([dx, -dx]), np.concatenate([dy, -dy])
         cos, sin = cos[viewer], sin[viewer]
@@ -459,13 +465,14 @@ class Simulation:
         hits = ray_circle(offset_x, offset_y, self._sensor_cos[:, None], self._sensor_sin[:, None],
                           cos * dx + sin * dy, cos * dy - sin * dx, self.model.body_radius)
         hits[hits > self.model.ir_range] = np.inf
-        np.minimum.at(distance.reshape(-1), (viewer + self._sensor_index * len(x)).ravel(), hits.ravel())
+        np.minimum.at(distance.reshape(-1), (viewer + self._sensor_index * len(self._true)).ravel(), hits.ravel())
 
     def reset(self) -> None:
         """Every robot back to its start pose with odometry, wheel angles and command zeroed; time and collision
         counts go on."""
         self._true[:] = self._start
         self._cover_pairs(self._true[:, :2], refresh=True)
+        self._pair_offsets = None
         for state in (self._odom, self._true_twist, self._odom_twist, self._wheel_rotation, self._encoders,
                       self._wheel_speeds, self._command, self._command_twist):
             state.fill(0.0)
