@@ -14,7 +14,6 @@ from epuck_ros.model import RobotModel
 
 
 _SCALAR = (float, int)
-_EPSILON = float(np.finfo(float).eps)
 
 
 def twist_from_wheels(left: ArrayLike, right: ArrayLike, model: RobotModel) -> tuple[ArrayLike, ArrayLike]:
@@ -50,11 +49,7 @@ def integrate_arc(x: ArrayLike, y: ArrayLike, yaw: ArrayLike, v: ArrayLike, w: A
         shrink = math.sin(half_turn) / half_turn if half_turn else 1.0
         cos, sin = math.cos, math.sin
     else:   # any array (pose or speeds) broadcasts against the rest
-        # np.sinc(half_turn / pi) by its own steps (pi * x, eps where x is 0, sin(y) / y), without its Python
-        # wrapper's checks, which cost twice the arithmetic for 50 robots (measured: 5.5 us against 2.5 us)
-        scaled = math.pi * np.divide(half_turn, math.pi)
-        scaled = np.where(scaled == 0.0, _EPSILON, scaled)
-        shrink = np.sin(scaled) / scaled
+        shrink = np.sinc(np.divide(half_turn, math.pi))
         cos, sin = np.cos, np.sin
     chord = v * dt * shrink
     heading = yaw + half_turn
