@@ -21,12 +21,10 @@ from __future__ import annotations
 
 import argparse
 import math
-import os
 import time
 from collections.abc import Sequence
 from dataclasses import replace
 from functools import partial
-from pathlib import Path
 from typing import Any
 
 import rclpy
@@ -45,7 +43,9 @@ from std_msgs.msg import Float64MultiArray, String
 from epuck_ros.behaviours import BEHAVIOURS, BehaviourSpec, ConfigError, Observation
 from epuck_ros.behaviours.base import describe, ranges_from_raw
 from epuck_ros.model import SENSOR_NAMES
+from epuck_ros.nodes.dds_profile import use_package_profile
 from epuck_ros.nodes.params import ParamSpec, Usage, declare_parameters, prepare_arguments, user_arguments
+from epuck_ros.nodes.serialized import Patch
 from epuck_ros.nodes.spinning import handle_shutdown_signals, shutdown_requested, spin_until_shutdown
 from epuck_ros.world import WorldError, world_from_yaml
 
@@ -60,8 +60,6 @@ FALLBACK_DELAY = 1.0
 the graph shows a simulator's publishers one by one, and the `ir_raw` one may come in a moment later."""
 STOP_ACK_TIMEOUT = 1.0
 """Wall seconds an ending process waits for its robots' last (zero) wheel commands to be acknowledged."""
-FASTDDS_PROFILES = Path(__file__).with_name('fastdds_profiles.xml')
-"""Reliable writers send a heartbeat every 50 ms, not 3 s: the acknowledgement above then takes about 60 ms."""
 ALL_ROBOTS = 'all'
 
 
@@ -173,7 +171,8 @@ class BehaviourNode(Node):
                                                   clock=Clock(clock_type=ClockType.STEADY_TIME))
         # Last: a lockstep simulator waits for the answers of a robot whose wheel_cmd has a publisher.
         self._publisher = self.create_publisher(Float64MultiArray, 'wheel_cmd', QOS)
-        self._command = Float64MultiArray()
+        self._command = Patch(Float64MultiArray(data=[0.0, 0.0]), [('data[0]', 'd'), ('data[1]', 'd')])
+        """wheel_cmd as CDR bytes (see `serialized`): a step's command costs no message conversion."""
         self._logged_status = ''
         self._period_ns = round(period * 1e9)
         self._tick_timer = self.create_timer(period, self._on_tick)
@@ -271,16 +270,14 @@ class BehaviourNode(Node):
         if self.behaviour.status != self._logged_status:
             self._logged_status = self.behaviour.status
             self.get_logger().info(f'{self._logged_status} (t={now:.3f} s)')
-        self._command.data = [command.left, command.right]
-        self._publisher.publish(self._command)
+        self._publisher.publish(self._command.bytes((command.left, command.right)))
 
     def stop_robot(self) -> None:
         """The last word, as teleop_twist_keyboard's: a zero wheel command, so that a robot without a command
         timeout does not drive on after its controller is gone (`wait_until_stopped` makes sure it arrived)."""
         if self._late_ticks:
             self.get_logger().warning(f'{self._late_ticks} tick(s) acted on without their step\'s data')
-        self._command.data = [0.0, 0.0]
-        self._publisher.publish(self._command)
+        self._publisher.publish(self._command.bytes((0.0, 0.0)))
 
     def wait_until_stopped(self, timeout: float) -> None:
         """Wait until every reader acknowledged the zero command: a busy reader may have dropped it on arrival, and
@@ -345,8 +342,7 @@ def main(name: str, args: list[str] | None = None) -> None:
     spec = BEHAVIOURS[name]
     argv = prepare_arguments(args, parameter_specs(spec), usage(name, spec), own_options=True)
     robots = parse_robots(name, user_arguments(argv))
-    if FASTDDS_PROFILES.is_file():
-        os.environ.setdefault('FASTRTPS_DEFAULT_PROFILES_FILE', str(FASTDDS_PROFILES))
+    use_package_profile()  # heartbeats every 5 ms: the last (zero) wheel command is acknowledged at once
     rclpy.init(args=argv, signal_handler_options=SignalHandlerOptions.NO)
     handle_shutdown_signals()
     nodes: list[BehaviourNode] = []

@@ -32,7 +32,8 @@ from epuck_ros.markers import world_markers
 from epuck_ros.model import RobotModel
 from epuck_ros.nodes.ack_window import AckWindow
 from epuck_ros.nodes.announcements import SIMULATORS_TOPIC, announcement, parse_announcement
-from epuck_ros.nodes.params import ParamSpec, Usage, declare_parameters, prepare_arguments
+from epuck_ros.nodes.dds_profile import use_package_profile
+from epuck_ros.nodes.params import PARAM_FLAGS, ParamSpec, Usage, declare_parameters, prepare_arguments
 from epuck_ros.nodes.robot_ports import JOINT_NAMES, WARN_PERIOD, WORLD_FRAME, RobotPorts, quiet_publisher
 from epuck_ros.nodes.serialized import Patch
 from epuck_ros.nodes.spinning import handle_shutdown_signals, spin_until_shutdown
@@ -186,7 +187,9 @@ class SimNode(Node):
         self._lock = threading.Lock()
         """Guards the simulation: the loop thread steps it, the executor thread commands and resets it."""
         self._answers = threading.Condition()
-        """Lockstep: notified when a robot's command arrives."""
+        """Lockstep: notified when the answers the loop waits for are in (each one a wake-up of the loop thread)."""
+        self._awaited: set[int] = set()
+        """Lockstep: the robots whose answer to the current step the loop still waits for (empty: any answer)."""
         self._wake = threading.Event()
         self._step_requests = 0
         self._stepped = threading.Condition()
@@ -334,7 +337,9 @@ class SimNode(Node):
             return
         with self._answers:
             self.ports[robot].answered = True
-            self._answers.notify_all()
+            self._awaited.discard(robot)
+            if not self._awaited:
+                self._answers.notify()
 
     def _on_reset(self, request: Empty.Request, response: Empty.Response) -> Empty.Response:
         with self._lock:
@@ -447,12 +452,18 @@ class SimNode(Node):
         A robot nobody drives holds nobody up; with no controller at all the sim waits for any command, up to
         `lockstep_timeout`. Until a robot's controller has answered once, a step it did not answer is sent
         again rather than passed: a controller still connecting may have missed it, and two runs would then
-        start a step apart. A few resends at most, so a lost first answer cannot hang the simulation."""
+        start a step apart. A few resends at most, so a lost first answer cannot hang the simulation.
+        The graph (who has a controller) is read once per step and every GRAPH_POLL while waiting, and the command
+        callback wakes this thread only once the last awaited answer is in (not at every answer, re-reading the
+        graph each time: with 50 robots, 50 wake-ups and 5,000 graph look-ups per step)."""
         deadline = time.monotonic() + self._lockstep_timeout
+        read_graph = True
         with self._answers:
             while True:
-                driven = [ports for ports in self.ports if ports.has_controller()]
-                waiting_for = driven or self.ports
+                if read_graph:
+                    driven = [ports for ports in self.ports if ports.has_controller()]
+                    waiting_for = driven or self.ports
+                    self._awaited = {ports.index for ports in driven if not ports.answered}
                 if (all if driven else any)(ports.answered for ports in waiting_for):
                     for ports in waiting_for:
                         ports.answered_once = ports.answered_once or ports.answered
@@ -460,13 +471,30 @@ class SimNode(Node):
                 remaining = deadline - time.monotonic()
                 if remaining <= 0.0 or not self._running.is_set():
                     break
-                self._answers.wait(min(remaining, GRAPH_POLL))
-            never_answered = [ports for ports in waiting_for if not ports.answered_once]
+                read_graph = not self._answers.wait(min(remaining, GRAPH_POLL))
+        never_answered = [ports for ports in waiting_for if not ports.answered_once]
         if not never_answered or self._resends >= LOCKSTEP_START_RESENDS or not self._running.is_set():
             return True
         self._resends += 1
         self.get_logger().info(f'lockstep: no answer to t={self._sim.time:.3f} s yet, sending it again')
         return False
+
+
+def publication_mode(argv: list[str]) -> str:
+    """Fast DDS's publication mode for this process (read when the participant is made, before any parameter).
+
+    Free-running, Fast DDS sends from its own thread instead of inside publish(): the loop thread is then free to
+    step (benchmarks/bench_sim_node.py: 50 robots 1.5-1.9x real time against 0.7-1.1x synchronously). In
+    lockstep nothing runs while the controllers answer, and that hand-off to another thread is one more wake-up
+    per message on the round trip: synchronous, one robot ran 32-37x real time against 10-24x (alternating runs,
+    heartbeats as in fastdds_profiles.xml). Only `-p lockstep:=...` on the command line (what `bringup` passes)
+    is looked at; lockstep from a parameter file runs the same, asynchronously."""
+    lockstep = False
+    for flag, assignment in zip(argv, argv[1:]):
+        name, _, value = assignment.partition(':=')
+        if flag in PARAM_FLAGS and name == 'lockstep':
+            lockstep = yaml.safe_load(value) is True
+    return 'SYNCHRONOUS' if lockstep else 'ASYNCHRONOUS'
 
 
 def _stamp(seconds: float) -> tuple[int, int]:
@@ -477,9 +505,8 @@ def _stamp(seconds: float) -> tuple[int, int]:
 def main(args: list[str] | None = None) -> None:
     started = time.monotonic()
     argv = prepare_arguments(args, SIM_PARAMETERS, USAGE)
-    # FastDDS sends from its own thread instead of inside publish(): the loop thread is then free to step
-    # (measured with benchmarks/bench_sim_node.py: about 1.5x the real-time factor with a subscriber attached).
-    os.environ.setdefault('RMW_FASTRTPS_PUBLICATION_MODE', 'ASYNCHRONOUS')
+    use_package_profile()
+    os.environ.setdefault('RMW_FASTRTPS_PUBLICATION_MODE', publication_mode(argv))
     handle_shutdown_signals()  # from now on: a signal during start-up ends the node cleanly once it is built
     rclpy.init(args=argv, signal_handler_options=SignalHandlerOptions.NO)
     node = None
