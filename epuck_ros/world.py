@@ -162,8 +162,8 @@ class World:
         obstacles: every ray against every one. Many: a grid of cells (see _ObstacleGrid) gives each group only
         the obstacles near it, and only groups near a wall or obstacle are computed at all, so the cost per ray
         does not grow with the number of obstacles. The obstacles are the leading axis and the rays the last
-        (contiguous) one: NumPy then runs one long inner loop per obstacle instead of one short loop per ray,
-        which halved the cost of sensing 50 robots (measured with benchmarks/bench_swarm.py).
+        (contiguous) one: NumPy then runs one long inner loop per obstacle instead of one short loop per ray
+        (with the hit test in fewer calls, 50 robots' rays cost 82 us instead of 96, measured).
         """
         g = self._geometry
         shape = ox.shape
