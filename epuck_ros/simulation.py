@@ -204,8 +204,8 @@ class Simulation:
         """All robots along their arcs, out of obstacles and apart, per substep; (touching obstacle, robot) (N,).
 
         The odometry's arcs (a whole step, from the encoders) go into the first substep's integrate_arc call as
-        N more rows: the same arithmetic per row in half the NumPy calls (for 50 robots 30 us instead of 42, a
-        twentieth of the step, measured).
+        N more rows: the same arithmetic per row in half the NumPy calls (for 50 robots 30 us instead of 42,
+        measured).
         """
         radius, count = self.model.body_radius, len(self._true)
         v, w = self._command_twist[:, 0], self._command_twist[:, 1]
