@@ -71,10 +71,9 @@ class LookupTable:
     `read_one`, one robot's eight readings.
 
     NumPy's per-call cost dominates on eight values: `noisy_raw` and `range_from_raw` take 12 us per step (21 us
-    when a ray hits something), `read_one` 2.5 us (5 us) (measured).
-    It computes each value with the arithmetic np.interp and `distance_from_raw` use, operation for operation
-    (slope * (x - x_j) + y_j, the exact row value at a table distance), so the one-robot path reads exactly what
-    the array path reads (test_ir_sensor checks).
+    when a ray hits something), `read_one` 2.5 us (5 us) (measured). It computes each value with the arithmetic
+    np.interp and `distance_from_raw` use, operation for operation (slope * (x - x_j) + y_j, the exact row value
+    at a table distance), so the one-robot path reads exactly what the array path reads (test_ir_sensor checks).
     """
 
     def __init__(self, table: np.ndarray) -> None:
