@@ -1,6 +1,6 @@
 """Which of N points are close to each other: cell lists in NumPy, no Python loop over points.
 
-The simulator asks every step which robots can touch or see each other. Testing all N^2 pairs costs 10^8
+The simulator asks every few steps which robots can touch or see each other. Testing all N^2 pairs costs 10^8
 distance checks at N = 10,000; sorting the points into square cells as wide as the reach and comparing each
 point only with its own and the neighbouring cells costs O(N log N). Everything is array code (a sort, two
 `searchsorted` calls and a `repeat`), so the cost per point stays flat from 50 to 10,000 points.
