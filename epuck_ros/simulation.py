@@ -219,9 +219,10 @@ class Simulation:
         for k in range(self._substeps):
             clear = xy
             if k == 0:
-                x, y, yaw = integrate_arc(np.concatenate([xy[:, 0], odom[:, 0]]), np.concatenate([xy[:, 1], odom[:, 1]]),
-                                          np.concatenate([yaw, odom[:, 2]]), np.concatenate([v, distance]),
-                                          np.concatenate([w, turn]), self._first_arc_steps)
+                x, y, yaw = integrate_arc(np.concatenate([xy[:, 0], odom[:, 0]]),
+                                          np.concatenate([xy[:, 1], odom[:, 1]]), np.concatenate([yaw, odom[:, 2]]),
+                                          np.concatenate([v, distance]), np.concatenate([w, turn]),
+                                          self._first_arc_steps)
                 odom[:, 0], odom[:, 1], odom[:, 2] = x[count:], y[count:], yaw[count:]
                 x, y, yaw = x[:count], y[:count], yaw[:count]
             else:

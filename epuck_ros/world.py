@@ -391,7 +391,8 @@ class _Geometry:
         # edges 1, 2, 3, 0.
         edges = list(zip(*(a.tolist() for a in (self.edge_start_x, self.edge_start_y, self.edge_x, self.edge_y))))
         self.surface_edges = ([[edges[k]] for k in (1, 2, 3, 0)]
-                              + [edges[4 + 4 * b:8 + 4 * b] for b in range(self.box_count)] + [[]] * self.cylinder_count)
+                              + [edges[4 + 4 * b:8 + 4 * b] for b in range(self.box_count)]
+                              + [[]] * self.cylinder_count)
         self.surface_circles = [None] * (4 + self.box_count) + list(zip(*(a[:-1].tolist() for a in (
             self.cyl_x, self.cyl_y, self.cyl_radius))))
         self._shaped: dict[tuple[str, int], tuple[np.ndarray, ...]] = {}   # see _all_edges
@@ -605,7 +606,7 @@ class _ClearanceMap:
         self._half, self._last = np.array([self.half_x, self.half_y]), np.array([self.columns - 1, self.rows - 1])
 
     def near(self, xy: np.ndarray, reach: float) -> np.ndarray:
-        """(K,) whether a wall or obstacle may be within `reach` (< CAP) of each point (K, 2); False means surely not."""
+        """(K,) whether a wall or obstacle may be within `reach` (< CAP) of each point (K, 2); False: surely not."""
         cells = np.minimum(np.maximum(((xy + self._half) / self.cell).astype(np.int64), 0), self._last)
         return self.bound[cells[:, 1] * self.columns + cells[:, 0]] < reach
 
