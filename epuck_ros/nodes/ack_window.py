@@ -43,8 +43,9 @@ class AckWindow:
         self._given_up: dict[Publisher, int] = {}
 
     def published(self, step: int) -> None:
-        """Step `step` is out. Every quarter window, note whether the readers have caught up (they usually have
-        while lockstep waited for the controllers); a full window ahead, wait until they have."""
+        """Step `step` is out. Every quarter window, note whether the readers have caught up (only when a heartbeat
+        was answered since the last publish: asynchronous sends carry heartbeats); a full window ahead, wait
+        until they have."""
         behind = step - self._acked
         if behind < self._window and (behind < self._window // 4 or step % (self._window // 4)):
             return

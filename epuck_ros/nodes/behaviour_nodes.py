@@ -342,7 +342,7 @@ def main(name: str, args: list[str] | None = None) -> None:
     spec = BEHAVIOURS[name]
     argv = prepare_arguments(args, parameter_specs(spec), usage(name, spec), own_options=True)
     robots = parse_robots(name, user_arguments(argv))
-    use_package_profile()  # heartbeats every 5 ms: the last (zero) wheel command is acknowledged at once
+    use_package_profile()  # heartbeats every 50 ms: the last (zero) wheel command is acknowledged in ~60 ms
     rclpy.init(args=argv, signal_handler_options=SignalHandlerOptions.NO)
     handle_shutdown_signals()
     nodes: list[BehaviourNode] = []

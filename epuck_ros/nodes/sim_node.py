@@ -44,9 +44,10 @@ __all__ = ['JOINT_NAMES', 'SIM_PARAMETERS', 'SimNode', 'main']
 
 PUBLISHER_HISTORY_STEPS = 300
 """Steps each step topic's publisher keeps for reliable readers (proximity: eight messages per step)."""
-ACK_WINDOW_STEPS = 100
+ACK_WINDOW_STEPS = 250
 """Steps the simulator may run ahead of what its reliable readers acknowledged; below the history above, so a
-recorder never loses a step (see `AckWindow`)."""
+recorder never loses a step (see `AckWindow`). A full window waits for a heartbeat's answer (up to 50 ms, see
+fastdds_profiles.xml): with 100 steps, a quarter of a lockstep run at 1,000 steps/s went in that wait."""
 LOCKSTEP_START_RESENDS = 10
 GRAPH_POLL = 0.05
 """Wall seconds between two looks at which robots have a controller while lockstep waits for answers."""
@@ -487,7 +488,7 @@ def publication_mode(argv: list[str]) -> str:
     step (benchmarks/bench_sim_node.py: 50 robots 1.5-1.9x real time against 0.7-1.1x synchronously). In
     lockstep nothing runs while the controllers answer, and that hand-off to another thread is one more wake-up
     per message on the round trip: synchronous, one robot ran 32-37x real time against 10-24x (alternating runs,
-    heartbeats as in fastdds_profiles.xml). Only `-p lockstep:=...` on the command line (what `bringup` passes)
+    ACK_WINDOW_STEPS as now). Only `-p lockstep:=...` on the command line (what `bringup` passes)
     is looked at; lockstep from a parameter file runs the same, asynchronously."""
     lockstep = False
     for flag, assignment in zip(argv, argv[1:]):
