@@ -18,6 +18,7 @@ from std_srvs.srv import Empty
 from visualization_msgs.msg import MarkerArray
 
 from epuck_ros.model import MAX_WHEEL_SPEED, SENSOR_NAMES
+from epuck_ros.nodes.sim_node import publication_mode
 
 HALF_SPEED = 0.5 * MAX_WHEEL_SPEED
 LINEAR_SPEED = HALF_SPEED * 0.02  # 0.0628 m/s
@@ -267,3 +268,13 @@ def test_one_robot_keeps_its_names_with_a_frame_prefix_and_the_markers_are_latch
     assert (truth[0].header.frame_id, truth[0].child_frame_id) == ('r1/world', 'r1/base_link')
     assert {m.header.frame_id for m in ranges} == {f'r1/ps{i}' for i in range(8)}
     assert markers[0].markers and {m.header.frame_id for m in markers[0].markers} == {'r1/world'}
+
+
+@pytest.mark.parametrize('args, mode', [
+    ([], 'ASYNCHRONOUS'),
+    (['--ros-args', '-p', 'lockstep:=true'], 'SYNCHRONOUS'),
+    (['--ros-args', '-p', 'lockstep:=true', '--param', 'lockstep:=false'], 'ASYNCHRONOUS'),
+    (['--ros-args', '-p', 'seed:=3', '-p', 'lockstep:=True'], 'SYNCHRONOUS'),
+])
+def test_lockstep_on_the_command_line_publishes_synchronously(args, mode):
+    assert publication_mode(['sim', *args]) == mode
