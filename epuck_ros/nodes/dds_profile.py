@@ -1,10 +1,12 @@
 """Every process of the package loads one Fast DDS profile file (fastdds_profiles.xml) unless the user chose one.
 
-Why: discovery. A participant that misses another's first announcements (it happens in about half of the starts
-on these machines) only learns of it at the next periodic announcement, 3 s later by default; `bringup` then
-saw its children 2.5-3.5 s after they were up. The profile announces every 0.5 s instead, and reliable writers
-send a heartbeat every 50 ms instead of 3 s, so a reader that missed a message asks for it again at once.
-Measured with benchmarks/bench_startup.py.
+Why, in short (the file itself has the figures):
+- discovery: a participant that misses another's first announcements (about half of the starts on these
+  machines) learns of it only at the next periodic announcement, 3 s later by default; every 0.5 s instead
+  (benchmarks/bench_startup.py);
+- acknowledgements: reliable writers send a heartbeat every 50 ms instead of 3 s and readers answer it at once,
+  so a behaviour's last zero command and the simulator's ack window (nodes/ack_window.py) are acknowledged
+  within milliseconds (benchmarks/bench_lockstep.py).
 """
 from __future__ import annotations
 

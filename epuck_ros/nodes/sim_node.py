@@ -55,12 +55,13 @@ IDLE_POLL = 0.05
 """Wall seconds between two looks at the parameters while paused."""
 PACING_SLICE = 0.02
 """Pacing sleeps at most this long at a time, then reads the real-time factor again: a change takes effect at once."""
-DISCOVERY_WINDOW = 1.5
-"""Wall seconds from the start of the process during which the sim looks for another simulator (another `/clock`
-publisher, or a node with its name) before it steps or publishes anything. DDS discovery on one machine usually
-takes well under a second after rclpy starts (measured: 0-0.3 s idle; 1-2 s, rarely 5 s, with the two cores
-overloaded). A simulator discovered later is caught by the announcements on SIMULATORS_TOPIC: the later of two
-refuses then, the earlier goes on. The window overlaps rclpy's own start-up."""
+DISCOVERY_WINDOW = 1.0
+"""Wall seconds from the creation of the sim's node (its DDS participant is up) during which it looks for another
+simulator (another `/clock` publisher, or a node with its name) before it steps or publishes anything. Participants
+announce themselves every 0.5 s (fastdds_profiles.xml), so one already running is discovered within about that
+(measured: 0-0.56 s with the two cores busy). A simulator discovered later still is caught by the announcements on
+SIMULATORS_TOPIC: the later of two refuses then, the earlier goes on. It was 1.5 s from the process start, when
+announcements came every 3 s: the window was then most of the time to first motion (benchmarks/bench_startup.py)."""
 ANNOUNCEMENT_WAIT = 3.0
 """Wall seconds a `/clock` publisher seen in the graph during the discovery window may go unexplained by a newer
 simulator's announcement before this simulator refuses (a bag player, or an older simulator, never announces later)."""
@@ -169,9 +170,11 @@ class SimNode(Node):
     """The simulator: one `RobotPorts` per robot, plus /clock, world, world_markers, reset and step."""
 
     def __init__(self, started: float | None = None) -> None:
-        """`started`: monotonic time the process started, from which the discovery window counts."""
+        """`started`: monotonic time the process started (this simulator's place among others: who came first)."""
         super().__init__('sim')
-        self._started = time.monotonic() if started is None else started
+        self._node_created = time.monotonic()
+        """The discovery window counts from here."""
+        self._started = self._node_created if started is None else started
         values = declare_parameters(self, SIM_PARAMETERS)
         self._stop_listening_to_own_clock()
         world = load_world(values['world']) if values['world'] else default_world()
@@ -291,7 +294,7 @@ class SimNode(Node):
                 if now - seen_at >= ANNOUNCEMENT_WAIT:
                     self.refusal = self._refusal(found)
                     return False
-            elif now >= self._started + DISCOVERY_WINDOW:
+            elif now >= self._node_created + DISCOVERY_WINDOW:
                 return True
             time.sleep(0.05)
         return True
