@@ -14,7 +14,6 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
-from numpy.typing import ArrayLike
 
 from epuck_ros import ir_sensor
 from epuck_ros.kinematics import clamp_wheels, integrate_arc, quantise, twist_from_wheels, wheels_from_twist
@@ -552,11 +551,19 @@ class Simulation:
         return self._in_contact
 
 
-def _require_finite(**values: ArrayLike) -> None:
+def _require_finite(**values: float) -> None:
+    """CommandError unless every value is a finite float (math.isfinite: a NumPy call costs ~8 us per command)."""
     try:
-        bad = {name: value for name, value in values.items() if not np.isfinite(np.asarray(value, float)).all()}
-    except (TypeError, ValueError):
+        bad = {name: value for name, value in values.items() if not _is_finite_float(value)}
+    except TypeError:
         raise CommandError(f'command rejected: speeds must be numbers, got {values}') from None
     if bad:
         described = ', '.join(f'{name}={value}' for name, value in bad.items())
         raise CommandError(f'command rejected: speeds must be finite numbers, got {described}')
+
+
+def _is_finite_float(value: float) -> bool:
+    try:
+        return math.isfinite(value)
+    except OverflowError:   # an integer beyond any float
+        return False
