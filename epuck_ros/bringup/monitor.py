@@ -183,9 +183,9 @@ class RunMonitor:
     def node_exists(self, name: str) -> bool:
         return any(n == name for n, _ in self.node.get_node_names_and_namespaces())
 
-    def resume_sim(self, timeout: float) -> bool:
-        """Set the simulator's `paused` parameter to false; True once it said yes."""
-        future = self._parameters.set_parameters([Parameter('paused', value=False)])
+    def set_paused(self, paused: bool, timeout: float) -> bool:
+        """Set the simulator's `paused` parameter; True once it said yes."""
+        future = self._parameters.set_parameters([Parameter('paused', value=paused)])
         self._executor.spin_until_future_complete(future, timeout_sec=timeout)
         return future.done() and all(r.successful for r in future.result().results)
 

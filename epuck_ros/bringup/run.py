@@ -29,6 +29,8 @@ simulator's publishers to match them (the graph does not show matching). In lock
 its first step until every controller has answered, so no wait is needed there."""
 CATCH_UP_TIMEOUT = 5.0
 """Wall seconds the end of a run waits for ground-truth samples still on their way."""
+PAUSE_TIMEOUT = 5.0
+"""Wall seconds the end of a run waits for the simulator to accept paused:=true."""
 GRAPH_CHECK_PERIOD = 0.5
 """Wall seconds between two looks for another simulator during the run."""
 
@@ -104,8 +106,13 @@ class Supervisor:
 
     def own_announcement(self) -> Announcement | None:
         """Our simulator's announcement, once heard: its start time orders it among the others."""
-        sim = next(child for child in self.children.started if child.role == 'sim')
-        return next((a for a in self.monitor.announcements if a.is_process(sim.process.pid)), None)
+        return next((a for a in self.monitor.announcements if a.is_process(self._sim().process.pid)), None)
+
+    def sim_ended(self) -> bool:
+        return self._sim().process.poll() is not None
+
+    def _sim(self) -> Child:
+        return next(child for child in self.children.started if child.role == 'sim')
 
     def older_simulators(self) -> list[str]:
         """Simulators that announced a start before ours: ours refuses to run when it hears them (perhaps only
@@ -171,7 +178,7 @@ class Supervisor:
         if not args.lockstep:
             time.sleep(SETTLE_TIME)
         self.refuse_other_simulators()
-        if not self.monitor.resume_sim(READY_TIMEOUT):
+        if not self.monitor.set_paused(False, READY_TIMEOUT):
             raise RunFailed('the simulator did not accept paused:=false')
         self.resumed_at = time.monotonic()
         robots = self.monitor.world.names
@@ -255,6 +262,10 @@ def run(args: argparse.Namespace, plan: Plan) -> int:
         started, ended = supervisor.resumed_at, supervisor.ended_at or time.monotonic()
         monitor = getattr(supervisor, 'monitor', None)
         if started is not None and not failure:
+            # Paused first: a simulator left running without its controller (lockstep has nobody to wait for)
+            # would flood the recorder, which must take all it holds before it can close the bag.
+            if not supervisor.sim_ended():
+                monitor.set_paused(True, PAUSE_TIMEOUT)
             monitor.catch_up(CATCH_UP_TIMEOUT)
         sim_time = monitor.sim_time if monitor is not None else 0.0
         script = next((c for c in children.started if c.role == 'controller'), None) \

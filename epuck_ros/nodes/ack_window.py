@@ -20,6 +20,9 @@ from collections.abc import Callable, Sequence
 from rclpy.duration import Duration
 from rclpy.publisher import Publisher
 
+PUBLISHER_HISTORY_STEPS = 300
+"""Steps each per-step topic's publisher keeps for reliable readers (proximity: eight messages per step): the
+simulator's, and a controller's `wheel_cmd`, which a recorder reads as far behind as it reads the simulator's."""
 GIVE_UP = 10.0
 """Wall seconds a reader may go without acknowledging before the simulator stops waiting for it (a hung or
 killed process that DDS has not yet noticed); the node is told so it can warn. The publisher is then not

@@ -47,6 +47,8 @@ DISCOVERY_PERIOD = 0.2
 """s of wall time between two looks at the graph (rosbag2 polls every 0.1 s)."""
 SUBSCRIPTION_DEPTH = 1000
 """Messages DDS may hold for the recorder while it is busy: bursts must never overflow it."""
+STOP_LATENCY = 0.1
+"""Wall seconds the spin waits for a message at most before it looks at the stop flag again."""
 DRAIN_LIMIT = 5.0
 """s of wall time the recorder keeps taking messages DDS holds for it after Ctrl-C (the sim may still run);
 well within the 10 s bringup allows a child to stop."""
@@ -311,7 +313,7 @@ def spin_until_finished(node: Recorder, stop: threading.Event | None = None) -> 
     executor = SingleThreadedExecutor()
     executor.add_node(node)
     while not node.finished and not (stop is not None and stop.is_set()) and rclpy.ok():
-        executor.spin_once()
+        executor.spin_once(timeout_sec=STOP_LATENCY)   # a signal does not wake the wait: look at `stop` anyway
     if stop is None or not stop.is_set() or node.failure is not None:
         return
     idle, deadline = 0, time.monotonic() + DRAIN_LIMIT

@@ -30,7 +30,7 @@ from visualization_msgs.msg import MarkerArray
 
 from epuck_ros.markers import world_markers
 from epuck_ros.model import RobotModel
-from epuck_ros.nodes.ack_window import AckWindow
+from epuck_ros.nodes.ack_window import PUBLISHER_HISTORY_STEPS, AckWindow
 from epuck_ros.nodes.announcements import SIMULATORS_TOPIC, announcement, parse_announcement
 from epuck_ros.nodes.dds_profile import use_package_profile
 from epuck_ros.nodes.params import PARAM_FLAGS, ParamSpec, Usage, declare_parameters, prepare_arguments
@@ -42,8 +42,6 @@ from epuck_ros.world import WorldError, default_world, load_world, place_robots
 
 __all__ = ['JOINT_NAMES', 'SIM_PARAMETERS', 'SimNode', 'main']
 
-PUBLISHER_HISTORY_STEPS = 300
-"""Steps each step topic's publisher keeps for reliable readers (proximity: eight messages per step)."""
 ACK_WINDOW_STEPS = 250
 """Steps the simulator may run ahead of what its reliable readers acknowledged; below the history above, so a
 recorder never loses a step (see `AckWindow`). A full window waits for a heartbeat's answer (up to 50 ms, see
