@@ -204,6 +204,7 @@ def test_the_summary_is_the_bag_summary_and_lockstep_runs_are_identical(launch, 
         run = launch('bringup', 'avoid', '--duration', '12', '--real-time-factor', '0', '--seed', '3',
                      '--record', str(bag))
         assert run.proc.wait(timeout=120) == 0, run.output()
+        assert 'no message lost' in run.output(), run.output()   # the recorder's own check, wheel_cmd included
         simulated, distance, _ = summary_of(run.output())
         assert simulated == pytest.approx(12.0, abs=0.032)
         bag_summary = subprocess.run([str(BIN_DIR / 'bag'), 'summary', str(bag)], capture_output=True, text=True,
