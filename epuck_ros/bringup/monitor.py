@@ -23,7 +23,7 @@ from std_msgs.msg import String
 
 from epuck_ros.bag.cdr import odometry_fields
 from epuck_ros.bag.run_summary import RunTally
-from epuck_ros.nodes.announcements import SIMULATORS_TOPIC, Announcement, parse_announcement
+from epuck_ros.nodes.announcements import ANNOUNCEMENT_QOS, SIMULATORS_TOPIC, Announcement, parse_announcement
 from epuck_ros.nodes.dds_profile import use_package_profile
 from epuck_ros.nodes.robot_ports import topic_prefix
 from epuck_ros.world import World, WorldError, world_from_dict
@@ -85,8 +85,7 @@ class RunMonitor:
         self.node.create_subscription(Clock, '/clock', self._on_clock, 10)
         latched = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
         self.node.create_subscription(String, 'world', self._on_world, latched)
-        self.node.create_subscription(String, SIMULATORS_TOPIC, self._on_announcement,
-                                      QoSProfile(depth=10, durability=DurabilityPolicy.TRANSIENT_LOCAL))
+        self.node.create_subscription(String, SIMULATORS_TOPIC, self._on_announcement, ANNOUNCEMENT_QOS)
 
     # --- what the run did -------------------------------------------------------------------------------
     def _on_clock(self, msg: Clock) -> None:

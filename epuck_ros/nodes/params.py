@@ -157,6 +157,18 @@ def check_arguments(args: Sequence[str], specs: Iterable[ParamSpec]) -> list[str
     return result
 
 
+def command_line_value(args: Sequence[str], name: str) -> Any:
+    """The value the last `-p name:=VALUE` inside `--ros-args` gives `name` (as rcl reads it), or None: for the
+    few settings a process must know before rclpy starts (a parameter file is not looked at)."""
+    args, value = list(args), None
+    for index in _ros_argument_positions(args):
+        if args[index] in PARAM_FLAGS and index + 1 < len(args):
+            key, sep, text = args[index + 1].partition(':=')
+            if sep and key.rpartition(':')[2] == name:
+                value = _parse_value(text)
+    return value
+
+
 def user_arguments(args: Sequence[str]) -> list[str]:
     """The arguments outside `--ros-args ... [--]` (argv[0] excluded): those the executable itself reads."""
     user, inside = [], False

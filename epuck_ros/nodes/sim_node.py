@@ -31,9 +31,9 @@ from visualization_msgs.msg import MarkerArray
 from epuck_ros.markers import world_markers
 from epuck_ros.model import RobotModel
 from epuck_ros.nodes.ack_window import PUBLISHER_HISTORY_STEPS, AckWindow
-from epuck_ros.nodes.announcements import SIMULATORS_TOPIC, announcement, parse_announcement
+from epuck_ros.nodes.announcements import ANNOUNCEMENT_QOS, SIMULATORS_TOPIC, announcement, parse_announcement
 from epuck_ros.nodes.dds_profile import use_package_profile
-from epuck_ros.nodes.params import PARAM_FLAGS, ParamSpec, Usage, declare_parameters, prepare_arguments
+from epuck_ros.nodes.params import ParamSpec, Usage, command_line_value, declare_parameters, prepare_arguments
 from epuck_ros.nodes.robot_ports import JOINT_NAMES, WARN_PERIOD, WORLD_FRAME, RobotPorts, quiet_publisher
 from epuck_ros.nodes.serialized import Patch
 from epuck_ros.nodes.spinning import handle_shutdown_signals, spin_until_shutdown
@@ -43,7 +43,7 @@ from epuck_ros.world import WorldError, default_world, load_world, place_robots
 __all__ = ['JOINT_NAMES', 'SIM_PARAMETERS', 'SimNode', 'main']
 
 ACK_WINDOW_STEPS = 250
-"""Steps the simulator may run ahead of what its reliable readers acknowledged; below the history above, so a
+"""Steps the simulator may run ahead of what its reliable readers acknowledged; below PUBLISHER_HISTORY_STEPS, so a
 recorder never loses a step (see `AckWindow`). A full window waits for a heartbeat's answer (up to 50 ms, see
 fastdds_profiles.xml): with 100 steps, a quarter of a lockstep run at 1,000 steps/s went in that wait."""
 LOCKSTEP_START_RESENDS = 10
@@ -222,11 +222,10 @@ class SimNode(Node):
         self.create_service(Empty, 'reset', self._on_reset)
         self.create_service(Trigger, 'step', self._on_step)
         self._clock_pub = quiet_publisher(self, Clock, '/clock', stream)
-        announced = QoSProfile(depth=10, durability=DurabilityPolicy.TRANSIENT_LOCAL)
         started_ns = time.time_ns() - round((time.monotonic() - self._started) * 1e9)
         self._identity = announcement(started_ns, os.getpid())
-        quiet_publisher(self, String, SIMULATORS_TOPIC, announced).publish(String(data=self._identity.text()))
-        self.create_subscription(String, SIMULATORS_TOPIC, self._on_simulator, announced)
+        quiet_publisher(self, String, SIMULATORS_TOPIC, ANNOUNCEMENT_QOS).publish(String(data=self._identity.text()))
+        self.create_subscription(String, SIMULATORS_TOPIC, self._on_simulator, ANNOUNCEMENT_QOS)
         self._clock_message = Patch(Clock(), [('clock.sec', 'i'), ('clock.nanosec', 'I')])
         self._acks = AckWindow(self._stream_publishers, ACK_WINDOW_STEPS, self._on_ack_stall)
         shown = ', '.join(world.names[:5]) + (', ...' if len(world.names) > 5 else '')
@@ -491,12 +490,7 @@ def publication_mode(argv: list[str]) -> str:
     per message on the round trip: synchronous, one robot ran 32-37x real time against 10-24x (alternating runs,
     ACK_WINDOW_STEPS as now). Only `-p lockstep:=...` on the command line (what `bringup` passes)
     is looked at; lockstep from a parameter file runs the same, asynchronously."""
-    lockstep = False
-    for flag, assignment in zip(argv, argv[1:]):
-        name, _, value = assignment.partition(':=')
-        if flag in PARAM_FLAGS and name == 'lockstep':
-            lockstep = yaml.safe_load(value) is True
-    return 'SYNCHRONOUS' if lockstep else 'ASYNCHRONOUS'
+    return 'SYNCHRONOUS' if command_line_value(argv, 'lockstep') is True else 'ASYNCHRONOUS'
 
 
 def _stamp(seconds: float) -> tuple[int, int]:
