@@ -80,3 +80,13 @@ def test_one_robots_readings_on_floats_equal_the_numpy_readings_to_the_bit():
             normals = np.random.default_rng(start).standard_normal(len(rays)).tolist() if noise else None
             assert table.read_one(None if np.isinf(rays).all() else rays.tolist(), normals, len(rays)) == expected
     assert table.read_one(None, None, 8) == ([TABLE[-1, 1]] * 8, [np.inf] * 8)
+
+
+def test_ranges_of_raw_values_on_floats_equal_the_numpy_ranges_to_the_bit():
+    """LookupTable.ranges_of (what a controller reads from ir_raw every step) is range_from_raw on plain floats."""
+    table = LookupTable(TABLE)
+    rng = np.random.default_rng(5)
+    raws = np.concatenate([TABLE[:, 1], rng.uniform(-10.0, 5000.0, 400), rng.uniform(60.0, 90.0, 400)])
+    for seen_above in (TABLE[-1, 1], 77.1):
+        expected = range_from_raw(raws, raws > seen_above, TABLE).tolist()
+        assert table.ranges_of(raws.tolist(), seen_above) == expected

@@ -15,7 +15,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike
 
-from epuck_ros.ir_sensor import range_from_raw
+from epuck_ros.ir_sensor import LookupTable, range_from_raw
 from epuck_ros.model import IR_LOOKUP_TABLE, MAX_WHEEL_SPEED
 
 
@@ -32,6 +32,7 @@ class Observation:
 
 FREE_READING_SIGMAS = 3.0
 """A raw reading within this many noise standard deviations of the far end of the lookup table is "nothing seen"."""
+_EPUCK_TABLE = LookupTable(IR_LOOKUP_TABLE)
 
 
 def ranges_from_raw(raw: ArrayLike, table: np.ndarray = IR_LOOKUP_TABLE) -> tuple[float, ...]:
@@ -41,9 +42,12 @@ def ranges_from_raw(raw: ArrayLike, table: np.ndarray = IR_LOOKUP_TABLE) -> tupl
     (1 + 4.9 % noise). A reading up to FREE_READING_SIGMAS standard deviations above that (raw 77.1, 0.0673 m)
     counts as nothing seen, so a free sensor reads inf as on the simulator's `proximity` topic, and the course's
     threshold (raw 80, 0.0665 m) keeps its meaning; beyond it the inverse table as the simulator's own ranges."""
-    raw = np.asarray(raw, dtype=float)
     _, far_raw, far_noise = table[-1]
-    return tuple(range_from_raw(raw, raw > far_raw * (1.0 + FREE_READING_SIGMAS * far_noise), table).tolist())
+    seen_above = far_raw * (1.0 + FREE_READING_SIGMAS * far_noise)
+    if table is IR_LOOKUP_TABLE:  # the e-puck's: its table prepared once, in plain floats (the same values)
+        return tuple(_EPUCK_TABLE.ranges_of([float(value) for value in raw], seen_above))
+    raw = np.asarray(raw, dtype=float)
+    return tuple(range_from_raw(raw, raw > seen_above, table).tolist())
 
 
 @dataclass(frozen=True)

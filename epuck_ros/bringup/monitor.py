@@ -13,7 +13,7 @@ import rclpy
 import yaml
 from nav_msgs.msg import Odometry
 from rclpy.context import Context
-from rclpy.executors import SingleThreadedExecutor
+from rclpy.experimental import EventsExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.parameter_client import AsyncParameterClient
@@ -66,11 +66,16 @@ class RunMonitor:
         rclpy.init(args=['--ros-args', *remap], context=self.context,
                    signal_handler_options=rclpy.signals.SignalHandlerOptions.NO)
         self.node = Node('bringup', context=self.context, enable_rosout=False)
-        self._executor = SingleThreadedExecutor(context=self.context)
+        # Every step brings /clock and each robot's ground truth: rclpy's EventsExecutor dispatches them from C++
+        # instead of rebuilding a wait set in Python before each one (see benchmarks/bench_bringup.py).
+        self._executor = EventsExecutor(context=self.context)
         self._executor.add_node(self.node)
         self.sim_time = 0.0
         self.clock_messages = 0
         """/clock messages received: any before `bringup` resumes its (paused, silent) simulator are another's."""
+        self.first_tick: tuple[float, float] | None = None
+        self.last_tick: tuple[float, float] | None = None
+        """(monotonic wall time, simulated time) of the first and the last `/clock` message."""
         self.world: World | None = None
         self.world_error = ''
         self.tracks: dict[str, RobotTrack] = {}
@@ -91,6 +96,17 @@ class RunMonitor:
     def _on_clock(self, msg: Clock) -> None:
         self.sim_time = msg.clock.sec + msg.clock.nanosec * 1e-9
         self.clock_messages += 1
+        self.last_tick = (time.monotonic(), self.sim_time)
+        if self.first_tick is None:
+            self.first_tick = self.last_tick
+
+    def stepping_speed(self) -> float | None:
+        """Simulated seconds per wall second from the first `/clock` to the last: the run's pace once stepping,
+        without the simulator's start-up (its discovery window may still be running at the resume)."""
+        if self.first_tick is None or self.last_tick is None or self.last_tick[0] <= self.first_tick[0]:
+            return None
+        (wall0, sim0), (wall1, sim1) = self.first_tick, self.last_tick
+        return (sim1 - sim0) / (wall1 - wall0)
 
     def _on_announcement(self, msg: String) -> None:
         announced = parse_announcement(msg.data)

@@ -46,7 +46,7 @@ from epuck_ros.model import SENSOR_NAMES
 from epuck_ros.nodes.ack_window import PUBLISHER_HISTORY_STEPS
 from epuck_ros.nodes.dds_profile import use_package_profile
 from epuck_ros.nodes.params import ParamSpec, Usage, declare_parameters, prepare_arguments, user_arguments
-from epuck_ros.nodes.serialized import Patch
+from epuck_ros.nodes.serialized import Patch, float64_values
 from epuck_ros.nodes.spinning import handle_shutdown_signals, shutdown_requested, spin_until_shutdown
 from epuck_ros.world import WorldError, world_from_yaml
 
@@ -170,7 +170,7 @@ class BehaviourNode(Node):
         if self.behaviour.needs_odom:
             self.create_subscription(Odometry, 'odom', self._on_odom, QOS)
         if self.behaviour.needs_proximity:
-            self.create_subscription(Float64MultiArray, 'ir_raw', self._on_ir_raw, QOS)
+            self.create_subscription(Float64MultiArray, 'ir_raw', self._on_ir_raw, QOS, raw=True)
             self._graph_timer = self.create_timer(GRAPH_POLL_PERIOD, self._choose_ir_topic,
                                                   clock=Clock(clock_type=ClockType.STEADY_TIME))
         # Last: a lockstep simulator waits for the answers of a robot whose wheel_cmd has a publisher.
@@ -206,13 +206,15 @@ class BehaviourNode(Node):
         self._odom_stamp = _nanoseconds(msg.header.stamp)
         self._act_when_ready()
 
-    def _on_ir_raw(self, msg: Float64MultiArray) -> None:
+    def _on_ir_raw(self, data: bytes) -> None:
         """A behaviour on the IR alone answers each `ir_raw` message at once (see the class)."""
-        if len(msg.data) != len(SENSOR_NAMES):
-            self.get_logger().warning(f'ir_raw: ignoring messages of {len(msg.data)} values, expected '
-                                      f'{len(SENSOR_NAMES)} (ps0..ps7)', once=True)
+        raw = float64_values(data)  # received as bytes: see `serialized`
+        if raw is None or len(raw) != len(SENSOR_NAMES):
+            got = 'bytes that are no Float64MultiArray' if raw is None else f'messages of {len(raw)} values'
+            self.get_logger().warning(f'ir_raw: ignoring {got}, expected {len(SENSOR_NAMES)} values (ps0..ps7)',
+                                      once=True)
             return
-        self._ranges = ranges_from_raw(msg.data)
+        self._ranges = ranges_from_raw(raw)
         if self.behaviour.needs_odom:
             self._fresh_raw = True
             self._act_when_ready()

@@ -22,7 +22,7 @@ from sensor_msgs.msg import JointState, Range
 from std_msgs.msg import Float64MultiArray, UInt32
 
 from epuck_ros.model import SENSOR_NAMES, RobotModel
-from epuck_ros.nodes.serialized import Patch
+from epuck_ros.nodes.serialized import Patch, float64_values
 from epuck_ros.simulation import Simulation
 
 JOINT_NAMES = ['left_wheel_joint', 'right_wheel_joint']
@@ -89,7 +89,8 @@ class RobotPorts:
                 TwistStamped, topics + 'cmd_vel', lambda msg: self._twist(msg.twist), 10)
         else:
             self._twist_sub = node.create_subscription(Twist, topics + 'cmd_vel', self._twist, 10)
-        self._wheels_sub = node.create_subscription(Float64MultiArray, topics + 'wheel_cmd', self._wheels, 10)
+        self._wheels_sub = node.create_subscription(Float64MultiArray, topics + 'wheel_cmd', self._wheels, 10,
+                                                    raw=True)
 
     def _make_messages(self, frames: str, world_frame: str, model: RobotModel) -> None:
         """Each step message is serialised once; a step only patches its numbers in (see `serialized`)."""
@@ -123,13 +124,14 @@ class RobotPorts:
     def _twist(self, msg: Twist) -> None:
         self._on_command(self.index, self._twist_sub.topic_name, 'twist', msg.linear.x, msg.angular.z)
 
-    def _wheels(self, msg: Float64MultiArray) -> None:
-        if len(msg.data) != 2:
-            self._logger.warning(
-                f'{self._wheels_sub.topic_name} refused: data must be [left, right] rad/s, got {len(msg.data)} '
-                'values', throttle_duration_sec=WARN_PERIOD)
+    def _wheels(self, data: bytes) -> None:
+        values = float64_values(data)  # received as bytes: see `serialized`
+        if values is None or len(values) != 2:
+            got = 'bytes that are no Float64MultiArray' if values is None else f'{len(values)} values'
+            self._logger.warning(f'{self._wheels_sub.topic_name} refused: data must be [left, right] rad/s, got {got}',
+                                 throttle_duration_sec=WARN_PERIOD)
             return
-        self._on_command(self.index, self._wheels_sub.topic_name, 'wheels', msg.data[0], msg.data[1])
+        self._on_command(self.index, self._wheels_sub.topic_name, 'wheels', *values)
 
     def has_controller(self) -> bool:
         """Some node publishes on this robot's wheel_cmd or cmd_vel (a matched publisher): lockstep waits for it."""

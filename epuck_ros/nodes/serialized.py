@@ -7,6 +7,10 @@ The simulator sends 13 messages per robot and step, so this is most of its cost.
 real message: rclpy serialises it (so the layout is rclpy's own, alignment and strings included), and the
 offset of each field that changes is found by setting it to a marker value and locating the marker's bytes.
 Each step the numbers are packed into a copy of those bytes, which any subscriber reads as a normal message.
+
+The other way round, `float64_values` reads the numbers of a Float64MultiArray received as bytes (`raw=True`):
+rclpy would build a message object, its layout and an array for them (about 10 us in-process against 0.3 us,
+measured), on both sides of every lockstep round trip (`ir_raw`, `wheel_cmd`).
 """
 from __future__ import annotations
 
@@ -14,9 +18,14 @@ import struct
 from collections.abc import Sequence
 from typing import Any
 
-from rclpy.serialization import serialize_message
+from rclpy.serialization import deserialize_message, serialize_message
+from std_msgs.msg import Float64MultiArray
 
 _LITTLE_ENDIAN_CDR = b'\x00\x01'
+_ARRAY_HEAD = struct.Struct('<2xHIII')
+"""Float64MultiArray's CDR up to its numbers: encapsulation (2 bytes kind, 2 options), layout.dim count,
+layout.data_offset, data count; with no dims the float64s follow at byte 20 (8-aligned after the header)."""
+_ARRAY_DATA = 20
 _MARKERS = {'d': 1.234567890123e-271, 'f': 1.2345678e-31, 'i': 0x5A3C1E2F, 'I': 0x6B4D2F31}
 """Values no field of our messages holds, whose bytes cannot occur by chance (a different one for each field)."""
 
@@ -76,3 +85,16 @@ def _resolve(msg: Any, path: str) -> tuple[Any, str, int | None]:
         msg = getattr(msg, name)
     name, bracket, rest = last.partition('[')
     return msg, name, int(rest.rstrip(']')) if bracket else None
+
+
+def float64_values(data: bytes) -> tuple[float, ...] | None:
+    """The numbers of a serialised std_msgs/Float64MultiArray, None if the bytes are not one (a publisher may send
+    any bytes); one with a layout, or in another encoding, goes through rclpy's own deserialisation."""
+    if data[:2] == _LITTLE_ENDIAN_CDR and len(data) >= _ARRAY_DATA:
+        _, dims, _, count = _ARRAY_HEAD.unpack_from(data)
+        if dims == 0 and len(data) >= _ARRAY_DATA + 8 * count:
+            return struct.unpack_from(f'<{count}d', data, _ARRAY_DATA)
+    try:
+        return tuple(deserialize_message(data, Float64MultiArray).data)
+    except RuntimeError:  # rclpy's RMWError: the bytes do not decode
+        return None

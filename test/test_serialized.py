@@ -1,0 +1,43 @@
+"""Step messages as CDR bytes (nodes/serialized.py), checked against rclpy's own (de)serialisation, no DDS."""
+import math
+
+import pytest
+from nav_msgs.msg import Odometry
+from rclpy.serialization import deserialize_message, serialize_message
+from std_msgs.msg import Float64MultiArray, MultiArrayDimension, MultiArrayLayout
+
+from epuck_ros.nodes.serialized import Patch, float64_values
+
+
+def test_a_patched_message_is_what_rclpy_serialises_with_those_values():
+    msg = Odometry()
+    msg.header.frame_id = 'epuck3/odom'
+    patch = Patch(msg, [('header.stamp.sec', 'i'), ('header.stamp.nanosec', 'I'), ('pose.pose.position.x', 'd'),
+                        ('twist.twist.angular.z', 'd')])
+    data = patch.bytes((12, 345_000_000, -0.25, 1.5))
+    msg.header.stamp.sec, msg.header.stamp.nanosec = 12, 345_000_000
+    msg.pose.pose.position.x, msg.twist.twist.angular.z = -0.25, 1.5
+    assert data == serialize_message(msg)
+    assert deserialize_message(data, Odometry).header.frame_id == 'epuck3/odom'
+
+
+@pytest.mark.parametrize('values', [[], [1.5], [0.0, -6.28], [float(i) / 3 for i in range(8)], [math.inf, 2.0]])
+def test_float64_values_reads_what_rclpy_serialised(values):
+    assert float64_values(serialize_message(Float64MultiArray(data=values))) == tuple(values)
+
+
+def test_float64_values_of_a_nan_command_is_nan_for_the_simulator_to_refuse():
+    left, right = float64_values(serialize_message(Float64MultiArray(data=[math.nan, 1.0])))
+    assert math.isnan(left) and right == 1.0
+
+
+def test_an_array_with_a_layout_goes_through_rclpy():
+    layout = MultiArrayLayout(dim=[MultiArrayDimension(label='wheels', size=2, stride=2)], data_offset=0)
+    assert float64_values(serialize_message(Float64MultiArray(layout=layout, data=[4.0, 5.0]))) == (4.0, 5.0)
+
+
+def test_bytes_that_are_no_float64_array_read_as_none():
+    data = bytearray(serialize_message(Float64MultiArray(data=[1.0, 2.0])))
+    data[12:16] = (1000).to_bytes(4, 'little')  # claims 1,000 numbers: neither read past the end nor decoded
+    assert float64_values(bytes(data)) is None
+    assert float64_values(b'\x00\x01\x00') is None
