@@ -129,6 +129,10 @@ def test_a_run_with_duration_ends_by_itself_and_leaves_no_process(launch, test_n
     # In lockstep the robot drives at 0.0628 m/s from the first step (t = 0.032 s) to the last.
     assert distance == pytest.approx(0.0628 * (simulated - 0.032), abs=2e-3)
     assert collisions == 0
+    # The pace once stepping is printed apart from the pace since the resume (which holds the sim's start-up).
+    stepping = re.search(r'([\d.]+)x real time from the first step, which came ([\d.]+) s after the resume',
+                         run.output())
+    assert stepping and float(stepping[1]) > 0.0, run.output()
     assert f'ROS_DOMAIN_ID={os.environ["ROS_DOMAIN_ID"]}' in run.output()
     assert processes_in_this_domain() == []
 
