@@ -319,3 +319,47 @@ def test_readiness_does_not_depend_on_what_the_children_log(launch, monkeypatch,
     assert run.proc.wait(timeout=90) == 0, run.output()
     assert 'sim ready' not in run.output() and 'Recording' not in run.output()
     assert SIMULATED.search(run.output())[1] == '2.02'
+
+
+SLOW_PARAMETER_SERVER = '''
+import sys, threading, rclpy
+from rcl_interfaces.msg import SetParametersResult
+from rcl_interfaces.srv import SetParameters
+from rclpy.callback_groups import ReentrantCallbackGroup
+from rclpy.executors import MultiThreadedExecutor
+from rclpy.node import Node
+rclpy.init()
+node = Node('sim', start_parameter_services=False)
+first = threading.Event()
+def answer(request, response):
+    print('request', flush=True)
+    if not first.is_set():  # the first request is answered only once the test is over: as if it were lost
+        first.set()
+        threading.Event().wait(600)
+    response.results = [SetParametersResult(successful=True)]
+    return response
+node.create_service(SetParameters, 'sim/set_parameters', answer, callback_group=ReentrantCallbackGroup())
+print('ready', flush=True)
+rclpy.spin(node, MultiThreadedExecutor(num_threads=2))
+'''
+
+
+def test_an_unanswered_resume_is_asked_again():
+    """A first request to a just-discovered service can go unanswered; bringup asks again instead of failing the run."""
+    from rcl_interfaces.srv import SetParameters
+
+    from epuck_ros.bringup.monitor import REQUEST_RETRY, RunMonitor
+    server = subprocess.Popen([sys.executable, '-c', SLOW_PARAMETER_SERVER], stdout=subprocess.PIPE, text=True)
+    monitor = RunMonitor('', '', follow_robots=False)
+    try:
+        assert server.stdout.readline().strip() == 'ready'
+        service = monitor.node.create_client(SetParameters, '/sim/set_parameters')  # the one service it offers
+        deadline = time.monotonic() + 60
+        while not service.service_is_ready() and time.monotonic() < deadline:
+            monitor.spin_once(0.05)
+        assert monitor.set_paused(False, 30 * REQUEST_RETRY)
+    finally:
+        monitor.close()
+        server.kill()  # its first request's thread still waits
+        out, _ = server.communicate(timeout=30)
+    assert out.count('request') >= 2, out  # the first one, never answered, and the one sent again

@@ -31,6 +31,10 @@ from epuck_ros.world import World, WorldError, world_from_dict
 SIM_NODE = 'sim'
 RECORDER_NODE = 'recorder'
 COMMAND_TOPICS = ('wheel_cmd', 'cmd_vel')
+REQUEST_RETRY = 2.0
+"""Wall seconds after which a parameter request to the simulator is sent again (setting `paused` twice is harmless):
+a first request to a service just discovered can go unanswered, its response's way back not yet matched (seen by
+benchmarks/bench_lockstep.py twice in about 60 runs, before it retried too)."""
 SAMPLE_DEPTH = 10_000
 """Ground-truth samples DDS may hold for this node while it is busy: the summary needs every step."""
 
@@ -199,10 +203,16 @@ class RunMonitor:
         return any(n == name for n, _ in self.node.get_node_names_and_namespaces())
 
     def set_paused(self, paused: bool, timeout: float) -> bool:
-        """Set the simulator's `paused` parameter; True once it said yes."""
-        future = self._parameters.set_parameters([Parameter('paused', value=paused)])
-        self._executor.spin_until_future_complete(future, timeout_sec=timeout)
-        return future.done() and all(r.successful for r in future.result().results)
+        """Set the simulator's `paused` parameter, asking again every REQUEST_RETRY; True once it said yes."""
+        deadline = time.monotonic() + timeout
+        while True:
+            future = self._parameters.set_parameters([Parameter('paused', value=paused)])
+            self._executor.spin_until_future_complete(
+                future, timeout_sec=max(0.0, min(REQUEST_RETRY, deadline - time.monotonic())))
+            if future.done():
+                return all(r.successful for r in future.result().results)
+            if time.monotonic() >= deadline:
+                return False
 
     def close(self) -> None:
         self._executor.shutdown()
