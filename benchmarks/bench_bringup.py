@@ -110,7 +110,11 @@ def sim_alone(duration: float) -> float:
         while (reader.get_publisher_count() == 0 or not parameters.services_are_ready()) and \
                 time.monotonic() < deadline:
             executor.spin_once(timeout_sec=0.05)
-        executor.spin_until_future_complete(parameters.set_parameters([Parameter('paused', value=False)]), 60)
+        for _ in range(30):  # asked again every 2 s: a first request to a just-discovered service can go unanswered
+            resumed = parameters.set_parameters([Parameter('paused', value=False)])
+            executor.spin_until_future_complete(resumed, 2.0)
+            if resumed.done():
+                break
         while (not stamps or stamps[-1][1] < duration - 1e-6) and time.monotonic() < deadline:
             executor.spin_once(timeout_sec=0.05)
     finally:
