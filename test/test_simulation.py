@@ -7,7 +7,7 @@ import pytest
 from epuck_ros.ir_sensor import raw_from_distance
 from epuck_ros.model import IR_LOOKUP_TABLE, MAX_WHEEL_SPEED, SENSOR_POSES, RobotModel
 from epuck_ros.simulation import CommandError, Simulation
-from epuck_ros.world import Box, Cylinder, RobotStart, World, default_world
+from epuck_ros.world import Box, Cylinder, RobotStart, World
 
 MODEL = RobotModel()
 RADIUS = MODEL.body_radius

@@ -15,7 +15,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike
 
-from epuck_ros.ir_sensor import LookupTable, range_from_raw
+from epuck_ros.ir_sensor import LookupTable
 from epuck_ros.model import IR_LOOKUP_TABLE, MAX_WHEEL_SPEED
 
 
@@ -43,11 +43,8 @@ def ranges_from_raw(raw: ArrayLike, table: np.ndarray = IR_LOOKUP_TABLE) -> tupl
     counts as nothing seen, so a free sensor reads inf as on the simulator's `proximity` topic, and the course's
     threshold (raw 80, 0.0665 m) keeps its meaning; beyond it the inverse table as the simulator's own ranges."""
     _, far_raw, far_noise = table[-1]
-    seen_above = far_raw * (1.0 + FREE_READING_SIGMAS * far_noise)
-    if table is IR_LOOKUP_TABLE:  # the e-puck's: its table prepared once, in plain floats (the same values)
-        return tuple(_EPUCK_TABLE.ranges_of([float(value) for value in raw], seen_above))
-    raw = np.asarray(raw, dtype=float)
-    return tuple(range_from_raw(raw, raw > seen_above, table).tolist())
+    lookup = _EPUCK_TABLE if table is IR_LOOKUP_TABLE else LookupTable(table)  # the e-puck's prepared once
+    return tuple(lookup.ranges_of([float(value) for value in raw], far_raw * (1.0 + FREE_READING_SIGMAS * far_noise)))
 
 
 @dataclass(frozen=True)

@@ -211,15 +211,17 @@ class Supervisor:
 
 
 def report(supervisor: Supervisor, sim_time: float, wall_time: float) -> list[str]:
-    """The summary lines: time and speed (from the resume on, and from the first step on), then each robot's distance and contacts (from the
-    bag if the run was recorded, else from the samples received: the same computation either way)."""
+    """The summary lines: time and speed (from the resume on, and from the first step on), then each robot's
+    distance and contacts (from the bag if the run was recorded, else from the samples received: the same
+    computation either way)."""
     plan, monitor = supervisor.plan, supervisor.monitor
     speed = f'{sim_time / wall_time:.1f}x real time' if wall_time > 0 else 'no wall time'
+    line = f'[bringup] simulated {sim_time:.2f} s in {wall_time:.1f} s wall ({speed})'
     stepping = monitor.stepping_speed()
-    if stepping is not None and monitor.first_tick is not None and supervisor.resumed_at is not None:
-        speed += (f'); {stepping:.1f}x real time from the first step, which came '
-                  f'{monitor.first_tick[0] - supervisor.resumed_at:.2f} s after the resume (the simulator\'s start-up')
-    head = [f'[bringup] simulated {sim_time:.2f} s in {wall_time:.1f} s wall ({speed})']
+    if stepping is not None and supervisor.resumed_at is not None:
+        line += (f'; {stepping:.1f}x real time from the first step, which came '
+                 f'{monitor.first_tick[0] - supervisor.resumed_at:.2f} s after the resume (the simulator\'s start-up)')
+    head = [line]
     notes = []
     if plan.record_dir is not None:
         try:

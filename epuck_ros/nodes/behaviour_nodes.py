@@ -43,7 +43,7 @@ from std_msgs.msg import Float64MultiArray, String
 from epuck_ros.behaviours import BEHAVIOURS, BehaviourSpec, ConfigError, Observation
 from epuck_ros.behaviours.base import describe, ranges_from_raw
 from epuck_ros.model import SENSOR_NAMES
-from epuck_ros.nodes.ack_window import PUBLISHER_HISTORY_STEPS
+from epuck_ros.nodes.ack_window import COMMAND_QOS
 from epuck_ros.nodes.dds_profile import use_package_profile
 from epuck_ros.nodes.params import ParamSpec, Usage, declare_parameters, prepare_arguments, user_arguments
 from epuck_ros.nodes.serialized import Patch, float64_values
@@ -53,9 +53,6 @@ from epuck_ros.world import WorldError, world_from_yaml
 CONTROL_PERIOD = 0.032
 """Seconds between two commands: the course's controllers run once per Webots basicTimeStep (32 ms)."""
 QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
-COMMAND_QOS = QoSProfile(depth=PUBLISHER_HISTORY_STEPS, reliability=ReliabilityPolicy.RELIABLE)
-"""`wheel_cmd` keeps as many steps as the simulator's topics: a recorder may lag as far behind on it (with a
-history of 10, a recorded run at real_time_factor 0 lost 47-265 wheel commands)."""
 LATCHED = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
 GRAPH_POLL_PERIOD = 0.1
 """Wall seconds between two looks at the graph for an `ir_raw` publisher (until there is one)."""

@@ -489,8 +489,8 @@ def publication_mode(argv: list[str]) -> str:
     lockstep nothing runs while the controllers answer, and that hand-off to another thread is one more wake-up
     per message on the round trip: synchronous, one robot ran 32-37x real time against 10-24x (alternating runs,
     ACK_WINDOW_STEPS as now); timed from the first step (bench_lockstep's way now), 36.8x against 18.5x with the
-    controller asynchronous too (median of 5 alternating runs). Only `-p lockstep:=...` on the command line (what `bringup` passes)
-    is looked at; lockstep from a parameter file runs the same, asynchronously."""
+    controller asynchronous too (median of 5 alternating runs). Only `-p lockstep:=...` on the command line (what
+    `bringup` passes) is looked at; lockstep from a parameter file runs the same, asynchronously."""
     return 'SYNCHRONOUS' if command_line_value(argv, 'lockstep') is True else 'ASYNCHRONOUS'
 
 

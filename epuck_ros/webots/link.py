@@ -23,12 +23,10 @@ from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray
 
-from epuck_ros.nodes.ack_window import PUBLISHER_HISTORY_STEPS
+from epuck_ros.nodes.ack_window import COMMAND_QOS
 from epuck_ros.nodes.robot_ports import JOINT_NAMES
 
 QOS = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
-COMMAND_QOS = QoSProfile(depth=PUBLISHER_HISTORY_STEPS, reliability=ReliabilityPolicy.RELIABLE)
-"""As deep as the simulator's topics: a recorder may lag as far behind on the commands."""
 COMMAND_TOPIC = 'wheel_cmd'
 SPIN_PERIOD = 0.1
 """Seconds one wait on the executor lasts at most, so that Ctrl-C and a vanished simulator are noticed."""
