@@ -356,7 +356,7 @@ def test_an_unanswered_resume_is_asked_again():
         service = monitor.node.create_client(SetParameters, '/sim/set_parameters')  # the one service it offers
         deadline = time.monotonic() + 60
         while not service.service_is_ready() and time.monotonic() < deadline:
-            monitor.spin_once(0.05)
+            monitor.spin(0.05)
         assert monitor.set_paused(False, 30 * REQUEST_RETRY)
     finally:
         monitor.close()

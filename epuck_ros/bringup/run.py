@@ -33,6 +33,8 @@ PAUSE_TIMEOUT = 5.0
 """Wall seconds the end of a run waits for the simulator to accept paused:=true."""
 GRAPH_CHECK_PERIOD = 0.5
 """Wall seconds between two looks for another simulator during the run."""
+WATCH_SLICE = 0.02
+"""Wall seconds between two looks at the children and the graph while watching (`RunMonitor.spin`)."""
 
 
 class RunFailed(Exception):
@@ -83,12 +85,14 @@ class Supervisor:
         if self.args.view:
             start('view', 'view', [executable('view'), *self.ros_args(plan.view_params)])
 
-    def watch(self, done: Callable[[], bool], timeout: float, what: str) -> None:
-        """Spin until `done()` or a stop request; RunFailed on a child's death, another simulator or the timeout."""
+    def watch(self, done: Callable[[], bool], timeout: float, what: Callable[[], str],
+              until_sim_time: float = math.inf) -> None:
+        """Spin until `done()` or a stop request; RunFailed on a child's death, another simulator or the timeout.
+        `done()` is looked at every WATCH_SLICE, and at once when `/clock` reaches `until_sim_time`."""
         deadline = time.monotonic() + timeout
         next_check = 0.0
         while not self.stop_requested.is_set() and not done():
-            self.monitor.spin_once(0.05)
+            self.monitor.spin(WATCH_SLICE, until_sim_time)
             dead = self.children.dead()
             if dead is not None:
                 if dead.role == 'controller' and dead.process.returncode == 0 and self.plan.controller_kind != \
@@ -191,7 +195,7 @@ class Supervisor:
         # The simulator pauses itself at exactly `pause_at` = duration: the run ends on that very step.
         try:
             self.watch(lambda: bool(args.duration) and self.monitor.sim_time >= args.duration - 1e-6,
-                       math.inf, lambda: '')
+                       math.inf, lambda: '', args.duration or math.inf)
         finally:
             self.ended_at = time.monotonic()
         if args.duration and not self.stop_requested.is_set() and not self.controller_ended:

@@ -21,12 +21,21 @@ from rclpy.duration import Duration
 from rclpy.publisher import Publisher
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 
-PUBLISHER_HISTORY_STEPS = 300
-"""Steps each per-step topic's publisher keeps for reliable readers (proximity: eight messages per step): the
-simulator's, and a controller's `wheel_cmd`, which a recorder reads as far behind as it reads the simulator's."""
-COMMAND_QOS = QoSProfile(depth=PUBLISHER_HISTORY_STEPS, reliability=ReliabilityPolicy.RELIABLE)
-"""What a controller publishes `wheel_cmd` with (with a history of 10, a recorded run at real_time_factor 0 lost
-47-265 wheel commands)."""
+HISTORY_BUDGET = 3000
+"""Steps of history the simulator's per-step publishers keep, shared by its robots (`history_steps`). A longer
+history lets the simulator run further ahead of its reliable readers between two looks at their
+acknowledgements. In lockstep (published synchronously) a reader acknowledges only at the writer's next
+heartbeat, every 50 ms (fastdds_profiles.xml), so each full window cost a 20-40 ms wait: with 300 steps of history
+and a window of 250, a sixth of a lone robot's lockstep run went in these waits (instrumented run at 1,700
+steps/s); with 3,000 and 2,500, 53x became 61-66x real time (benchmarks/bench_lockstep.py). Memory: a volatile
+writer drops a sample as soon as every reader acknowledged it, so a history holds only what a reader lags behind,
+at most a window (Fast DDS's DataWriterImpl, onWriterChangeReceivedByAll)."""
+MIN_HISTORY_STEPS = 300
+"""Steps of history each robot's publishers keep at least (ten robots or more)."""
+COMMAND_QOS = QoSProfile(depth=HISTORY_BUDGET, reliability=ReliabilityPolicy.RELIABLE)
+"""What a controller publishes `wheel_cmd` with: a recorder reads it as far behind as it reads the simulator, up
+to the longest window (a controller cannot tell how many robots the simulator has). With a history of 10, a
+recorded run at real_time_factor 0 lost 47-265 wheel commands."""
 GIVE_UP = 10.0
 """Wall seconds a reader may go without acknowledging before the simulator stops waiting for it (a hung or
 killed process that DDS has not yet noticed); the node is told so it can warn. The publisher is then not
@@ -34,6 +43,18 @@ waited for again until its number of readers changes."""
 POLL = 0.0005
 """Wall seconds between two looks at the acknowledgements while waiting."""
 _NOW = Duration(nanoseconds=0)
+
+
+def history_steps(robots: int) -> int:
+    """Steps of history each per-step publisher of a simulator of `robots` robots keeps: HISTORY_BUDGET shared,
+    at least MIN_HISTORY_STEPS (so the memory a lagging reader can hold does not grow with the robots)."""
+    return max(MIN_HISTORY_STEPS, HISTORY_BUDGET // max(1, robots))
+
+
+def window_steps(history: int) -> int:
+    """Steps the simulator may run ahead of what its reliable readers acknowledged: below the history, with room
+    for the steps published while the last acknowledgements are on their way."""
+    return history * 5 // 6
 
 
 class AckWindow:

@@ -30,7 +30,7 @@ from visualization_msgs.msg import MarkerArray
 
 from epuck_ros.markers import world_markers
 from epuck_ros.model import RobotModel
-from epuck_ros.nodes.ack_window import PUBLISHER_HISTORY_STEPS, AckWindow
+from epuck_ros.nodes.ack_window import AckWindow, history_steps, window_steps
 from epuck_ros.nodes.announcements import ANNOUNCEMENT_QOS, SIMULATORS_TOPIC, announcement, parse_announcement
 from epuck_ros.nodes.dds_profile import use_package_profile
 from epuck_ros.nodes.params import ParamSpec, Usage, command_line_value, declare_parameters, prepare_arguments
@@ -42,10 +42,6 @@ from epuck_ros.world import WorldError, default_world, load_world, place_robots
 
 __all__ = ['JOINT_NAMES', 'SIM_PARAMETERS', 'SimNode', 'main']
 
-ACK_WINDOW_STEPS = 250
-"""Steps the simulator may run ahead of what its reliable readers acknowledged; below PUBLISHER_HISTORY_STEPS, so a
-recorder never loses a step (see `AckWindow`). A full window waits for a heartbeat's answer (up to 50 ms, see
-fastdds_profiles.xml): with 100 steps, a quarter of a lockstep run at 1,000 steps/s went in that wait."""
 LOCKSTEP_START_RESENDS = 10
 GRAPH_POLL = 0.05
 """Wall seconds between two looks at which robots have a controller while lockstep waits for answers."""
@@ -208,7 +204,8 @@ class SimNode(Node):
         self._stalled_topics: set[str] = set()
         self.add_on_set_parameters_callback(self._on_set_parameters)
 
-        stream = QoSProfile(depth=PUBLISHER_HISTORY_STEPS, reliability=ReliabilityPolicy.RELIABLE)
+        history = history_steps(len(world.robots))
+        stream = QoSProfile(depth=history, reliability=ReliabilityPolicy.RELIABLE)
         latched = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
         several = len(world.robots) > 1
         self.ports = [
@@ -227,7 +224,7 @@ class SimNode(Node):
         quiet_publisher(self, String, SIMULATORS_TOPIC, ANNOUNCEMENT_QOS).publish(String(data=self._identity.text()))
         self.create_subscription(String, SIMULATORS_TOPIC, self._on_simulator, ANNOUNCEMENT_QOS)
         self._clock_message = Patch(Clock(), [('clock.sec', 'i'), ('clock.nanosec', 'I')])
-        self._acks = AckWindow(self._stream_publishers, ACK_WINDOW_STEPS, self._on_ack_stall)
+        self._acks = AckWindow(self._stream_publishers, window_steps(history), self._on_ack_stall)
         shown = ', '.join(world.names[:5]) + (', ...' if len(world.names) > 5 else '')
         robots = f'{len(world.names)} robots ({shown})' if several else 'one robot'
         self.get_logger().info(
@@ -488,9 +485,9 @@ def publication_mode(argv: list[str]) -> str:
     step (benchmarks/bench_sim_node.py: 50 robots 1.5-1.9x real time against 0.7-1.1x synchronously). In
     lockstep nothing runs while the controllers answer, and that hand-off to another thread is one more wake-up
     per message on the round trip: synchronous, one robot ran 32-37x real time against 10-24x (alternating runs,
-    ACK_WINDOW_STEPS as now); timed from the first step (bench_lockstep's way now), 36.8x against 18.5x with the
-    controller asynchronous too (median of 5 alternating runs). Only `-p lockstep:=...` on the command line (what
-    `bringup` passes) is looked at; lockstep from a parameter file runs the same, asynchronously."""
+    a window of 250 steps); timed from the first step, 36.8x against 18.5x with the controller asynchronous too
+    (median of 5 alternating runs). Only `-p lockstep:=...` on the command line (what `bringup` passes) is looked
+    at; lockstep from a parameter file runs the same, asynchronously."""
     return 'SYNCHRONOUS' if command_line_value(argv, 'lockstep') is True else 'ASYNCHRONOUS'
 
 
