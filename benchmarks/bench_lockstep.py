@@ -8,17 +8,20 @@ run, for the same simulated seconds (the simulator starts paused and pauses itse
 - `avoid` reading `ir_raw`, one message per step (the issue's goal: >= 50x real time);
 - N robots, all driven by one `avoid --robots all` process.
 Printed per configuration: real-time factor, steps/s, robot-steps/s and the CPU each process used per step,
-each the median of `--repeat` runs taken in turn. The speed is the loop's, from the first `/clock` to the last
-(read by a best-effort reader here): the simulator's start-up is not in it. It used to be timed from the resume,
-and the simulator's discovery window (up to 1 s from its start, see sim_node.DISCOVERY_WINDOW) was often still
-running then: the same configuration measured 12x or 45x depending on when the resume came. The delay from the
-resume to the first step is printed apart.
+each the median of `--repeat` runs taken in turn. The speed is the loop's, from the first step to the last, with
+nobody else on the loop: the bench reads `/clock` only until the first step, then asks the simulator every
+END_POLL whether it paused itself at `pause_at` (the end is the middle of the last two looks). A reader of every
+`/clock` (as this bench had) is one more process woken at each step: it cost the loop 10-20 % (alternating runs).
+Before that, runs were timed from the resume, when the simulator's discovery window (up to 1 s from its start,
+see sim_node.DISCOVERY_WINDOW) was often still running. The delay from the resume to the first step is printed
+apart.
 
 Run: . scripts/env.sh; ROS_DOMAIN_ID=43 python benchmarks/bench_lockstep.py [--seconds S] [--swarm N] [--repeat R]
 """
 from __future__ import annotations
 
 import argparse
+import math
 import os
 import shutil
 import statistics
@@ -42,6 +45,8 @@ STEP = 0.032
 TIMEOUT = 60.0
 POLL = 0.01
 """Wall seconds the bench node waits for a message at a time."""
+END_POLL = 0.005
+"""Wall seconds between two questions to the simulator whether it paused itself (the run's end)."""
 RESUME_RETRY = 2.0
 """Wall seconds after which the resume request is sent again: a service's first request can go unanswered when the
 client's reader of the responses is not yet matched (seen once in a few dozen runs)."""
@@ -91,6 +96,22 @@ def resume(node: Node, params: AsyncParameterClient) -> None:
     raise SystemExit('bench_lockstep: the sim did not answer the resume')
 
 
+def paused_at(node: Node, params: AsyncParameterClient) -> float:
+    """Wall time at which the simulator paused itself (pause_at), within END_POLL: the middle of the last look that
+    saw it running and the first that saw it paused."""
+    deadline = time.monotonic() + TIMEOUT * 10
+    running_seen = time.monotonic()
+    while time.monotonic() < deadline:
+        asked = time.monotonic()
+        future = params.get_parameters(['paused'])
+        wait(node, future.done, 'the sim to answer whether it paused')
+        if future.result().values[0].bool_value:
+            return (running_seen + asked) / 2
+        running_seen = asked
+        time.sleep(END_POLL)
+    raise SystemExit('bench_lockstep: timed out waiting for the end of the run')
+
+
 def run(node: Node, label: str, seconds: float, robots: int, ir_raw: bool) -> Result:
     """One closed-loop run of `seconds` simulated seconds; the processes are stopped before returning."""
     sim = subprocess.Popen([executable('sim'), '--ros-args', '-p', 'lockstep:=true', '-p', 'real_time_factor:=0',
@@ -106,21 +127,22 @@ def run(node: Node, label: str, seconds: float, robots: int, ir_raw: bool) -> Re
                                for n in names), f'avoid to drive every robot and read {reads}')
         params = AsyncParameterClient(node, 'sim')
         wait(node, params.services_are_ready, 'the sim parameter services')
-        ticks: list[tuple[float, float]] = []  # (wall, simulated) time of each /clock
-        clock = node.create_subscription(Clock, '/clock', lambda msg: ticks.append(
+        first: list[tuple[float, float]] = []  # (wall, simulated) time of the first /clock
+        clock = node.create_subscription(Clock, '/clock', lambda msg: first.append(
             (time.monotonic(), msg.clock.sec + msg.clock.nanosec * 1e-9)),
-            QoSProfile(depth=1000, reliability=ReliabilityPolicy.BEST_EFFORT))
+            QoSProfile(depth=1, reliability=ReliabilityPolicy.BEST_EFFORT))
         wait(node, lambda: clock.get_publisher_count() > 0, 'the sim\'s /clock')
         cpu = (cpu_seconds(sim.pid), cpu_seconds(avoid.pid))
         resumed = time.monotonic()
         resume(node, params)
-        wait(node, lambda: bool(ticks) and ticks[-1][1] >= seconds - 1e-6, 'the end of the run', TIMEOUT * 10)
+        wait(node, lambda: bool(first), 'the first step')
         node.destroy_subscription(clock)
-        steps = round(seconds / STEP)
+        wall0, sim0 = first[0]
+        ended = paused_at(node, params)
+        steps = math.ceil(seconds / STEP - 1e-9)  # the sim pauses on the first step at or after `seconds`
         sim_cpu, avoid_cpu = (cpu_seconds(p.pid) - before for p, before in zip((sim, avoid), cpu))
-        (wall0, sim0), (wall1, sim1) = ticks[0], ticks[-1]
-        return Result(label, robots, (sim1 - sim0) / (wall1 - wall0), sim_cpu / steps * 1e6, avoid_cpu / steps * 1e6,
-                      wall0 - resumed)
+        return Result(label, robots, (steps * STEP - sim0) / (ended - wall0), sim_cpu / steps * 1e6,
+                      avoid_cpu / steps * 1e6, wall0 - resumed)
     finally:
         for process in (avoid, sim):
             interrupt(process, 15)
