@@ -61,6 +61,8 @@ def test_parameters_go_to_the_node_that_declares_them_as_their_type():
     # Integers given for float parameters reach the node as floats: `-p cruise_speed:=1` works.
     assert {'seed:=7', 'noise:=false', 'cmd_timeout:=2.0', 'real_time_factor:=0.0', 'lockstep:=true',
             'paused:=true'} <= set(plan.sim_params)
+    # bringup looks for another simulator itself before the resume: the sim steps as soon as it is resumed.
+    assert 'discovery_window:=0.0' in plan.sim_params
     _, plan = parse_args(['avoid', '-p', 'cruise_speed:=1'])
     assert plan.controller_params == ['cruise_speed:=1.0']
     _, plan = parse_args(['avoid', '--no-lockstep'])

@@ -71,6 +71,8 @@ class RunMonitor:
         rclpy.init(args=['--ros-args', *remap], context=self.context,
                    signal_handler_options=rclpy.signals.SignalHandlerOptions.NO)
         self.node = Node('bringup', context=self.context, enable_rosout=False)
+        self.created = time.monotonic()
+        """Since when this node (its DDS participant) watches the domain."""
         # Every step brings /clock and each robot's ground truth: rclpy's EventsExecutor dispatches them from C++
         # instead of rebuilding a wait set in Python before each one (see benchmarks/bench_bringup.py).
         self._executor = EventsExecutor(context=self.context)

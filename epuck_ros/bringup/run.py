@@ -12,7 +12,7 @@ import time
 from collections.abc import Callable
 
 from epuck_ros.bag.reader import BagError
-from epuck_ros.bringup import summary
+from epuck_ros.bringup import summary, tables
 from epuck_ros.bringup.cli import Plan, parse_args, ros_domain
 from epuck_ros.bringup.monitor import RunMonitor, samples_missing
 from epuck_ros.bringup.processes import Child, Children, executable
@@ -181,6 +181,10 @@ class Supervisor:
             return
         if not args.lockstep:
             time.sleep(SETTLE_TIME)
+        # Our simulator skips its own discovery window (cli passes discovery_window:=0): this process has watched the
+        # domain since before it started the simulator, and does so for at least as long before the resume.
+        watched = float(tables.sim_default('discovery_window'))
+        self.watch(lambda: time.monotonic() >= self.monitor.created + watched, READY_TIMEOUT, lambda: '')
         self.refuse_other_simulators()
         if not self.monitor.set_paused(False, READY_TIMEOUT):
             raise RunFailed('the simulator did not accept paused:=false')
@@ -250,8 +254,7 @@ def _time_step(plan: Plan) -> float:
         name, _, value = assignment.partition(':=')
         if name == 'time_step':
             return float(value)
-    from epuck_ros.bringup.tables import sim_parameters
-    return float(next(spec.default for spec in sim_parameters() if spec.name == 'time_step'))
+    return float(tables.sim_default('time_step'))
 
 
 def run(args: argparse.Namespace, plan: Plan) -> int:

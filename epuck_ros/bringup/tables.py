@@ -15,6 +15,11 @@ def sim_parameters() -> list[ParamSpec]:
     return list(SIM_PARAMETERS)
 
 
+def sim_default(name: str) -> object:
+    """The default of one of the simulator's parameters."""
+    return next(spec.default for spec in sim_parameters() if spec.name == name)
+
+
 def controller_parameters(plan: Plan) -> list[ParamSpec] | None:
     """The controller's table; None for a student's rclpy script (its parameters are its own business)."""
     if plan.controller_kind == 'behaviour':

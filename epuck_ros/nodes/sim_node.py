@@ -50,8 +50,9 @@ IDLE_POLL = 0.05
 PACING_SLICE = 0.02
 """Pacing sleeps at most this long at a time, then reads the real-time factor again: a change takes effect at once."""
 DISCOVERY_WINDOW = 1.0
-"""Wall seconds from the creation of the sim's node (its DDS participant is up) during which it looks for another
-simulator (another `/clock` publisher, or a node with its name) before it steps or publishes anything. Participants
+"""The default of `discovery_window`: wall seconds from the creation of the sim's node (its DDS participant is up)
+during which it looks for another simulator (another `/clock` publisher, or a node with its name) before it steps
+or publishes anything. Participants
 announce themselves every 0.5 s (fastdds_profiles.xml), so one already running is discovered within about that
 (measured: 0-0.56 s with the two cores busy). A simulator discovered later still is caught by the announcements on
 SIMULATORS_TOPIC: the later of two refuses then, the earlier goes on. It was 1.5 s from the process start, when
@@ -77,6 +78,10 @@ SIM_PARAMETERS = [
                                  'whatever the load of the machine', read_only=True),
     ParamSpec('lockstep_timeout', 1.0, 'wall seconds a lockstep simulation waits for the answers before stepping '
                                        'anyway', (0.001, 60.0), read_only=True),
+    ParamSpec('discovery_window', DISCOVERY_WINDOW, 'wall seconds from the start during which the simulator looks for '
+                                                    'another simulator on the ROS domain before its first step; '
+                                                    'bringup, which has watched the domain since before it started '
+                                                    'the simulator, passes 0', (0.0, 10.0), read_only=True),
     ParamSpec('world', '', 'path to a world YAML file; empty = the built-in 1 m x 1 m arena', read_only=True),
     ParamSpec('robots', 0, 'number of robots: 0 = those of the world; N = N robots epuck0.. placed clear of '
                            'everything, seeded by seed', (0, 100000), read_only=True),
@@ -180,6 +185,7 @@ class SimNode(Node):
         self._pause_at = values['pause_at']
         self._lockstep = values['lockstep']
         self._lockstep_timeout = values['lockstep_timeout']
+        self._discovery_window = values['discovery_window']
         self._sim = Simulation(world, RobotModel(), time_step=self._time_step, seed=values['seed'],
                                noise=values['noise'], cmd_timeout=values['cmd_timeout'])
         self._lock = threading.Lock()
@@ -288,7 +294,7 @@ class SimNode(Node):
                 if now - seen_at >= ANNOUNCEMENT_WAIT:
                     self.refusal = self._refusal(found)
                     return False
-            elif now >= self._node_created + DISCOVERY_WINDOW:
+            elif now >= self._node_created + self._discovery_window:
                 return True
             time.sleep(0.05)
         return True
