@@ -74,9 +74,9 @@ class AckWindow:
         """Step `step` is out. Every quarter window, note whether the readers have caught up (only when a heartbeat
         was answered since the last publish: asynchronous sends carry heartbeats); a full window ahead, wait
         until they have."""
-        behind = step - self._acked
-        if behind < self._window and (behind < self._window // 4 or step % (self._window // 4)):
+        if not self.due(step):
             return
+        behind = step - self._acked
         pending = []
         for publisher in self._publishers():
             readers = publisher.get_subscription_count()
@@ -98,6 +98,11 @@ class AckWindow:
             if pending:
                 time.sleep(POLL)
         self._acked = step
+
+    def due(self, step: int) -> bool:
+        """Whether `published(step)` would look at the acknowledgements (and perhaps wait for them)."""
+        behind = step - self._acked
+        return behind >= self._window or (behind >= self._window // 4 and not step % (self._window // 4))
 
     def restart(self, step: int) -> None:
         """Nothing before `step` needs acknowledging any more (after a pause, say)."""

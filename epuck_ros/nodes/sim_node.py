@@ -1,8 +1,9 @@
 """`sim`: the e-puck simulator node — a thin ROS 2 shell around `epuck_ros.simulation.Simulation`.
 
 The simulation steps in its own thread, paced by `real_time_factor` against the wall clock
-(0 = as fast as the machine can go), and is the source of `/clock`; the executor thread only
-receives commands, service calls and parameters. Every message of a step carries that step's simulated
+(0 = as fast as the machine can go), and is the source of `/clock`; the executor thread receives
+commands, service calls and parameters. One exception, for speed: in lockstep at `real_time_factor` 0 the
+executor thread takes the next step itself when a step's last answer arrives (`SimNode._on_command`). Every message of a step carries that step's simulated
 time, and `/clock` goes out last. Each robot's topics belong to its `RobotPorts`.
 """
 from __future__ import annotations
@@ -189,11 +190,22 @@ class SimNode(Node):
         self._sim = Simulation(world, RobotModel(), time_step=self._time_step, seed=values['seed'],
                                noise=values['noise'], cmd_timeout=values['cmd_timeout'])
         self._lock = threading.Lock()
-        """Guards the simulation: the loop thread steps it, the executor thread commands and resets it."""
+        """Guards the simulation: the loop thread steps it (in lockstep the executor thread may too), the executor
+        thread commands and resets it."""
         self._answers = threading.Condition()
-        """Lockstep: notified when the answers the loop waits for are in (each one a wake-up of the loop thread)."""
+        """Lockstep: guards the answers below; notified when the answers the loop waits for are in."""
         self._awaited: set[int] = set()
-        """Lockstep: the robots whose answer to the current step the loop still waits for (empty: any answer)."""
+        """Lockstep: the robots whose answer to the current step is still awaited (empty: any answer)."""
+        self._waiting_for: list[RobotPorts] = []
+        """Lockstep: the robots whose answers the current step waits for (those driven, else all of them)."""
+        self._any_answer = True
+        """Lockstep: no robot has a controller: any command answers the step."""
+        self._parked = False
+        """Lockstep: the loop thread waits for the current step's answers; the executor thread may step itself
+        (`_on_command`)."""
+        self._answers_deadline = 0.0
+        """Lockstep: monotonic time at which the loop stops waiting for the current step's answers."""
+        self._next_watch = 0.0
         self._wake = threading.Event()
         self._step_requests = 0
         self._stepped = threading.Condition()
@@ -342,8 +354,19 @@ class SimNode(Node):
         with self._answers:
             self.ports[robot].answered = True
             self._awaited.discard(robot)
-            if not self._awaited:
+            if self._awaited:
+                return
+            if not self._steps_on_answers():
                 self._answers.notify()
+                return
+            self._take_answers()
+            self._answers_deadline = time.monotonic() + self._lockstep_timeout  # the loop thread, parked, waits on
+        # The step's answers are in and nothing paces the loop: step here, in the executor thread that received the
+        # last answer. Handing the step to the loop thread was one more thread wake-up per lockstep round trip:
+        # 52-59x real time that way, 64-69x this way (benchmarks/bench_lockstep.py, alternating runs).
+        self._advance()
+        with self._answers:
+            self._expect_answers()
 
     def _on_reset(self, request: Empty.Request, response: Empty.Response) -> Empty.Response:
         with self._lock:
@@ -400,33 +423,38 @@ class SimNode(Node):
             return
         pacer = Pacer()
         resend = False
-        next_watch = time.monotonic() + WATCH_PERIOD
+        self._next_watch = time.monotonic() + WATCH_PERIOD
         while self._running.is_set() and self.context.ok() and not self.refusal:
-            if time.monotonic() > next_watch:
-                self._watch_for_newcomers()
-                next_watch = time.monotonic() + WATCH_PERIOD
             if self._paused and not self._step_requests:
                 pacer.restart()
                 self._acks.restart(self._sim.steps)
                 self._wake.wait(IDLE_POLL)
                 self._wake.clear()
                 continue
-            with self._answers:
-                for ports in self.ports:
-                    ports.answered = False
-            with self._lock:
-                events = None if resend else self._sim.step()
-                self._publish()
-                now_sim, steps = self._sim.time, self._sim.steps
-            if events is not None:
-                self._after_step(events, now_sim)
-                if self._step_requests:
-                    with self._stepped:  # the step service answers now; lockstep needs the executor free
-                        self._step_requests -= 1
-                        self._stepped.notify_all()
+            self._advance(resend)
             resend = self._lockstep and not self._await_answers()
-            self._acks.published(steps)
-            pacer.wait(now_sim, lambda: self._rtf, lambda: self._running.is_set() and not self._paused)
+            self._acks.published(self._sim.steps)
+            pacer.wait(self._sim.time, lambda: self._rtf, lambda: self._running.is_set() and not self._paused)
+
+    def _advance(self, resend: bool = False) -> None:
+        """One step (or the last one sent again), published: by the loop thread, or in lockstep by the executor
+        thread that received the step's last answer (`_on_command`)."""
+        if time.monotonic() > self._next_watch:
+            self._watch_for_newcomers()
+            self._next_watch = time.monotonic() + WATCH_PERIOD
+        with self._answers:
+            for ports in self.ports:
+                ports.answered = False
+        with self._lock:
+            events = None if resend else self._sim.step()
+            self._publish()
+            now_sim = self._sim.time
+        if events is not None:
+            self._after_step(events, now_sim)
+            if self._step_requests:
+                with self._stepped:  # the step service answers now; lockstep needs the executor free
+                    self._step_requests -= 1
+                    self._stepped.notify_all()
 
     def _publish(self) -> None:
         """One step's messages, robot by robot; `/clock` goes last, so a node whose timer fires on that tick has
@@ -459,29 +487,57 @@ class SimNode(Node):
         start a step apart. A few resends at most, so a lost first answer cannot hang the simulation.
         The graph (who has a controller) is read once per step and every GRAPH_POLL while waiting, and the command
         callback wakes this thread only once the last awaited answer is in (not at every answer, re-reading the
-        graph each time: with 50 robots, 50 wake-ups and 5,000 graph look-ups per step)."""
-        deadline = time.monotonic() + self._lockstep_timeout
-        read_graph = True
+        graph each time: with 50 robots, 50 wake-ups and 5,000 graph look-ups per step). Meanwhile the executor
+        thread may take the steps over while their answers come in (`_steps_on_answers`): this thread then goes on
+        waiting, for the answers of each new step."""
         with self._answers:
+            self._expect_answers()
+            self._parked = True
             while True:
-                if read_graph:
-                    driven = [ports for ports in self.ports if ports.has_controller()]
-                    waiting_for = driven or self.ports
-                    self._awaited = {ports.index for ports in driven if not ports.answered}
-                if (all if driven else any)(ports.answered for ports in waiting_for):
-                    for ports in waiting_for:
-                        ports.answered_once = ports.answered_once or ports.answered
+                if (any if self._any_answer else all)(ports.answered for ports in self._waiting_for):
+                    self._take_answers()
+                    self._parked = False
                     return True
-                remaining = deadline - time.monotonic()
+                remaining = self._answers_deadline - time.monotonic()
                 if remaining <= 0.0 or not self._running.is_set():
+                    self._parked = False
                     break
-                read_graph = not self._answers.wait(min(remaining, GRAPH_POLL))
+                if not self._answers.wait(min(remaining, GRAPH_POLL)):
+                    self._read_graph()
+            waiting_for = self._waiting_for
         never_answered = [ports for ports in waiting_for if not ports.answered_once]
         if not never_answered or self._resends >= LOCKSTEP_START_RESENDS or not self._running.is_set():
             return True
         self._resends += 1
         self.get_logger().info(f'lockstep: no answer to t={self._sim.time:.3f} s yet, sending it again')
         return False
+
+    def _expect_answers(self) -> None:
+        """A step is out: wait for its answers from now on, up to `lockstep_timeout` (under `_answers`)."""
+        self._answers_deadline = time.monotonic() + self._lockstep_timeout
+        self._read_graph()
+
+    def _read_graph(self) -> None:
+        """Which robots' answers the current step waits for: those with a controller (under `_answers`)."""
+        driven = [ports for ports in self.ports if ports.has_controller()]
+        self._any_answer = not driven
+        self._waiting_for = driven or self.ports
+        self._awaited = {ports.index for ports in driven if not ports.answered}
+
+    def _take_answers(self) -> None:
+        """The current step is answered: note who answered, and clear the answers, so that no thread takes them
+        for the next step's (under `_answers`)."""
+        for ports in self._waiting_for:
+            ports.answered_once = ports.answered_once or ports.answered
+        for ports in self.ports:
+            ports.answered = False
+
+    def _steps_on_answers(self) -> bool:
+        """Whether the executor thread takes the next step itself once the current one is answered (under
+        `_answers`): only while the loop thread waits for these answers and would step at once after them (nothing
+        to pace, no pause, no `step` request, no look at the readers' acknowledgements due)."""
+        return (self._parked and self._rtf == 0.0 and not self._paused and not self._step_requests
+                and self._running.is_set() and not self.refusal and not self._acks.due(self._sim.steps))
 
 
 def publication_mode(argv: list[str]) -> str:
