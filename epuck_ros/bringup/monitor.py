@@ -114,7 +114,7 @@ class RunMonitor:
 
     def stepping_speed(self) -> float | None:
         """Simulated seconds per wall second from the first `/clock` to the last: the run's pace once stepping,
-        without the simulator's start-up (its discovery window may still be running at the resume)."""
+        without the run's start-up (a simulator still in its discovery window at the resume steps later)."""
         if self.first_tick is None or self.last_tick is None or self.last_tick[0] <= self.first_tick[0]:
             return None
         (wall0, sim0), (wall1, sim1) = self.first_tick, self.last_tick

@@ -186,9 +186,9 @@ class Supervisor:
         watched = float(tables.sim_default('discovery_window'))
         self.watch(lambda: time.monotonic() >= self.monitor.created + watched, READY_TIMEOUT, lambda: '')
         self.refuse_other_simulators()
+        self.resumed_at = time.monotonic()  # the request's: the simulator may step before its answer is back
         if not self.monitor.set_paused(False, READY_TIMEOUT):
             raise RunFailed('the simulator did not accept paused:=false')
-        self.resumed_at = time.monotonic()
         robots = self.monitor.world.names
         pace = f'real-time factor {args.real_time_factor:g}' if args.real_time_factor else 'as fast as possible'
         print(f'[bringup] running {plan.controller}' + (f' on {len(robots)} robots' if len(robots) > 1 else '') +
@@ -228,7 +228,7 @@ def report(supervisor: Supervisor, sim_time: float, wall_time: float) -> list[st
     stepping = monitor.stepping_speed()
     if stepping is not None and supervisor.resumed_at is not None:
         line += (f'; {stepping:.1f}x real time from the first step, which came '
-                 f'{monitor.first_tick[0] - supervisor.resumed_at:.2f} s after the resume (the simulator\'s start-up)')
+                 f'{monitor.first_tick[0] - supervisor.resumed_at:.2f} s after the resume')
     head = [line]
     notes = []
     if plan.record_dir is not None:
