@@ -128,14 +128,17 @@ class Process:
                 self.proc.wait()
 
 
-def bare_node_seconds(observer: Observer) -> float:
-    """A bare rclpy process: interpreter, imports, one node, until the observer sees it in the graph."""
-    code = ('import rclpy, time; from rclpy.node import Node; rclpy.init(); n = Node("bare_probe"); '
+def bare_node_seconds(observer: Observer, run: int) -> float:
+    """A bare rclpy process: interpreter, imports, one node, until the observer sees it in the graph. Each run's
+    node has its own name: the graph keeps a stopped process's node for a while, and a second `bare_probe` was
+    'seen' at once (a floor of 0.00 s)."""
+    name = f'bare_probe_{run}'
+    code = (f'import rclpy, time; from rclpy.node import Node; rclpy.init(); n = Node("{name}"); '
             'time.sleep(60)')
     t0 = time.monotonic()
     process = Process([sys.executable, '-c', code], t0)
     try:
-        while not observer._node_seen('bare_probe'):
+        while not observer._node_seen(name):
             observer.executor.spin_once(timeout_sec=0.01)
             if time.monotonic() - t0 > TIMEOUT:
                 raise RuntimeError('bare node never seen')
@@ -154,8 +157,8 @@ def main() -> None:
     bringup_lines: list[float] = []
     floor = []
     try:
-        for _ in range(repeats):
-            floor.append(bare_node_seconds(observer))
+        for run in range(repeats):
+            floor.append(bare_node_seconds(observer, run))
             holder: list[Process] = []
 
             def with_bringup() -> list[Process]:
