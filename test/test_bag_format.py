@@ -388,6 +388,26 @@ def test_info_lists_stamp_gaps_and_incomplete_steps(tmp_path):
             '8 per stamp)') in info
 
 
+def test_info_lists_a_periodic_topic_that_ends_before_the_others(tmp_path):
+    """A reader that stalled: its topic's stamps stop while the other periodic topics go on to the end."""
+    writer = BagWriter(tmp_path / 'stalled')
+    writer.add_topic('/odom', 'nav_msgs/msg/Odometry', [QosProfile()])
+    writer.add_topic('/proximity', 'sensor_msgs/msg/Range', [QosProfile()])
+    topics = dict(sample_messages_by_topic())
+    for step, (odom, rays) in enumerate(zip(topics['/odom'], topics['/proximity'])):
+        t = 10**9 + step * 32_000_000
+        writer.write('/odom', cdr('/odom', odom), t)
+        for ray in rays if step < 25 else ():
+            writer.write('/proximity', cdr('/proximity', ray), t)
+    writer.close()
+    with Bag(tmp_path / 'stalled') as bag:
+        info = format_info(bag)
+    steps = len(topics['/odom'])
+    assert (f'/proximity: ~{8 * (steps - 25)} of {8 * steps} messages missing: ends {steps - 25} periods before the '
+            'other periodic topics (usual period 0.032 s, 8 per stamp)') in info, info
+    assert '/odom:' not in info
+
+
 def sample_messages_by_topic() -> dict[str, list]:
     """The sample messages per topic; proximity grouped by step (8 rays)."""
     by_topic: dict[str, list] = {}

@@ -202,17 +202,21 @@ def test_avoid_for_a_simulated_minute_without_a_collision(launch):
 
 def test_the_summary_is_the_bag_summary_and_lockstep_runs_are_identical(launch, tmp_path):
     """Noise on, seed fixed: two recorded runs give the same trajectory to the last bit, and bringup's figures are
-    the ones `bag summary` prints for the same bag."""
+    the ones `bag summary` prints for the same bag. More steps than the simulator runs ahead of a recorder's
+    acknowledgements (`ack_window.SHORT_WINDOW`), so it waits for the recorder mid-run; nothing is lost."""
     from epuck_ros.bag.reader import Bag
+    from epuck_ros.nodes.ack_window import SHORT_WINDOW
+    steps = 400
+    assert steps > SHORT_WINDOW
     trajectories, distances = [], []
     for run_index in range(2):
         bag = tmp_path / f'run{run_index}'
-        run = launch('bringup', 'avoid', '--duration', '12', '--real-time-factor', '0', '--seed', '3',
+        run = launch('bringup', 'avoid', '--duration', f'{steps * 0.032:g}', '--real-time-factor', '0', '--seed', '3',
                      '--record', str(bag))
-        assert run.proc.wait(timeout=120) == 0, run.output()
+        assert run.proc.wait(timeout=300) == 0, run.output()
         assert 'no message lost' in run.output(), run.output()   # the recorder's own check, wheel_cmd included
         simulated, distance, _ = summary_of(run.output())
-        assert simulated == pytest.approx(12.0, abs=0.032)
+        assert simulated == pytest.approx(steps * 0.032, abs=0.032)
         bag_summary = subprocess.run([str(BIN_DIR / 'bag'), 'summary', str(bag)], capture_output=True, text=True,
                                      timeout=60)
         assert bag_summary.returncode == 0, bag_summary.stderr
@@ -221,9 +225,10 @@ def test_the_summary_is_the_bag_summary_and_lockstep_runs_are_identical(launch, 
         distances.append(distance)
         with Bag(bag) as reader:
             messages = [m.data for m in reader.messages(topics=['/ground_truth'])]
+            assert reader.topics['/proximity'].message_count >= 8 * steps
         # In lockstep the sim may re-send its first step until the behaviour answers: drop such repeats.
         trajectories.append([data for i, data in enumerate(messages) if i == 0 or data != messages[i - 1]])
-    assert [len(t) for t in trajectories] == [round(12 / 0.032)] * 2
+    assert [len(t) for t in trajectories] == [steps] * 2
     differ = [i for i, (a, b) in enumerate(zip(*trajectories)) if a != b]
     assert not differ, f'{len(differ)} steps differ, the first at step {differ[0] + 1}'
     assert distances[0] == distances[1] > 0.2

@@ -5,7 +5,8 @@ each shared by the same number of messages (8 Range messages per step on ``proxi
 step of several periods is a gap (whole steps missing); a stamp carried by fewer messages than
 usual is an incomplete step. The period is the typical single step (refined from the steps near
 the 10th percentile) and the usual count the 90th percentile, so both hold even when most of a
-topic was lost, as long as a tenth of its steps and stamps arrived whole. Only periodic topics
+topic was lost, as long as a tenth of its steps and stamps arrived whole. A periodic topic whose stamps end
+periods before the others' is missing its end (a reader that stalled). Only periodic topics
 are judged (nearly every step a whole number of periods), so event-driven ones such as
 ``rosout`` are left alone, as are topics without a stamp first (no ``std_msgs/Header`` or
 ``builtin_interfaces/Time`` as their first field). No ROS needed.
@@ -13,7 +14,7 @@ are judged (nearly every step a whole number of periods), so event-driven ones s
 from __future__ import annotations
 
 import re
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -46,17 +47,22 @@ class TopicGaps:
     longest_gap_ns: int
     incomplete_steps: int
     missing_in_steps: int
+    last_ns: int
+    missing_at_end: int = 0
+    """Periods between this topic's last stamp and the latest stamp of the bag's periodic topics."""
 
     @property
     def missing_messages(self) -> int:
         """Estimated messages missing: whole steps times the usual count, plus the holes in incomplete steps."""
-        return self.missing_steps * self.per_stamp + self.missing_in_steps
+        return (self.missing_steps + self.missing_at_end) * self.per_stamp + self.missing_in_steps
 
     def describe(self) -> str:
         parts = []
         if self.gaps:
             parts.append(f'{self.gaps} stamp gap{"s" * (self.gaps > 1)} ({self.missing_steps} periods missing, '
                          f'longest {self.longest_gap_ns / 1e9:.3f} s)')
+        if self.missing_at_end:
+            parts.append(f'ends {self.missing_at_end} periods before the other periodic topics')
         if self.incomplete_steps:
             parts.append(f'{self.incomplete_steps} stamp{"s" * (self.incomplete_steps > 1)} with fewer than '
                          f'{self.per_stamp} messages')
@@ -96,7 +102,7 @@ def find_gaps(topic: str, stamps: np.ndarray) -> TopicGaps | None:
     short = inner[inner < per_stamp]
     return TopicGaps(topic, int(len(stamps)), period, per_stamp, int(len(long_steps)), missing_steps,
                      int(long_steps.max()) if len(long_steps) else 0, int(len(short)),
-                     int(np.sum(per_stamp - short)))
+                     int(np.sum(per_stamp - short)), int(stamps.max()))
 
 
 def stamps_from_heads(heads: np.ndarray) -> np.ndarray:
@@ -117,4 +123,7 @@ def bag_gaps(bag: Bag) -> tuple[list[str], list[TopicGaps]]:
     heads = bag.message_heads(stamped, ENCAPSULATION + 8)
     judged = [gaps for gaps in (find_gaps(name, stamps_from_heads(rows)) for name, rows in sorted(heads.items()))
               if gaps is not None]
+    end = max((gaps.last_ns for gaps in judged), default=0)
+    judged = [replace(gaps, missing_at_end=int(np.rint((end - gaps.last_ns) / gaps.period_ns))
+                      if end - gaps.last_ns >= GAP_FACTOR * gaps.period_ns else 0) for gaps in judged]
     return [gaps.topic for gaps in judged], [gaps for gaps in judged if gaps.missing_messages]

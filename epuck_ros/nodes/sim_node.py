@@ -22,7 +22,7 @@ from rclpy.exceptions import ParameterException
 from rclpy.experimental import EventsExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
-from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.signals import SignalHandlerOptions
 from rosgraph_msgs.msg import Clock
 from std_msgs.msg import String
@@ -242,7 +242,7 @@ class SimNode(Node):
         quiet_publisher(self, String, SIMULATORS_TOPIC, ANNOUNCEMENT_QOS).publish(String(data=self._identity.text()))
         self.create_subscription(String, SIMULATORS_TOPIC, self._on_simulator, ANNOUNCEMENT_QOS)
         self._clock_message = Patch(Clock(), [('clock.sec', 'i'), ('clock.nanosec', 'I')])
-        self._acks = AckWindow(self._stream_publishers, window_steps(history), self._on_ack_stall)
+        self._acks = AckWindow(self._stream_publishers, window_steps(history), self._on_ack_stall, self._kept_all)
         shown = ', '.join(world.names[:5]) + (', ...' if len(world.names) > 5 else '')
         robots = f'{len(world.names)} robots ({shown})' if several else 'one robot'
         self.get_logger().info(
@@ -320,6 +320,11 @@ class SimNode(Node):
 
     def _stream_publishers(self) -> list:
         return [self._clock_pub] + [pub for ports in self.ports for pub in ports.stream_publishers]
+
+    def _kept_all(self, topic: str) -> bool:
+        """Some reader of `topic` keeps all its samples (KEEP_ALL history: a recorder)."""
+        return any(info.qos_profile.history == HistoryPolicy.KEEP_ALL
+                   for info in self.get_subscriptions_info_by_topic(topic))
 
     def _on_ack_stall(self, topic: str) -> None:
         if topic not in self._stalled_topics:
