@@ -202,12 +202,13 @@ def test_avoid_for_a_simulated_minute_without_a_collision(launch):
 
 def test_the_summary_is_the_bag_summary_and_lockstep_runs_are_identical(launch, tmp_path):
     """Noise on, seed fixed: two recorded runs give the same trajectory to the last bit, and bringup's figures are
-    the ones `bag summary` prints for the same bag. More steps than the simulator runs ahead of a recorder's
-    acknowledgements (`ack_window.SHORT_WINDOW`), so it waits for the recorder mid-run; nothing is lost."""
+    the ones `bag summary` prints for the same bag. Far more steps than the simulator runs ahead of a recorder's
+    acknowledgements (`ack_window.SHORT_WINDOW`), and long enough that a recorder taking one message per topic and
+    turn fell behind on `proximity` (eight per step) and lost most of it: every message is in the bag."""
     from epuck_ros.bag.reader import Bag
     from epuck_ros.nodes.ack_window import SHORT_WINDOW
-    steps = 400
-    assert steps > SHORT_WINDOW
+    steps = 1600
+    assert steps > 4 * SHORT_WINDOW
     trajectories, distances = [], []
     for run_index in range(2):
         bag = tmp_path / f'run{run_index}'
