@@ -5,8 +5,8 @@ Cases (all at `--real-time-factor 0`, default world): `avoid` in lockstep (bring
 measured in the same run: `sim` alone at real-time factor 0 with nothing attached but a /clock reader (what the
 node can do without a controller to wait for). Each case's figures are the ones bringup prints (simulated seconds
 over wall seconds from the resume on, and from the first step on: the second leaves out the run's start-up, which
-held up to 1 s of the simulator's discovery window before bringup passed discovery_window:=0); CPU is user + system seconds of each child over the command's wall time
-(start-up and stop included).
+held up to 1 s of the simulator's discovery window before bringup passed discovery_window:=0); CPU is user +
+system seconds of each child over the command's wall time (start-up and stop included).
 
     python benchmarks/bench_bringup.py [--duration 30] [--robots 50]
 """

@@ -66,8 +66,8 @@ class AckWindow:
 
     The window is `window` steps, or SHORT_WINDOW while a topic has a reader that keeps all its samples (a
     recorder: `keeps_all(topic)`), worked out again at each look at the acknowledgements, the first one at once.
-    Such a reader acknowledges only what it has room for: a recording of a lone robot in lockstep with a window
-    of 2,500 steps kept 3,373 of 20,800 `proximity` samples, silently (the reader stalled)."""
+    Such a reader acknowledges only what it has room for (Fast DDS's default: 5,000 samples), and one refused
+    sample holds back every later one: 2,500 steps of `proximity` are 20,000 samples, 250 steps 2,000."""
 
     def __init__(self, publishers: Callable[[], Sequence[Publisher]], window: int,
                  on_stall: Callable[[str], None], keeps_all: Callable[[str], bool]) -> None:
