@@ -4,7 +4,8 @@ The simulation steps in its own thread, paced by `real_time_factor` against the 
 (0 = as fast as the machine can go), and is the source of `/clock`; the executor thread receives
 commands, service calls and parameters. One exception, for speed: in lockstep at `real_time_factor` 0 the
 executor thread takes the next step itself when a step's last answer arrives (`SimNode._on_command`). Every
-message of a step carries that step's simulated time, and `/clock` goes out last. Each robot's topics belong to its `RobotPorts`.
+message of a step carries that step's simulated time, and `/clock` goes out last. Each robot's topics belong to
+its `RobotPorts`.
 """
 from __future__ import annotations
 
