@@ -22,7 +22,7 @@ import time
 from pathlib import Path
 from tempfile import TemporaryDirectory
 
-from measure import cpu_seconds
+from measure import cpu_seconds, resume
 
 os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
 os.environ.setdefault('ROS_DOMAIN_ID', '48')
@@ -88,7 +88,6 @@ def sim_alone(duration: float) -> float:
     from rclpy.context import Context
     from rclpy.executors import SingleThreadedExecutor
     from rclpy.node import Node
-    from rclpy.parameter import Parameter
     from rclpy.parameter_client import AsyncParameterClient
     from rclpy.qos import QoSProfile, ReliabilityPolicy
     from rosgraph_msgs.msg import Clock
@@ -111,11 +110,7 @@ def sim_alone(duration: float) -> float:
         while (reader.get_publisher_count() == 0 or not parameters.services_are_ready()) and \
                 time.monotonic() < deadline:
             executor.spin_once(timeout_sec=0.05)
-        for _ in range(30):  # asked again every 2 s: a first request to a just-discovered service can go unanswered
-            resumed = parameters.set_parameters([Parameter('paused', value=False)])
-            executor.spin_until_future_complete(resumed, 2.0)
-            if resumed.done():
-                break
+        resume(parameters, lambda future, timeout: executor.spin_until_future_complete(future, timeout))
         while (not stamps or stamps[-1][1] < duration - 1e-6) and time.monotonic() < deadline:
             executor.spin_once(timeout_sec=0.05)
     finally:

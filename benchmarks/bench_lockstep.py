@@ -33,13 +33,12 @@ from pathlib import Path
 
 import rclpy
 from rclpy.node import Node
-from rclpy.parameter import Parameter
 from rclpy.parameter_client import AsyncParameterClient
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from rosgraph_msgs.msg import Clock
 
 from epuck_ros.bringup.processes import interrupt
-from measure import cpu_seconds
+from measure import cpu_seconds, resume
 
 STEP = 0.032
 TIMEOUT = 60.0
@@ -47,9 +46,6 @@ POLL = 0.01
 """Wall seconds the bench node waits for a message at a time."""
 END_POLL = 0.005
 """Wall seconds between two questions to the simulator whether it paused itself (the run's end)."""
-RESUME_RETRY = 2.0
-"""Wall seconds after which the resume request is sent again: a service's first request can go unanswered when the
-client's reader of the responses is not yet matched (seen once in a few dozen runs)."""
 
 
 def executable(name: str) -> str:
@@ -82,18 +78,6 @@ def wait(node: Node, condition: object, what: str, timeout: float = TIMEOUT) -> 
         if time.monotonic() > deadline:
             raise SystemExit(f'bench_lockstep: timed out waiting for {what}')
         rclpy.spin_once(node, timeout_sec=POLL)
-
-
-def resume(node: Node, params: AsyncParameterClient) -> None:
-    """paused:=false, sent again every RESUME_RETRY until answered."""
-    for _ in range(round(TIMEOUT / RESUME_RETRY)):
-        future = params.set_parameters([Parameter('paused', value=False)])
-        deadline = time.monotonic() + RESUME_RETRY
-        while not future.done() and time.monotonic() < deadline:
-            rclpy.spin_once(node, timeout_sec=POLL)
-        if future.done():
-            return
-    raise SystemExit('bench_lockstep: the sim did not answer the resume')
 
 
 def paused_at(node: Node, params: AsyncParameterClient) -> float:
@@ -134,7 +118,9 @@ def run(node: Node, label: str, seconds: float, robots: int, ir_raw: bool) -> Re
         wait(node, lambda: clock.get_publisher_count() > 0, 'the sim\'s /clock')
         cpu = (cpu_seconds(sim.pid), cpu_seconds(avoid.pid))
         resumed = time.monotonic()
-        resume(node, params)
+        if not resume(params, lambda future, timeout: rclpy.spin_until_future_complete(node, future,
+                                                                                       timeout_sec=timeout)):
+            raise SystemExit('bench_lockstep: the sim did not answer the resume')
         wait(node, lambda: bool(first), 'the first step')
         node.destroy_subscription(clock)
         wall0, sim0 = first[0]

@@ -2,7 +2,13 @@
 from __future__ import annotations
 
 import os
+from collections.abc import Callable
 from pathlib import Path
+from typing import Any
+
+REQUEST_RETRY = 2.0
+"""Wall seconds after which the resume is asked again, as `bringup` does (epuck_ros.bringup.monitor.REQUEST_RETRY):
+a first request to a just-discovered service can go unanswered (seen twice in about 60 runs)."""
 
 
 def cpu_seconds(pid: int) -> float | None:
@@ -12,3 +18,15 @@ def cpu_seconds(pid: int) -> float | None:
     except OSError:
         return None
     return (int(fields[11]) + int(fields[12])) / os.sysconf('SC_CLK_TCK')
+
+
+def resume(parameters: Any, spin_until_done: Callable[[Any, float], None], attempts: int = 30) -> bool:
+    """Set the simulator's `paused` to false through `parameters` (an AsyncParameterClient), asking again every
+    REQUEST_RETRY; `spin_until_done(future, timeout)` spins the bench's node. True once the simulator answered."""
+    from rclpy.parameter import Parameter
+    for _ in range(attempts):
+        future = parameters.set_parameters([Parameter('paused', value=False)])
+        spin_until_done(future, REQUEST_RETRY)
+        if future.done():
+            return True
+    return False

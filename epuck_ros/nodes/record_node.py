@@ -55,6 +55,9 @@ DRAIN_LIMIT = 5.0
 well within the 10 s bringup allows a child to stop."""
 DRAIN_IDLE_SPINS = 3
 """Spins without a message that end that draining (a timer may take a spin)."""
+BACKLOG_PER_CALLBACK = 256
+"""Messages a callback takes at most beyond its own (see `Recorder._on_message`): enough for any topic's backlog of
+a turn, and a topic that arrives faster than it is written cannot hold the executor (the stop flag, the others)."""
 NOTHING_RECORDED_WARNING = 5.0
 """s of wall time without a single message before `record` says it may be on the wrong domain."""
 DEFAULT_BAG_FOLDER = Path('bags')
@@ -191,13 +194,16 @@ class Recorder(Node):
         self.get_logger().warning(f'not recording {topic}: {reason}')
 
     def _on_message(self, topic: str, data: bytes, info: dict) -> None:
-        """One message, then every other one DDS holds for this topic already. The executor takes one message of each
-        ready topic per turn, so a topic of eight messages per step (`proximity`) fell behind the others: a 30 s
-        lockstep run at real_time_factor 0 left 5,500-6,400 of its 7,500 messages unwritten when the recording
-        ended (stamps ending early), against none with this."""
+        """One message, then the others DDS holds for this topic already (up to BACKLOG_PER_CALLBACK). The executor
+        takes one message of each ready topic per turn, so a topic of eight messages per step (`proximity`) fell
+        behind the others: a 30 s lockstep run at real_time_factor 0 left 5,500-6,400 of its 7,500 messages
+        unwritten when the recording ended (stamps ending early), against none with this."""
         self._record(topic, data, info)
         subscription = self._subscription_of[topic]
-        while (taken := subscription.handle.take_message(subscription.msg_type, True)) is not None:
+        for _ in range(BACKLOG_PER_CALLBACK):
+            taken = subscription.handle.take_message(subscription.msg_type, True)
+            if taken is None:
+                return
             self._record(topic, *taken)
 
     def _record(self, topic: str, data: bytes, info: dict) -> None:
