@@ -67,6 +67,8 @@ def check_shape(text: str, max_depth: int) -> None:
             else:
                 value_done()
     except yaml.YAMLError as error:
+        if 'maximum nesting depth' in str(error):   # PyYAML >= 6.0.3's scanner stops far deeper than our bound
+            raise UntrustedYamlError(f'{where()}: nested deeper than {max_depth} levels') from None
         raise UntrustedYamlError(f'not valid YAML: {cut(" ".join(str(error).split()), 200)}') from None
 
 
