@@ -4,9 +4,14 @@ Why hand-written: `Publisher.publish(msg)` converts the Python message to C and 
 for an Odometry (two 36-double covariances) that costs several times what publishing the bytes does
 (measured on the 2-core machines: about 40-110 µs against 5-18 µs per message; Range about 40 against 16 µs).
 The simulator sends 13 messages per robot and step, so this is most of its cost. A `Patch` is built from a
-real message: rclpy serialises it (so the layout is rclpy's own, alignment and strings included), and the
-offset of each field that changes is found by setting it to a marker value and locating the marker's bytes.
-Each step the numbers are packed into a copy of those bytes, which any subscriber reads as a normal message.
+real message, serialised exactly (`exact_cdr`), and the offset of each field that changes is found by setting it
+to a marker value and locating the marker's bytes. Each step the numbers are packed into a copy of those bytes,
+which any subscriber reads as a normal message.
+
+Why not rclpy's `serialize_message` for the template: it returns the serializer's buffer, which is longer than the
+CDR (a JointState of 120 bytes came as 124 or 132) and whose alignment padding is uninitialised memory; rosbags
+refuses such a message ("CDR message size mismatch") and every copy would carry the stale bytes. rosbags' typestore
+writes the exact CDR with zero padding, as Fast DDS does for `publish(msg)` on the wire.
 
 The other way round, `float64_values` reads the numbers of a Float64MultiArray received as bytes (`raw=True`):
 rclpy would build a message object, its layout and an array for them (about 10 us in-process against 0.3 us,
@@ -18,7 +23,9 @@ import struct
 from collections.abc import Sequence
 from typing import Any
 
-from rclpy.serialization import deserialize_message, serialize_message
+import numpy as np
+from rclpy.serialization import deserialize_message
+from rosbags.typesys import Stores, get_typestore
 from std_msgs.msg import Float64MultiArray
 
 _LITTLE_ENDIAN_CDR = b'\x00\x01'
@@ -40,14 +47,14 @@ class Patch:
             marker = _MARKERS[code] * (index + 1) if code in 'df' else _MARKERS[code] + index
             saved = _get(msg, path)
             _set(msg, path, marker)
-            data = serialize_message(msg)
+            data = exact_cdr(msg)
             _set(msg, path, saved)
             packed = struct.pack('<' + code, marker)
             found = data.find(packed)
             if found < 0 or data.find(packed, found + 1) >= 0 or data[:2] != _LITTLE_ENDIAN_CDR:
                 raise ValueError(f'cannot locate {path} in the serialised {type(msg).__name__}')
             offsets.append(found)
-        self._template = serialize_message(msg)
+        self._template = exact_cdr(msg)
         self._struct = struct.Struct('<' + ''.join(code for _, code in fields))
         # one pack of all values, then each value's bytes copied to its offset
         self._slices = []
@@ -63,6 +70,41 @@ class Patch:
         for start, end, first, last in self._slices:
             buffer[start:end] = packed[first:last]
         return bytes(buffer)
+
+
+_TYPESTORE = get_typestore(Stores.ROS2_JAZZY)
+_DTYPES = {'double': np.float64, 'float': np.float32, 'int8': np.int8, 'uint8': np.uint8, 'octet': np.uint8,
+           'int16': np.int16, 'uint16': np.uint16, 'int32': np.int32, 'uint32': np.uint32, 'int64': np.int64,
+           'uint64': np.uint64, 'boolean': np.bool_, 'char': np.uint8}
+"""rosidl's primitive names -> the NumPy types rosbags keeps arrays of primitives in."""
+
+
+def exact_cdr(msg: Any) -> bytes:
+    """`msg` (an rclpy message) as the exact little-endian CDR of its type: its own length, zero padding."""
+    return bytes(_TYPESTORE.serialize_cdr(_as_rosbags(msg), _type_name(msg)))
+
+
+def _type_name(msg: Any) -> str:
+    return f'{type(msg).__module__.split(".")[0]}/msg/{type(msg).__name__}'
+
+
+def _as_rosbags(msg: Any) -> Any:
+    """The rosbags message holding the same values as the rclpy message `msg`."""
+    values = {}
+    for name, kind in msg.get_fields_and_field_types().items():
+        value = getattr(msg, name)
+        element = kind.split('<')[-1].split('[')[0].rstrip('>').split(',')[0]
+        if hasattr(value, 'get_fields_and_field_types'):
+            values[name] = _as_rosbags(value)
+        elif '[' in kind or kind.startswith('sequence<'):
+            if element in _DTYPES:
+                values[name] = np.array(value, dtype=_DTYPES[element])
+            else:
+                values[name] = [_as_rosbags(item) if hasattr(item, 'get_fields_and_field_types') else item
+                                for item in value]
+        else:
+            values[name] = value
+    return _TYPESTORE.types[_type_name(msg)](**values)
 
 
 def _get(msg: Any, path: str) -> Any:
