@@ -31,7 +31,7 @@ from std_msgs.msg import String
 
 from epuck_ros.bag import msgdefs
 from epuck_ros.bag.cdr import CdrDecoder
-from epuck_ros.bag.gaps import find_gaps
+from epuck_ros.bag.gaps import bag_gaps, find_gaps
 from epuck_ros.bag.info import format_info
 from epuck_ros.bag.qos import INFINITE_NS, QosProfile, profiles_to_yaml
 from epuck_ros.bag.reader import Bag
@@ -408,6 +408,39 @@ def test_info_lists_a_periodic_topic_that_ends_before_the_others(tmp_path):
     assert '/odom:' not in info
 
 
+def test_wall_clock_stamps_never_make_simulated_topics_miss_the_epoch(tmp_path):
+    """The first `scripts/run.sh` of a new user printed "/clock: ~56109941978 of 56109943853 messages missing":
+    `rosout` (wall clock, here on 32 ms multiples) became the end every simulated topic missed. Each clock is now
+    judged on its own, log lines on the step grid are not a periodic topic, and a report is bounded by the bag."""
+    from rcl_interfaces.msg import Log
+
+    from epuck_ros.nodes.serialized import exact_cdr
+    period, epoch_steps = 32_000_000, 56_109_941_978
+    writer = BagWriter(tmp_path / 'run')
+    for topic, type_name in (('/odom', 'nav_msgs/msg/Odometry'), ('/rosout', 'rcl_interfaces/msg/Log'),
+                             ('/wall_odom', 'nav_msgs/msg/Odometry')):
+        writer.add_topic(topic, type_name, [QosProfile()])
+
+    def stamped(msg, ns: int) -> bytes:
+        stamp = msg.stamp if isinstance(msg, Log) else msg.header.stamp
+        stamp.sec, stamp.nanosec = divmod(ns, 10**9)
+        return exact_cdr(msg)
+
+    for step in range(1, 1876):   # 60 simulated seconds
+        writer.write('/odom', stamped(Odometry(), step * period), 10**18 + step * period)
+    rng = np.random.default_rng(3)
+    for step in np.cumsum(rng.integers(1, 200, 16)):   # log lines now and then, on the wall clock's step grid
+        writer.write('/rosout', stamped(Log(msg='cruising'), int(epoch_steps + step) * period), 10**18)
+    for step in range(300):   # a node without use_sim_time publishing on the wall clock, steadily
+        writer.write('/wall_odom', stamped(Odometry(), int(epoch_steps + step) * period), 10**18)
+    writer.close()
+    with Bag(tmp_path / 'run') as bag:
+        checked, gaps = bag_gaps(bag)
+        info = format_info(bag)
+    assert checked == ['/odom', '/wall_odom'] and gaps == [], info
+    assert 'Stamp gaps:        none in the 2 periodic stamped topics' in info, info
+
+
 def sample_messages_by_topic() -> dict[str, list]:
     """The sample messages per topic; proximity grouped by step (8 rays)."""
     by_topic: dict[str, list] = {}
@@ -448,9 +481,11 @@ def test_stamp_gaps_hold_when_most_of_a_topic_is_lost_and_leave_event_topics_alo
 
 
 def test_stamp_gaps_of_two_clusters_of_steps():
-    """Two short steps then ten long ones: the 10th percentile falls between them (it was NaN, a traceback)."""
-    stamps = np.cumsum([0, 10, 10] + [1000] * 10)
-    gaps = find_gaps('/clustered', stamps)
+    """Two short steps then ten long ones: the 10th percentile falls between them (it was NaN, a traceback).
+    Stamps on 13 of the 1,002 periods spanned are not judged periodic (fewer than a tenth: events on the grid);
+    the same steps with the long ones filled in to a tenth are, with the gaps counted."""
+    assert find_gaps('/clustered', np.cumsum([0, 10, 10] + [1000] * 10)) is None
+    gaps = find_gaps('/clustered', np.cumsum([0, 10, 10] + [10] * 100 + [1000] * 10))
     assert (gaps.period_ns, gaps.gaps, gaps.missing_steps) == (10, 10, 990)
 
 

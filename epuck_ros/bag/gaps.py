@@ -10,6 +10,12 @@ periods before the others' is missing its end (a reader that stalled). Only peri
 are judged (nearly every step a whole number of periods), so event-driven ones such as
 ``rosout`` are left alone, as are topics without a stamp first (no ``std_msgs/Header`` or
 ``builtin_interfaces/Time`` as their first field). No ROS needed.
+
+Stamps follow one of two clocks: simulated time (from 0 when the simulator starts) or the wall clock (from
+1970: `rosout` and any node without `use_sim_time`). A topic is compared only with topics of its own clock, and
+what it can be missing is bounded by the bag itself: the span its clock's periodic topics cover, in periods.
+(A bag once reported "/clock: ~56109941978 of 56109943853 messages missing": a wall-clock `rosout` on 32 ms
+multiples was taken for a periodic topic and its 2027 stamps became the end every simulated topic missed.)
 """
 from __future__ import annotations
 
@@ -29,6 +35,11 @@ REGULAR_SHARE = 0.9
 """A topic is periodic when at least this share of its stamp steps are regular (random steps: ~50 %)."""
 MIN_STEPS = 10
 """Fewer stamp steps than this say nothing about a period."""
+COVERAGE = 0.1
+"""A periodic topic has stamps on at least this share of the periods it spans (one that lost 90 % still does);
+event topics whose stamps fall on the step grid (a log line now and then) do not."""
+WALL_CLOCK_FROM = 10**18
+"""Stamps from this many ns (2001-09-09 on the wall clock; 31.7 years of simulated time) are wall-clock stamps."""
 _STAMP_TYPES = ('Header', 'std_msgs/Header', 'std_msgs/msg/Header',
                 'builtin_interfaces/Time', 'builtin_interfaces/msg/Time')
 _FIRST_FIELD = re.compile(r'^\s*([A-Za-z0-9_/]+)\s+\w+\s*(?:#.*)?$', re.MULTILINE)
@@ -48,13 +59,22 @@ class TopicGaps:
     incomplete_steps: int
     missing_in_steps: int
     last_ns: int
+    first_ns: int = 0
+    limit: int | None = None
+    """At most this many messages can be missing (what the bag's own span allows); None: not bounded yet."""
     missing_at_end: int = 0
-    """Periods between this topic's last stamp and the latest stamp of the bag's periodic topics."""
+    """Periods between this topic's last stamp and the latest stamp of the periodic topics on its clock."""
+
+    @property
+    def wall_clock(self) -> bool:
+        """Whether the stamps count from 1970 (wall clock) rather than from the simulator's start."""
+        return self.last_ns >= WALL_CLOCK_FROM
 
     @property
     def missing_messages(self) -> int:
         """Estimated messages missing: whole steps times the usual count, plus the holes in incomplete steps."""
-        return (self.missing_steps + self.missing_at_end) * self.per_stamp + self.missing_in_steps
+        estimate = (self.missing_steps + self.missing_at_end) * self.per_stamp + self.missing_in_steps
+        return estimate if self.limit is None else min(estimate, self.limit)
 
     def describe(self) -> str:
         parts = []
@@ -95,6 +115,8 @@ def find_gaps(topic: str, stamps: np.ndarray) -> TopicGaps | None:
     periods = forward / period
     if np.count_nonzero(np.abs(periods - np.rint(periods)) <= JITTER) < REGULAR_SHARE * len(forward):
         return None  # not a periodic topic
+    if len(starts) < COVERAGE * (np.sum(np.rint(periods)) + 1):
+        return None  # whole periods apart but far between: events on the step grid
     per_stamp = max(1, int(np.percentile(counts, 90)))
     long_steps = forward[periods >= GAP_FACTOR]
     missing_steps = int(np.sum(np.rint(long_steps / period) - 1)) if len(long_steps) else 0
@@ -102,7 +124,7 @@ def find_gaps(topic: str, stamps: np.ndarray) -> TopicGaps | None:
     short = inner[inner < per_stamp]
     return TopicGaps(topic, int(len(stamps)), period, per_stamp, int(len(long_steps)), missing_steps,
                      int(long_steps.max()) if len(long_steps) else 0, int(len(short)),
-                     int(np.sum(per_stamp - short)), int(stamps.max()))
+                     int(np.sum(per_stamp - short)), int(stamps.max()), int(stamps.min()))
 
 
 def stamps_from_heads(heads: np.ndarray) -> np.ndarray:
@@ -123,7 +145,20 @@ def bag_gaps(bag: Bag) -> tuple[list[str], list[TopicGaps]]:
     heads = bag.message_heads(stamped, ENCAPSULATION + 8)
     judged = [gaps for gaps in (find_gaps(name, stamps_from_heads(rows)) for name, rows in sorted(heads.items()))
               if gaps is not None]
-    end = max((gaps.last_ns for gaps in judged), default=0)
-    judged = [replace(gaps, missing_at_end=int(np.rint((end - gaps.last_ns) / gaps.period_ns))
-                      if end - gaps.last_ns >= GAP_FACTOR * gaps.period_ns else 0) for gaps in judged]
+    judged = [_bounded(_with_end(gaps, [other for other in judged if other.wall_clock == gaps.wall_clock]))
+              for gaps in judged]
     return [gaps.topic for gaps in judged], [gaps for gaps in judged if gaps.missing_messages]
+
+
+def _with_end(gaps: TopicGaps, same_clock: list[TopicGaps]) -> TopicGaps:
+    """`gaps` with the periods it misses before the end of the other periodic topics of its clock."""
+    behind = max(other.last_ns for other in same_clock) - gaps.last_ns
+    return replace(gaps, missing_at_end=int(np.rint(behind / gaps.period_ns)) if behind >= GAP_FACTOR * gaps.period_ns
+                   else 0)
+
+
+def _bounded(gaps: TopicGaps) -> TopicGaps:
+    """`gaps` with what it may report bounded by the bag: the periods from its first stamp to its clock's end,
+    `per_stamp` messages each, less the messages present."""
+    periods = (gaps.last_ns - gaps.first_ns) // gaps.period_ns + 1 + gaps.missing_at_end
+    return replace(gaps, limit=max(0, int(periods) * gaps.per_stamp - gaps.messages))
