@@ -23,14 +23,24 @@ PLOT_FORMATS = ('png', 'svg', 'pdf')
 """What `bag plot` writes, chosen by the output's extension."""
 
 
-def _positive(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f'expected a number, got {text!r}') from None
-    if not 0.0 < value < float('inf'):
-        raise argparse.ArgumentTypeError(f'must be positive and finite, got {text}')
-    return value
+RATES = (0.001, 1000.0)
+"""`bag play --rate` bounds: beyond them a bag's times no longer fit the playback clock's arithmetic (1e308
+overflowed) and nothing useful is left (1,000x plays a minute in 60 ms)."""
+CLOCK_HZ = (0.1, 10_000.0)
+"""`bag play --clock` bounds: /clock publications per wall second."""
+
+
+def _within(low: float, high: float) -> Callable[[str], float]:
+    """An argparse type: a number from `low` to `high`, or one line naming the range."""
+    def parse(text: str) -> float:
+        try:
+            value = float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f'expected a number, got {text!r}') from None
+        if not low <= value <= high:
+            raise argparse.ArgumentTypeError(f'must be from {low:g} to {high:g}, got {text}')
+        return value
+    return parse
 
 
 def _info(args: argparse.Namespace) -> None:
@@ -131,16 +141,19 @@ def build_parser() -> argparse.ArgumentParser:
                    'publish a bag on its topics with their recorded QoS (latched ones transient local) and '
                    '/clock from the log time, as `ros2 bag play --clock` does; Ctrl-C stops. While paused, '
                    'Enter (on a terminal) or the std_srvs/Trigger services ~/resume, ~/pause, '
-                   '~/toggle_paused of the `bag_player` node resume or pause',
+                   '~/toggle_paused of the `bag_player` node resume or pause. Before the first message it waits '
+                   '(at most 10 s, saying so) until every subscriber the graph shows on a played topic is matched, '
+                   'so a recorder started first misses nothing',
                    ['bag play bags/avoid', 'bag play bags/avoid --rate 5 --loop',
                     'bag play bags/avoid --start-paused --topics /ground_truth /world',
                     'bag play bags/avoid --ros-args -r /odom:=/replayed/odom'])
-    play.add_argument('--rate', type=_positive, default=1.0, help='playback speed: 2 plays twice as fast (default 1)')
+    play.add_argument('--rate', type=_within(*RATES), default=1.0,
+                      help=f'playback speed: 2 plays twice as fast (default 1; {RATES[0]:g} to {RATES[1]:g})')
     play.add_argument('--loop', action='store_true', help='start again at the end, until Ctrl-C')
     play.add_argument('--start-paused', action='store_true', help='wait for a resume before the first message')
     play.add_argument('--topics', nargs='+', metavar='TOPIC', help='only these topics (default: all)')
-    play.add_argument('--clock', type=_positive, default=100.0, metavar='HZ',
-                      help='/clock publications per wall second (default 100)')
+    play.add_argument('--clock', type=_within(*CLOCK_HZ), default=100.0, metavar='HZ',
+                      help=f'/clock publications per wall second (default 100; {CLOCK_HZ[0]:g} to {CLOCK_HZ[1]:g})')
     return parser
 
 

@@ -26,8 +26,16 @@ from epuck_ros.bag.reader import Bag, BagError, Topic
 from epuck_ros.nodes.dds_profile import use_package_profile
 from epuck_ros.nodes.record_node import message_class
 
-MATCH_TIMEOUT = 2.0
-"""s to wait, before the first message, for the subscribers already in the graph to match each publisher."""
+MATCH_TIMEOUT = 10.0
+"""s to wait at most, before the first message, for the subscribers in the graph to match each publisher."""
+DISCOVERY_WINDOW = 1.0
+"""s from the node's creation before the graph is believed complete: participants announce every 0.5 s in the
+package's DDS profile, so a subscriber already running is in the graph by then."""
+SETTLE = 0.3
+"""s the subscribers of the played topics must stay the same, all matched: a recorder of every topic subscribes
+only once it has seen our publishers (it looks every 0.2 s)."""
+SAY_AFTER = 1.0
+"""s of waiting for a match after which the player says what it waits for."""
 ACK_TIMEOUT = 5.0
 """s to wait at the end for reliable subscribers to acknowledge everything (exiting earlier would lose it)."""
 PAUSED_POLL = 0.1
@@ -48,6 +56,7 @@ class Player(Node):
 
     def __init__(self, bag: Bag, topics: list[str] | None, rate: float, clock_hz: float, paused: bool) -> None:
         super().__init__('bag_player', enable_rosout=False)  # its log lines must not mix with a replayed /rosout
+        self._created = time.monotonic()
         self._bag = bag
         self._outputs = {}
         wanted = {'/' + topic.lstrip('/') for topic in topics} if topics else None
@@ -91,11 +100,29 @@ class Player(Node):
         self._set_paused(not self.clock.paused, Trigger.Response())
 
     def wait_for_subscribers(self, timeout: float = MATCH_TIMEOUT) -> None:
-        """Until every subscriber the graph lists for a played topic has matched its publisher (or timeout)."""
-        deadline = time.monotonic() + timeout
-        while time.monotonic() < deadline and self.context.ok():
-            if all(p.get_subscription_count() >= self.count_subscribers(name) for name, p in self._outputs.items()):
+        """Until the graph has had time to show every running subscriber of a played topic, each has matched its
+        publisher and none came for `SETTLE` s, or `timeout` (then a warning naming the unmatched topics)."""
+        begin = time.monotonic()
+        graph_complete = self._created + DISCOVERY_WINDOW
+        said, seen, since = False, None, begin
+        while self.context.ok():
+            now = time.monotonic()
+            counts = {name: (publisher.get_subscription_count(), self.count_subscribers(name))
+                      for name, publisher in self._outputs.items()}
+            waiting = sorted(name for name, (matched, in_graph) in counts.items() if matched < in_graph)
+            if counts != seen:
+                seen, since = counts, now
+            if not waiting and now >= graph_complete and now - since >= SETTLE:
                 return
+            if now - begin >= timeout:
+                self.get_logger().warning(f'starting although {", ".join(waiting)} still has subscribers not matched '
+                                          f'after {timeout:.0f} s' if waiting else
+                                          f'starting: the subscribers kept changing for {timeout:.0f} s')
+                return
+            if waiting and not said and now - begin >= SAY_AFTER:
+                self.get_logger().info(f'waiting for the subscribers of {", ".join(waiting)} to match '
+                                       f'(at most {timeout:.0f} s)')
+                said = True
             time.sleep(0.01)
 
     def play(self, loop: bool) -> int:
