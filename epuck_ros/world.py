@@ -83,6 +83,10 @@ class Cylinder:
 
 
 ROBOT_NAME = re.compile(r'[A-Za-z_][A-Za-z0-9_]*\Z')
+ROBOT_NAME_MAX = 100
+"""Characters in a robot's name at most: its topics (`<name>/camera/camera_info` the longest planned, under the
+simulator's namespace) must stay within rmw's 247 characters for a full topic name, or the simulator dies
+creating them (a valid 240-character name did)."""
 """A robot's name is one ROS name token: its topics and frames live under it (`epuck3/odom`)."""
 
 
@@ -707,8 +711,25 @@ def world_from_dict(data: Any, source: str = '<dict>', robot_radius: float = Rob
                   boxes=tuple(fields.each(top, 'boxes', ('position', 'size', 'yaw'), _read_box)),
                   cylinders=tuple(fields.each(top, 'cylinders', ('position', 'radius'), _read_cylinder)),
                   robots=robots)
+    _check_obstacles_are_inside(world, source)
     _check_robots_are_clear(world, robot_radius, source, 'robots' if 'robots' in top else 'robot')
     return world
+
+
+def _check_obstacles_are_inside(world: World, source: str) -> None:
+    """Every box and cylinder lies on the arena's floor, whole (touching a wall is fine): one outside was accepted
+    and silently missing from every picture and every sensor, like a typo nobody is told about."""
+    half_x, half_y = world.arena_size[0] / 2.0 + 1e-9, world.arena_size[1] / 2.0 + 1e-9
+    for index, box in enumerate(world.boxes):
+        if any(abs(x) > half_x or abs(y) > half_y for x, y in _box_corners(box)):
+            raise WorldError(f'{source}: boxes[{index}].position: the box at ({box.x}, {box.y}) of size '
+                             f'{box.size_x} x {box.size_y} m does not lie whole inside the {world.arena_size[0]} m x '
+                             f'{world.arena_size[1]} m arena (centred on the origin)')
+    for index, cylinder in enumerate(world.cylinders):
+        if abs(cylinder.x) + cylinder.radius > half_x or abs(cylinder.y) + cylinder.radius > half_y:
+            raise WorldError(f'{source}: cylinders[{index}].position: the cylinder at ({cylinder.x}, {cylinder.y}) '
+                             f'of radius {cylinder.radius} m does not lie whole inside the {world.arena_size[0]} m x '
+                             f'{world.arena_size[1]} m arena (centred on the origin)')
 
 
 def _read_robot(fields: _FieldReader, item: Mapping[str, Any], path: str) -> RobotStart:
@@ -716,6 +737,9 @@ def _read_robot(fields: _FieldReader, item: Mapping[str, Any], path: str) -> Rob
     if not isinstance(name, str) or not ROBOT_NAME.match(name) or '__' in name:
         raise fields.fail(f'{path}.name', f'expected a ROS name ([A-Za-z_][A-Za-z0-9_]*, no "__"), got '
                                           f'{_describe(name)}')
+    if len(name) > ROBOT_NAME_MAX:
+        raise fields.fail(f'{path}.name', f'at most {ROBOT_NAME_MAX} characters (its topics must fit in a ROS '
+                                          f'topic name), got {len(name)}')
     return RobotStart(name, *fields.vector(fields.required(item, 'start', path), f'{path}.start', 3))
 
 
@@ -725,8 +749,9 @@ def _name_problem(robots: tuple[RobotStart, ...]) -> str | None:
         return 'a world needs at least one robot'
     seen: dict[str, int] = {}
     for index, robot in enumerate(robots):
-        if not ROBOT_NAME.match(robot.name) or '__' in robot.name:
-            return f'robots[{index}].name {untrusted_yaml.cut(repr(robot.name), 40)} is not a ROS name'
+        if not ROBOT_NAME.match(robot.name) or '__' in robot.name or len(robot.name) > ROBOT_NAME_MAX:
+            return (f'robots[{index}].name {untrusted_yaml.cut(repr(robot.name), 40)} is not a ROS name of at most '
+                    f'{ROBOT_NAME_MAX} characters')
         if robot.name in seen:
             return f'robots[{index}] and robots[{seen[robot.name]}] are both named {robot.name!r}'
         seen[robot.name] = index

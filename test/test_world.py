@@ -391,3 +391,33 @@ def test_clearance_is_the_distance_to_the_nearest_surface():
     world = World(boxes=[Box(0.2, 0.0, 0.1, 0.1)], cylinders=[Cylinder(-0.2, 0.0, 0.05)])
     points = np.array([[0.0, 0.0], [0.0, 0.45], [0.2, 0.0], [-0.12, 0.0]])
     np.testing.assert_allclose(world.clearance(points), [0.15, 0.05, 0.0, 0.03])
+
+
+@pytest.mark.parametrize('text, field', [
+    ('boxes: [{position: [0.8, 0], size: [0.1, 0.1]}]\n', 'boxes[0].position'),
+    ('boxes: [{position: [0, 0.2], size: [0.1, 0.1]}, {position: [0.47, 0], size: [0.1, 0.1], yaw: 0.5}]\n',
+     'boxes[1].position'),
+    ('cylinders: [{position: [-0.48, 0.3], radius: 0.03}]\n', 'cylinders[0].position'),
+])
+def test_an_obstacle_outside_the_arena_is_refused_naming_it(tmp_path, text, field):
+    """A box at x = 0.8 m in a 1 m arena was accepted and silently left out of every picture and sensor."""
+    message = load_text(tmp_path, text)
+    assert message.startswith(f'{field}: ') and 'does not lie whole inside the 1.0 m x 1.0 m arena' in message
+
+
+def test_an_obstacle_touching_a_wall_is_fine(tmp_path):
+    path = tmp_path / 'flush.yaml'
+    path.write_text('boxes: [{position: [0.45, 0], size: [0.1, 0.1]}]\ncylinders: [{position: [0, -0.46], '
+                    'radius: 0.04}]\nrobot: {start: [-0.2, 0.2, 0]}\n')
+    assert len(load_world(path).boxes) == 1
+
+
+def test_every_shipped_world_loads():
+    worlds = sorted((Path(__file__).resolve().parents[1] / 'epuck_ros' / 'worlds').glob('*.yaml'))
+    assert worlds and all(load_world(path) for path in worlds)
+
+
+def test_a_name_too_long_for_a_topic_is_refused_at_load(tmp_path):
+    """A valid 240-character name made the simulator die with InvalidTopicNameException once prefixed."""
+    message = load_text(tmp_path, f'robots: [{{name: {"a" * 240}, start: [0, 0, 0]}}]\n')
+    assert message.startswith('robots[0].name: at most 100 characters') and 'got 240' in message
