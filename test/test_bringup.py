@@ -276,6 +276,41 @@ def test_an_rclpy_controller_script_runs_with_sim_time_and_gets_the_summary(laun
     assert processes_in_this_domain() == []
 
 
+def test_a_controller_at_its_own_rate_is_not_held_to_lockstep(launch, tmp_path):
+    """The most common ROS pattern, cmd_vel from a 10 Hz timer on simulated time, answers one step in three or
+    four: lockstep waited a `lockstep_timeout` for every step it skipped (1.02 simulated s in 32 wall s). After
+    two such steps the sim says why and what to do, and from then on waits only briefly for that controller's
+    answer at each step: the run reaches its duration with the robot driven as commanded."""
+    script = tmp_path / 'ten_hertz.py'
+    script.write_text(textwrap.dedent('''
+        import rclpy
+        from geometry_msgs.msg import Twist
+        from rclpy.executors import ExternalShutdownException
+
+        rclpy.init()
+        node = rclpy.create_node('ten_hertz')
+        publisher = node.create_publisher(Twist, 'cmd_vel', 10)
+        command = Twist()
+        command.linear.x = 0.05
+        node.create_timer(0.1, lambda: publisher.publish(command))
+        try:
+            rclpy.spin(node)
+        except (KeyboardInterrupt, ExternalShutdownException):
+            pass
+        finally:
+            rclpy.try_shutdown()
+    '''))
+    run = launch('bringup', '--controller', str(script), '--duration', '6', '--real-time-factor', '0', '--no-noise')
+    assert run.proc.wait(timeout=120) == 0, run.output()
+    assert run.output().count('runs at its own rate (a timer?)') == 1, run.output()
+    assert 'publish one command per step' in run.output()
+    assert re.search(r'note: simulated time stood still for [\d.]+ s wall at t=0\.\d+ s', run.output()), run.output()
+    simulated, distance, _ = summary_of(run.output())
+    assert simulated == pytest.approx(6.0, abs=0.032)
+    assert distance == pytest.approx(0.05 * 6, abs=0.02), run.output()   # 0.05 m/s from about the first 0.1 s
+    assert processes_in_this_domain() == []
+
+
 def test_a_webots_controller_script_runs_through_webots_controller(launch):
     script = Path(__file__).resolve().parents[1] / 'epuck_ros' / 'webots' / 'examples' / 'straight_line.py'
     run = launch('bringup', '--controller', str(script), '--duration', '3', '--real-time-factor', '0', '--no-noise')

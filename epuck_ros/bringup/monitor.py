@@ -84,6 +84,9 @@ class RunMonitor:
         self.clock_messages = 0
         """/clock messages received: any before `bringup` resumes its (paused, silent) simulator are another's."""
         self.first_tick: tuple[float, float] | None = None
+        self.longest_stall: tuple[float, float] = (0.0, 0.0)
+        """(wall s, simulated s at its start) of the longest wait between two ticks that advanced simulated time:
+        lockstep waiting for an answer, a re-sent first step, the machine stalled."""
         self.last_tick: tuple[float, float] | None = None
         """(monotonic wall time, simulated time) of the first and the last `/clock` message."""
         self.world: World | None = None
@@ -106,6 +109,12 @@ class RunMonitor:
     def _on_clock(self, msg: Clock) -> None:
         self.sim_time = msg.clock.sec + msg.clock.nanosec * 1e-9
         self.clock_messages += 1
+        if self.last_tick is not None and self.sim_time > self._advanced[1]:
+            stall = time.monotonic() - self._advanced[0]
+            if stall > self.longest_stall[0]:
+                self.longest_stall = (stall, self._advanced[1])
+        if self.last_tick is None or self.sim_time > self._advanced[1]:
+            self._advanced = (time.monotonic(), self.sim_time)
         self.last_tick = (time.monotonic(), self.sim_time)
         if self.first_tick is None:
             self.first_tick = self.last_tick

@@ -218,6 +218,10 @@ class Supervisor:
                             'it, or run with another ROS_DOMAIN_ID')
 
 
+STALL_NOTE = 0.5
+"""Wall seconds without a new simulated instant from which the summary says so (a step takes well under 1 ms)."""
+
+
 def report(supervisor: Supervisor, sim_time: float, wall_time: float) -> list[str]:
     """The summary lines: time and speed (from the resume on, and from the first step on), then each robot's
     distance and contacts (from the bag if the run was recorded, else from the samples received: the same
@@ -231,6 +235,10 @@ def report(supervisor: Supervisor, sim_time: float, wall_time: float) -> list[st
                  f'{monitor.first_tick[0] - supervisor.resumed_at:.2f} s after the resume')
     head = [line]
     notes = []
+    stall, at = monitor.longest_stall
+    if stall >= STALL_NOTE:
+        head.append(f'[bringup] note: simulated time stood still for {stall:.1f} s wall at t={at:.3f} s (lockstep '
+                    f'waiting for a controller\'s answer, or a busy machine: see the lines above)')
     if plan.record_dir is not None:
         try:
             figures = summary.from_bag(plan.record_dir)

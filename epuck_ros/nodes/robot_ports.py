@@ -67,6 +67,10 @@ class RobotPorts:
         self.answered = False
         """A command arrived since the current step was published (lockstep)."""
         self.answered_once = False
+        self.missed_in_a_row = 0
+        """Steps in a row its controller, having answered before, left unanswered until the lockstep timeout."""
+        self.own_rate = False
+        """Its controller answers at its own rate, not every step: lockstep no longer waits for it."""
         topics = topic_prefix(name, several)
         frames = frame_prefix(name, several, frames_prefix)
         self.odom_frame, self.base_frame = frames + 'odom', frames + 'base_link'

@@ -44,7 +44,16 @@ from epuck_ros.world import WorldError, default_world, load_world, place_robots
 
 __all__ = ['JOINT_NAMES', 'SIM_PARAMETERS', 'SimNode', 'main']
 
-LOCKSTEP_START_RESENDS = 10
+LOCKSTEP_START_RESENDS = 3
+"""Times an unanswered first step is sent again (one `lockstep_timeout` each) before the simulation goes on."""
+OWN_RATE_AFTER = 2
+"""Steps in a row a controller that has answered before may leave unanswered until the timeout before lockstep
+takes it for one that answers at its own rate (a timer), not every step: waiting a `lockstep_timeout` for each
+step it skips made a 10 Hz controller run at 3 % of real time."""
+OWN_RATE_WAIT = 0.01
+"""Wall seconds a step waits at most for controllers that answer at their own rate: long enough for one that
+answers this step's /clock tick (a round trip is well under a millisecond), short enough that the steps it skips
+cost little."""
 GRAPH_POLL = 0.05
 """Wall seconds between two looks at which robots have a controller while lockstep waits for answers."""
 IDLE_POLL = 0.05
@@ -504,13 +513,18 @@ class SimNode(Node):
                     self._take_answers()
                     self._parked = False
                     return True
-                remaining = self._answers_deadline - time.monotonic()
+                own_rate_only = not self._any_answer and all(ports.own_rate for ports in self._waiting_for
+                                                                 if not ports.answered)
+                remaining = (self._own_rate_deadline if own_rate_only else self._answers_deadline) - time.monotonic()
                 if remaining <= 0.0 or not self._running.is_set():
                     self._parked = False
                     break
                 if not self._answers.wait(min(remaining, GRAPH_POLL)):
                     self._read_graph()
             waiting_for = self._waiting_for
+        if time.monotonic() < self._answers_deadline and self._running.is_set():
+            return True   # only controllers at their own rate were missing: no resend, no count
+        self._note_own_rate(waiting_for)
         never_answered = [ports for ports in waiting_for if not ports.answered_once]
         if not never_answered or self._resends >= LOCKSTEP_START_RESENDS or not self._running.is_set():
             return True
@@ -518,9 +532,28 @@ class SimNode(Node):
         self.get_logger().info(f'lockstep: no answer to t={self._sim.time:.3f} s yet, sending it again')
         return False
 
+    def _note_own_rate(self, waited_for: list[RobotPorts]) -> None:
+        """After a step timed out: count it for each controller that answered before but not this step; past
+        `OWN_RATE_AFTER` in a row, wait at most `OWN_RATE_WAIT` for it from then on, saying once why and what to do."""
+        for ports in waited_for:
+            if ports.answered or not ports.answered_once:
+                ports.missed_in_a_row = 0 if ports.answered else ports.missed_in_a_row
+                continue
+            ports.missed_in_a_row += 1
+            if ports.missed_in_a_row >= OWN_RATE_AFTER and not ports.own_rate:
+                ports.own_rate = True
+                pace = 'as fast as possible' if self._rtf == 0.0 else f'at real_time_factor {self._rtf:g}'
+                self.get_logger().warning(
+                    f'lockstep: the controller of {ports.name} answered {OWN_RATE_AFTER} steps in a row only after '
+                    f'lockstep_timeout ({self._lockstep_timeout:g} s): it runs at its own rate (a timer?), not once '
+                    f'per step; from now on each step waits at most {OWN_RATE_WAIT * 1000:g} ms for it (the run '
+                    f'goes on {pace}, no longer the same to the bit). To keep lockstep, publish one command per step '
+                    f'(on each /clock tick or ir_raw message).')
+
     def _expect_answers(self) -> None:
         """A step is out: wait for its answers from now on, up to `lockstep_timeout` (under `_answers`)."""
         self._answers_deadline = time.monotonic() + self._lockstep_timeout
+        self._own_rate_deadline = time.monotonic() + OWN_RATE_WAIT
         self._read_graph()
 
     def _read_graph(self) -> None:
@@ -535,6 +568,8 @@ class SimNode(Node):
         for the next step's (under `_answers`)."""
         for ports in self._waiting_for:
             ports.answered_once = ports.answered_once or ports.answered
+            if ports.answered:
+                ports.missed_in_a_row = 0
         for ports in self.ports:
             ports.answered = False
 
