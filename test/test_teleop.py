@@ -11,7 +11,7 @@ import pytest
 from geometry_msgs.msg import Twist
 
 from conftest import BIN_DIR
-from epuck_ros.nodes.teleop_node import SPEED_STEP, Teleop, read_keys
+from epuck_ros.nodes.teleop_node import MAX_SPEED, MAX_TURN, SPEED_STEP, Teleop, read_keys
 
 
 class TeleopProcess:
@@ -100,3 +100,42 @@ def test_interrupt_stops_the_robot(test_node, teleop) -> None:
     assert process.proc.wait(timeout=30) == 0
     test_node.spin_until(lambda: _last(received) == (0.0, 0.0), what='the stop sent on Ctrl-C', timeout=60)
     assert 'stopped' in process.output()
+
+
+def test_q_stops_at_the_robots_limits_and_the_stop_is_always_zero() -> None:
+    """q raised the speed to 0.133 m/s, above the e-puck's 0.126; 8,000 of them overflowed it to inf, and the stop
+    on exit (0 x inf) became NaN, which the simulator refuses: with cmd_timeout 0 the robot drove on at full speed."""
+    keys = Teleop(speed=0.1, turn=1.5)
+    for _ in range(8000):
+        keys.press('q')
+    assert (keys.speed, keys.turn) == (MAX_SPEED, MAX_TURN) == pytest.approx((6.28 * 0.02, 2 * 6.28 * 0.02 / 0.052))
+    assert keys.press('w') and keys.command == (MAX_SPEED, 0.0)
+    assert "(the e-puck's top speed)" in keys.describe()
+    assert keys.press(' ') and keys.command == (0.0, 0.0)
+    assert Teleop(speed=1.0, turn=20.0).speed == MAX_SPEED
+    for _ in range(8000):
+        keys.press('z')
+    assert keys.press('w') and keys.command[1] == 0.0 and keys.command[0] >= 0.0
+
+
+def test_a_bad_robot_name_is_one_line_and_exit_2() -> None:
+    result = subprocess.run([str(BIN_DIR / 'teleop'), '--robot', 'a b'], capture_output=True, text=True, timeout=30,
+                            stdin=subprocess.DEVNULL)
+    assert result.returncode == 2 and "'a b' is not a robot name" in result.stderr
+    assert 'Traceback' not in result.stderr + result.stdout
+
+
+def test_closed_stdin_stops_the_robot_and_leaves_cleanly(test_node, tmp_path) -> None:
+    received = test_node.collect(Twist, '/cmd_vel', 100)
+    log = tmp_path / 'teleop.log'
+    with open(log, 'w') as out:
+        process = subprocess.Popen(f'exec {BIN_DIR / "teleop"} <&-', shell=True, stdout=out, stderr=subprocess.STDOUT,
+                                   env=dict(os.environ, PYTHONUNBUFFERED='1'))
+    try:
+        assert process.wait(timeout=60) == 0, log.read_text()
+    finally:
+        if process.poll() is None:
+            process.kill()
+            process.wait()
+    assert 'standard input is closed' in log.read_text() and 'Traceback' not in log.read_text()
+    test_node.spin_until(lambda: _last(received) == (0.0, 0.0), what='the stop sent on leaving', timeout=60)

@@ -24,18 +24,14 @@ from std_srvs.srv import Trigger
 from epuck_ros.bag.play import CLOCK_TOPIC, PlaybackClock, replay_profile
 from epuck_ros.bag.reader import Bag, BagError, Topic
 from epuck_ros.nodes.dds_profile import use_package_profile
+from epuck_ros.nodes.matching import wait_until_matched
 from epuck_ros.nodes.record_node import message_class
 
 MATCH_TIMEOUT = 10.0
 """s to wait at most, before the first message, for the subscribers in the graph to match each publisher."""
-DISCOVERY_WINDOW = 1.0
-"""s from the node's creation before the graph is believed complete: participants announce every 0.5 s in the
-package's DDS profile, so a subscriber already running is in the graph by then."""
 SETTLE = 0.3
 """s the subscribers of the played topics must stay the same, all matched: a recorder of every topic subscribes
 only once it has seen our publishers (it looks every 0.2 s)."""
-SAY_AFTER = 1.0
-"""s of waiting for a match after which the player says what it waits for."""
 ACK_TIMEOUT = 5.0
 """s to wait at the end for reliable subscribers to acknowledge everything (exiting earlier would lose it)."""
 PAUSED_POLL = 0.1
@@ -100,30 +96,15 @@ class Player(Node):
         self._set_paused(not self.clock.paused, Trigger.Response())
 
     def wait_for_subscribers(self, timeout: float = MATCH_TIMEOUT) -> None:
-        """Until the graph has had time to show every running subscriber of a played topic, each has matched its
-        publisher and none came for `SETTLE` s, or `timeout` (then a warning naming the unmatched topics)."""
-        begin = time.monotonic()
-        graph_complete = self._created + DISCOVERY_WINDOW
-        said, seen, since = False, None, begin
-        while self.context.ok():
-            now = time.monotonic()
-            counts = {name: (publisher.get_subscription_count(), self.count_subscribers(name))
-                      for name, publisher in self._outputs.items()}
-            waiting = sorted(name for name, (matched, in_graph) in counts.items() if matched < in_graph)
-            if counts != seen:
-                seen, since = counts, now
-            if not waiting and now >= graph_complete and now - since >= SETTLE:
-                return
-            if now - begin >= timeout:
-                self.get_logger().warning(f'starting although {", ".join(waiting)} still has subscribers not matched '
-                                          f'after {timeout:.0f} s' if waiting else
-                                          f'starting: the subscribers kept changing for {timeout:.0f} s')
-                return
-            if waiting and not said and now - begin >= SAY_AFTER:
-                self.get_logger().info(f'waiting for the subscribers of {", ".join(waiting)} to match '
-                                       f'(at most {timeout:.0f} s)')
-                said = True
-            time.sleep(0.01)
+        """Until every running subscriber of a played topic is matched and none came for `SETTLE` s, or `timeout`
+        (then a warning naming the unmatched topics)."""
+        unmatched = wait_until_matched(
+            self, self._outputs, self._created, timeout, SETTLE,
+            lambda topics: self.get_logger().info(f'waiting for the subscribers of {", ".join(topics)} to match '
+                                                  f'(at most {timeout:.0f} s)'))
+        if unmatched:
+            self.get_logger().warning(f'starting although {", ".join(unmatched)} still has subscribers not matched '
+                                      f'after {timeout:.0f} s')
 
     def play(self, loop: bool) -> int:
         """Publish the bag (again and again with `loop`); returns the number of messages published."""

@@ -15,6 +15,7 @@ import signal
 import sys
 import termios
 import threading
+import time
 import tty
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
@@ -26,11 +27,19 @@ from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.signals import SignalHandlerOptions
 
+from epuck_ros.model import RobotModel
 from epuck_ros.nodes.dds_profile import use_package_profile
+from epuck_ros.nodes.matching import wait_until_matched
 from epuck_ros.nodes.params import ParamSpec, Usage, declare_parameters, prepare_arguments, user_arguments
+from epuck_ros.world import ROBOT_NAME, ROBOT_NAME_MAX
 
 SPEED_STEP = 1.1
 """Factor by which q / z change both speeds (teleop_twist_keyboard's)."""
+_MODEL = RobotModel()
+MAX_SPEED = _MODEL.max_wheel_speed * _MODEL.wheel_radius
+"""m/s: both wheels at full speed (6.28 rad/s x 0.02 m = 0.1256 m/s); q stops there."""
+MAX_TURN = 2.0 * MAX_SPEED / _MODEL.wheel_separation
+"""rad/s: turning in place with both wheels at full speed (4.83 rad/s); q stops there."""
 STOP_ACK_TIMEOUT = 2.0
 """Wall seconds to wait, on exit, for the subscribers to acknowledge the zero Twist."""
 
@@ -43,9 +52,10 @@ FASTER, SLOWER = 'q', 'z'
 _ARROWS = {'A': 'up', 'B': 'down', 'C': 'right', 'D': 'left'}
 
 PARAMETERS = (
-    ParamSpec('speed', 0.1, 'forward speed (m/s) of w / up; the e-puck tops out at 0.126 m/s', (0.0, 1.0)),
-    ParamSpec('turn', 1.5, 'turning speed (rad/s) of a / left; the e-puck tops out at 4.8 rad/s in place',
-              (0.0, 20.0)),
+    ParamSpec('speed', 0.1, 'forward speed (m/s) of w / up; more than the e-puck\'s 0.126 m/s is taken as 0.126',
+              (0.0, 1.0)),
+    ParamSpec('turn', 1.5, 'turning speed (rad/s) of a / left; more than the e-puck\'s 4.83 rad/s in place is taken '
+                           'as 4.83', (0.0, 20.0)),
     ParamSpec('repeat_rate', 10.0, 'times a second the current command is re-sent; 0 = only on a key', (0.0, 1000.0)),
 )
 OPTIONS = '  --robot NAME  drive NAME/cmd_vel (a simulation of several robots); default: cmd_vel'
@@ -69,9 +79,14 @@ class Teleop:
     forward: int = 0
     rotation: int = 0
 
+    def __post_init__(self) -> None:
+        self.speed, self.turn = min(self.speed, MAX_SPEED), min(self.turn, MAX_TURN)
+
     @property
     def command(self) -> tuple[float, float]:
-        return self.forward * self.speed, self.rotation * self.turn
+        """(m/s, rad/s); a motion of 0 is exactly 0.0, whatever the speeds."""
+        return (self.forward * self.speed if self.forward else 0.0,
+                self.rotation * self.turn if self.rotation else 0.0)
 
     def press(self, key: str) -> bool:
         """Apply one key; True if the command or the speeds changed."""
@@ -81,14 +96,17 @@ class Teleop:
             self.forward = self.rotation = 0
         elif key in (FASTER, SLOWER):
             factor = SPEED_STEP if key == FASTER else 1.0 / SPEED_STEP
-            self.speed, self.turn = self.speed * factor, self.turn * factor
+            self.speed = min(self.speed * factor, MAX_SPEED)
+            self.turn = min(self.turn * factor, MAX_TURN)
         else:
             return False
         return True
 
     def describe(self) -> str:
         linear, angular = self.command
-        return (f'speed {self.speed:.3f} m/s, turn {self.turn:.2f} rad/s | '
+        top_speed = ' (the e-puck\'s top speed)' if self.speed >= MAX_SPEED else ''
+        top_turn = ' (its top turn)' if self.turn >= MAX_TURN else ''
+        return (f'speed {self.speed:.3f} m/s{top_speed}, turn {self.turn:.2f} rad/s{top_turn} | '
                 f'command: linear {linear:+.3f} m/s, angular {angular:+.2f} rad/s')
 
 
@@ -129,6 +147,7 @@ class TeleopNode(Node):
 
     def __init__(self, robot: str) -> None:
         super().__init__('teleop')
+        self._created = time.monotonic()
         values = declare_parameters(self, PARAMETERS)
         self.keys = Teleop(values['speed'], values['turn'])
         self._lock = threading.Lock()
@@ -152,17 +171,26 @@ class TeleopNode(Node):
         self.publisher.publish(twist)
 
     def stop(self) -> None:
-        """Zero the command and wait until every subscriber has it (bounded), so the robot stops."""
+        """Zero the command and wait until every subscriber has it (bounded), so the robot stops; a subscriber
+        still being matched (teleop leaving at once, its input closed) is waited for first."""
         with self._lock:
             self.keys.forward = self.keys.rotation = 0
+        wait_until_matched(self, {self.publisher.topic_name: self.publisher}, self._created, STOP_ACK_TIMEOUT)
         self.publish()
         self.publisher.wait_for_all_acked(rclpy.duration.Duration(seconds=STOP_ACK_TIMEOUT))
         print('stopped', flush=True)
 
 
+def _robot_name(text: str) -> str:
+    if text and (not ROBOT_NAME.match(text) or '__' in text or len(text) > ROBOT_NAME_MAX):
+        raise argparse.ArgumentTypeError(f'{text!r} is not a robot name (a ROS name: [A-Za-z_][A-Za-z0-9_]*, '
+                                         f'at most {ROBOT_NAME_MAX} characters)')
+    return text
+
+
 def parse_options(args: list[str]) -> argparse.Namespace:
     parser = argparse.ArgumentParser(prog='teleop', add_help=False)
-    parser.add_argument('--robot', default='', help='robot name: publishes on NAME/cmd_vel')
+    parser.add_argument('--robot', default='', type=_robot_name, help='robot name: publishes on NAME/cmd_vel')
     return parser.parse_args(user_arguments(args))
 
 
@@ -189,6 +217,9 @@ def main(args: list[str] | None = None) -> None:
         spinner = threading.Thread(target=executor.spin, name='teleop_spin', daemon=True)
         spinner.start()
         print(node.keys.describe(), flush=True)
+        if sys.stdin is None or sys.stdin.closed:
+            print('teleop: no input (standard input is closed): stopping the robot and leaving', flush=True)
+            return
         with single_characters(sys.stdin) as read_char:
             for key in read_keys(read_char):
                 node.press(key)
