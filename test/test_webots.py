@@ -10,6 +10,7 @@ from __future__ import annotations
 import importlib.util
 import json
 import math
+import signal
 import textwrap
 from pathlib import Path
 
@@ -27,7 +28,7 @@ from conftest import ros_args
 from epuck_ros.ir_sensor import raw_from_distance
 from epuck_ros.model import FRONT_SENSORS, IR_LOOKUP_TABLE, SENSOR_POSES, RobotModel
 from epuck_ros.simulation import Simulation
-from epuck_ros.webots.devices import DistanceSensor, Motor, PositionSensor
+from epuck_ros.webots.devices import POSITION_MODE_HINT_STEPS, DistanceSensor, Motor, PositionSensor
 from epuck_ros.webots.runner import EXAMPLES_DIR
 from epuck_ros.world import default_world
 from test_behaviour_nodes import moving, trajectory
@@ -69,6 +70,22 @@ def test_motor_position_control_is_webots_p_controller_limited_by_velocity(capsy
     assert 'negative \'velocity\' argument in position control mode' in capsys.readouterr().err
     motor.setPosition(float('nan'))
     assert motor.getTargetPosition() == 2.0
+
+
+def test_velocities_on_a_motor_left_in_position_control_get_one_hint(capsys: pytest.CaptureFixture) -> None:
+    """Forgetting setPosition(inf) leaves the robot still, silently, in Webots: after 3 s of steps with a velocity
+    set, one hint says what is missing; a motor whose position was set (position control on purpose) gets none."""
+    forgot = Motor('left wheel motor', 6.28, PositionSensor('left wheel sensor', lambda: 0))
+    meant = Motor('right wheel motor', 6.28, PositionSensor('right wheel sensor', lambda: 0))
+    meant.setPosition(1.0)
+    for motor in (forgot, meant):
+        motor.setVelocity(3.0)
+    for _ in range(3 * POSITION_MODE_HINT_STEPS):
+        assert forgot.command(0.0) == 0.0
+        meant.command(0.0)
+    err = capsys.readouterr().err
+    assert err.count('Hint (not from Webots): motor "left wheel motor"') == 1
+    assert "call setPosition(float('inf')) once for velocity control" in err and 'right wheel motor' not in err
 
 
 def test_sensors_are_nan_until_one_sampling_period_then_sample_every_period(capsys: pytest.CaptureFixture) -> None:
@@ -353,7 +370,8 @@ robot = Robot()
 again = Robot()  # Webots prints an error and goes on
 step = int(robot.getBasicTimeStep())
 report = {'basic_time_step': robot.getBasicTimeStep(), 'name': robot.getName(),
-          'unknown_is_none': robot.getDevice('ps9') is None, 'camera_is_none': robot.getDevice('camera') is None}
+          'unknown_is_none': robot.getDevice('ps9') is None, 'camera_is_none': robot.getDevice('camera') is None,
+          'typo_is_none': robot.getDevice('left wheel moter') is None}
 left = robot.getMotor('left wheel motor')  # deprecated, forwards to getDevice
 right = robot.getDevice('right wheel motor')
 led = robot.getLED('led8')
@@ -395,12 +413,14 @@ def test_misuse_gets_webots_messages_and_the_run_goes_on(launch: object, test_no
     print(output)
     assert report['basic_time_step'] == 32.0 and report['name'] == 'epuck'
     assert report['unknown_is_none'] and report['camera_is_none'] and report['disabled_is_nan']
+    assert report['typo_is_none']
     assert report['led'] == 1
     assert report['stepped_ms'] == [64, 32]
     assert 'Robot.getKeyboard is part of the Webots API but not supported' in report['keyboard']
     assert 'controller.Camera is part of the Webots API but not supported' in report['camera_import']
     for message in ('Error: only one Robot instance can be created per controller process.',
                     'Device "ps9" was not found on robot "epuck"',
+                    'Device "left wheel moter" was not found on robot "epuck" (did you mean "left wheel motor"?)',
                     'Device "camera" exists on Webots\' e-puck but is not simulated by epuck_ros',
                     'DEPRECATION: Robot.getMotor is deprecated, please use Robot.getDevice instead.',
                     'wb_distance_sensor_get_value() called for a disabled device!',
@@ -409,6 +429,84 @@ def test_misuse_gets_webots_messages_and_the_run_goes_on(launch: object, test_no
                     "Error: wb_motor_set_velocity() called with an invalid 'velocity' argument.(NaN)"):
         assert message in output
     assert list(run.joints[-1].velocity) == [2.0, 6.28]
+
+
+HOSTILE = '''
+import threading
+from controller import Robot
+
+robot = Robot()
+threading.Thread(target=threading.Event().wait, name='forgotten').start()   # a non-daemon thread, never ending
+print('nan:', robot.step(float('nan')), 'inf:', robot.step(float('inf')), flush=True)
+done = []
+def stepper():
+    for _ in range(20):
+        robot.step(32)
+    done.append(1)
+threads = [threading.Thread(target=stepper) for _ in range(3)]
+for thread in threads:
+    thread.start()
+for thread in threads:
+    thread.join()
+print('threads stepped:', len(done), 'time:', round(robot.getTime(), 3), flush=True)
+'''
+
+
+def test_hostile_scripts_get_webots_messages_and_end(launch: object, test_node: object, tmp_path: Path) -> None:
+    """step(nan) / step(inf) raised ValueError / OverflowError; step() from three threads raised "generator already
+    executing"; a non-daemon thread left running kept the process alive after the script ended."""
+    script = tmp_path / 'hostile.py'
+    script.write_text(HOSTILE)
+    run = ControllerRun(launch, test_node, script, 10.0)
+    assert run.controller.proc.wait(timeout=60) == 0, run.output
+    output = run.output
+    assert 'nan: 0 inf: 0' in output and 'Traceback' not in output, output
+    assert "Error: wb_robot_step() called with an invalid duration (nan)" in output
+    assert "Error: wb_robot_step() called with an invalid duration (inf)" in output
+    assert 'threads stepped: 3 time: 1.952' in output, output   # 60 steps after the first, one at a time
+
+
+def test_a_script_that_catches_keyboard_interrupt_ends_a_second_after_sigterm(
+        launch: object, test_node: object, tmp_path: Path) -> None:
+    """Webots stops a controller still running one second after the simulation ends; one that caught
+    KeyboardInterrupt and went on outlived it."""
+    script = tmp_path / 'stubborn.py'
+    script.write_text(textwrap.dedent('''
+        from controller import Robot
+        robot = Robot()
+        while True:
+            try:
+                while robot.step(32) != -1:
+                    pass
+                print('step returned -1: going on regardless', flush=True)
+                while True:
+                    pass
+            except KeyboardInterrupt:
+                print('caught KeyboardInterrupt', flush=True)
+    '''))
+    run = ControllerRun(launch, test_node, script, 30.0)
+    test_node.spin_until(lambda: run.sim_time() > 0.5, timeout=60, what='the script stepping')
+    run.controller.proc.send_signal(signal.SIGTERM)
+    assert run.controller.proc.wait(timeout=30) == 0, run.output
+    assert 'going on regardless' in run.output
+
+
+def test_a_script_that_stops_calling_step_is_told_so(launch: object, test_node: object, tmp_path: Path) -> None:
+    """An endless loop without step() made the run creep at a step per lockstep timeout, with no word."""
+    script = tmp_path / 'endless.py'
+    script.write_text(textwrap.dedent('''
+        from controller import Robot
+        robot = Robot()
+        for _ in range(5):
+            robot.step(32)
+        while True:
+            pass
+    '''))
+    run = ControllerRun(launch, test_node, script, 30.0)
+    test_node.spin_until(lambda: 'has not called robot.step()' in run.output, timeout=60, what='the message')
+    assert run.output.count('endless.py has not called robot.step() for 5 s (at simulated t=0.192 s)') == 1
+    run.controller.proc.send_signal(signal.SIGTERM)
+    assert run.controller.proc.wait(timeout=30) == 0, run.output
 
 
 def test_a_script_that_raises_shows_its_traceback_and_the_sim_goes_on(

@@ -58,6 +58,11 @@ class Device:
         return f'<{type(self).__name__} {self._name!r}>'
 
 
+POSITION_MODE_HINT_STEPS = 94
+"""Steps (3 s of 32 ms) of velocity commands on a motor left in position control before the hint: the wheel stays
+still, silently, in Webots as here, and students lose their first hour to it."""
+
+
 class Motor(Device):
     """A wheel's RotationalMotor: position control by default, velocity control after `setPosition(inf)`.
 
@@ -72,6 +77,9 @@ class Motor(Device):
         self._max_velocity = max_velocity
         self._velocity = max_velocity  # Webots starts a motor's velocity at its maxVelocity
         self._target: float | None = None  # None: hold the angle of the first reading (the joint's start)
+        self._position_never_set = True
+        self._velocity_requested = False
+        self._held_steps = 0
 
     def setPosition(self, position: float) -> None:
         position = float(position)
@@ -79,6 +87,7 @@ class Motor(Device):
             report("Error: wb_motor_set_position() called with an invalid 'position' argument (NaN).")
             return
         self._target = position
+        self._position_never_set = False
 
     def getTargetPosition(self) -> float:
         return 0.0 if self._target is None else self._target
@@ -96,6 +105,7 @@ class Motor(Device):
             report(f'WARNING: RotationalMotor "{self._name}": The requested velocity {velocity:g} exceeds '
                    f"'maxVelocity' = {self._max_velocity:g}.")
         self._velocity = velocity
+        self._velocity_requested = self._velocity_requested or velocity != 0.0
 
     def getVelocity(self) -> float:
         """The velocity as set (Webots' library returns the request; the simulator applies it clamped)."""
@@ -125,6 +135,13 @@ class Motor(Device):
             return math.copysign(limit, self._velocity)
         if self._target is None:
             self._target = angle
+        if self._position_never_set and self._velocity_requested:
+            self._held_steps += 1
+            if self._held_steps == POSITION_MODE_HINT_STEPS:
+                report(f'Hint (not from Webots): motor "{self._name}" has had velocities set for '
+                       f'{POSITION_MODE_HINT_STEPS} steps but is in position control (setPosition was never '
+                       f'called), so it holds its angle and the wheel stays still: call '
+                       f'setPosition(float(\'inf\')) once for velocity control, as the course\'s controllers do.')
         return max(-limit, min(limit, MOTOR_CONTROL_P * (self._target - angle)))
 
 

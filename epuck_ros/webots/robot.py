@@ -12,11 +12,17 @@ way gets the defaults (the single robot, rclpy's own command line).
 """
 from __future__ import annotations
 
-import _thread
+import difflib
+
 import math
+import numbers
+import os
 import signal
+import sys
 import threading
+import time
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import rclpy
 from rclpy.signals import SignalHandlerOptions
@@ -36,6 +42,9 @@ NOT_SIMULATED = ('camera', 'accelerometer', 'gyro', 'speaker', 'emitter', 'recei
 SINGLE_ROBOT_NAME = 'epuck'
 """`getName()` of the robot of a one-robot world (its topics carry no name)."""
 KILL_DELAY = 1.0
+STEP_SILENCE = 5.0
+"""Wall seconds without a call to step() after which the script is told (once per stall)."""
+STEP_WATCH_PERIOD = 0.5
 """Wall seconds a controller may run on after step() returned -1 (Webots then kills it)."""
 
 
@@ -58,13 +67,28 @@ class Session:
                 signal.signal(signum, self._on_signal)
 
     def _on_signal(self, signum: int, frame: object) -> None:
-        if self.ending or not self.in_step:
-            self.ending = True
-            raise KeyboardInterrupt
+        """The simulation is ending: step() returns -1 from now on (KeyboardInterrupt outside step()), and, as in
+        Webots, the process ends KILL_DELAY later whatever the script does (one caught KeyboardInterrupt and
+        went on for ever)."""
+        first = not self.ending
         self.ending = True
-        timer = threading.Timer(KILL_DELAY, _thread.interrupt_main)
-        timer.daemon = True
-        timer.start()
+        if first:
+            timer = threading.Timer(KILL_DELAY, end_process, args=(0,))
+            timer.daemon = True
+            timer.start()
+        if not self.in_step:
+            raise KeyboardInterrupt
+
+
+def end_process(code: int) -> None:
+    """End this controller process now, with `code`: nothing it left running (a thread, a caught
+    KeyboardInterrupt) keeps it alive, as Webots ends a controller."""
+    for stream in (sys.stdout, sys.stderr):
+        try:
+            stream.flush()
+        except (OSError, ValueError, AttributeError):
+            pass
+    os._exit(code)
 
 
 SESSION = Session()
@@ -97,6 +121,9 @@ class Robot:
         if data is None:
             raise KeyboardInterrupt  # ended (Ctrl-C, or the simulator went away) before the first step
         self._basic_step_ms = time_step * 1000.0
+        self._stepping = threading.Lock()
+        self._left_step = time.monotonic()
+        threading.Thread(target=self._watch_steps, name='step_watch', daemon=True).start()
         self._time_ns = data.time_ns
         self._data = data
         now = lambda: self._time_ns  # noqa: E731 - the devices' view of simulated time
@@ -126,9 +153,30 @@ class Robot:
             duration = int(self._basic_step_ms)
         if SESSION.ending:
             return -1
+        if not isinstance(duration, numbers.Real) or not math.isfinite(duration):
+            report(f'Error: wb_robot_step() called with an invalid duration ({duration!r}): it takes a whole number '
+                   f'of milliseconds.')
+            return 0
         if duration < 0:
             report('Error: wb_robot_step() called with a negative duration.')
             return 0
+        with self._stepping:   # a script stepping from several threads: one step at a time, as Webots serialises
+            return self._step(duration)
+
+    def _watch_steps(self) -> None:
+        """Say once per stall when the script has not called step() for `STEP_SILENCE` wall seconds: the simulation
+        waits for it (lockstep) or drives on without it, and an endless loop otherwise shows nothing at all."""
+        said_for = None
+        while not SESSION.ending:
+            time.sleep(STEP_WATCH_PERIOD)
+            left = self._left_step
+            if not SESSION.in_step and time.monotonic() - left >= STEP_SILENCE and said_for != left:
+                said_for = left
+                report(f'{Path(sys.argv[0]).name} has not called robot.step() for {STEP_SILENCE:g} s (at simulated '
+                       f't={self.getTime():.3f} s): the simulator waits for its answer; an endless loop without '
+                       f'step() never lets time go on.')
+
+    def _step(self, duration: float) -> int:
         # Whole simulator steps, rounded up: step(16) or step(40) with a 32 ms basic step take one and two steps.
         steps = math.ceil(duration / self._basic_step_ms - 1e-9)
         target_ns = self._time_ns + round((steps - 0.5) * self._basic_step_ms * NANOSECONDS_PER_MS)
@@ -143,6 +191,7 @@ class Robot:
                 self._read(data)
         finally:
             SESSION.in_step = False
+            self._left_step = time.monotonic()
         return -1 if SESSION.ending else 0
 
     def _read(self, data: StepData) -> None:
@@ -165,7 +214,9 @@ class Robot:
                 report(f'Device "{name}" exists on Webots\' e-puck but is not simulated by epuck_ros '
                        f'(devices: {", ".join(self._devices)})')
             else:
-                report(f'Device "{name}" was not found on robot "{self._name}"')
+                close = difflib.get_close_matches(str(name), list(self._devices), n=1)
+                hint = f' (did you mean "{close[0]}"?)' if close else ''
+                report(f'Device "{name}" was not found on robot "{self._name}"{hint}')
         return device
 
     def getNumberOfDevices(self) -> int:

@@ -19,7 +19,7 @@ import rclpy
 
 from epuck_ros.nodes.params import HELP_FLAGS, ParameterError, check_arguments, user_arguments
 from epuck_ros.webots.link import LinkError
-from epuck_ros.webots.robot import close, configure
+from epuck_ros.webots.robot import close, configure, end_process
 
 PROGRAM = 'webots_controller'
 ROBOT_NAME = re.compile(r'[A-Za-z_][A-Za-z0-9_]*')
@@ -117,7 +117,7 @@ def main(argv: list[str] | None = None) -> None:
     finally:
         close()
         rclpy.try_shutdown()
-    raise SystemExit(code)
+    end_process(code)   # not SystemExit: a thread the script left running would keep the process alive
 
 
 if __name__ == '__main__':
