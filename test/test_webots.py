@@ -509,6 +509,24 @@ def test_a_script_that_stops_calling_step_is_told_so(launch: object, test_node: 
     assert run.controller.proc.wait(timeout=30) == 0, run.output
 
 
+def test_a_killed_simulator_ends_a_script_waiting_in_step_within_seconds(
+        launch: object, test_node: object, tmp_path: Path) -> None:
+    """SIGKILL of the simulator: step() returns -1 once the graph drops it, after the participant lease of the
+    package's DDS profile (2 s); with Fast DDS's default lease that took 20.2 s."""
+    import time
+    script = tmp_path / 'waits.py'
+    script.write_text('from controller import Robot\nrobot = Robot()\nwhile robot.step(32) != -1:\n    pass\n'
+                      'print("step returned -1", flush=True)\n')
+    run = ControllerRun(launch, test_node, script, 600.0, sim_params={'real_time_factor': 1.0})
+    test_node.spin_until(lambda: run.sim_time() > 0.3, timeout=60, what='the script stepping')
+    killed = time.monotonic()
+    run.sim.proc.kill()
+    assert run.controller.proc.wait(timeout=60) == 0, run.output
+    took = time.monotonic() - killed
+    print(f'\nstep() returned -1 {took:.1f} s after the simulator was killed')
+    assert 'step returned -1' in run.output and took < 10.0, run.output   # 20.2 s with the default lease
+
+
 def test_a_script_that_raises_shows_its_traceback_and_the_sim_goes_on(
         launch: object, test_node: object, tmp_path: Path) -> None:
     script = tmp_path / 'raises.py'
