@@ -183,10 +183,30 @@ def test_another_simulator_on_the_domain_is_refused(launch, test_node, discovere
     if discovered:
         test_node.spin_until(lambda: test_node.node.count_publishers('/clock') == 1, 60, "the other sim's /clock")
     run = launch('bringup', 'forward', '--duration', '2')
-    assert run.proc.wait(timeout=90) == 1, run.output()
+    # Seen before any child starts: exit 2, nothing started; seen only later (still silent): the run fails, exit 1.
+    assert run.proc.wait(timeout=90) in ((2,) if discovered else (1, 2)), run.output()
     assert 'another simulator' in run.output()
     assert 'simulated' not in run.output()
     assert [pid for pid, _ in processes_in_this_domain()] == [other.proc.pid]
+
+
+def test_a_second_bringup_on_the_domain_starts_nothing_and_the_first_run_is_untouched(launch, test_node):
+    """Started 3 s into another run, a second bringup's avoid drove the first's robot before its simulator refused,
+    or the first was aborted. It now looks at the domain before starting anything: exit 2, and the first run ends
+    exactly as a lone run with the same seed."""
+    lone = launch('bringup', 'avoid', '--duration', '6', '--real-time-factor', '0', '--seed', '4')
+    assert lone.proc.wait(timeout=120) == 0, lone.output()
+    from rosgraph_msgs.msg import Clock
+    ticks = test_node.collect(Clock, '/clock')
+    first = launch('bringup', 'avoid', '--duration', '6', '--real-time-factor', '1', '--seed', '4')
+    test_node.spin_until(lambda: any(tick.clock.sec >= 1 for tick in ticks), timeout=120,
+                         what="the first run's /clock past 1 s")
+    second = launch('bringup', 'avoid', '--duration', '6', '--real-time-factor', '0', '--seed', '9')
+    assert second.proc.wait(timeout=120) == 2, second.output()
+    assert 'another simulator is running on this ROS domain' in second.output()
+    assert 'nothing was started' in second.output() and 'Traceback' not in second.output()
+    assert first.proc.wait(timeout=120) == 0, first.output()
+    assert summary_of(first.output())[1:] == summary_of(lone.output())[1:], (first.output(), lone.output())
 
 
 def test_avoid_for_a_simulated_minute_without_a_collision(launch):

@@ -45,6 +45,10 @@ class RunFailed(Exception):
         self.child = child
 
 
+class DomainTaken(RunFailed):
+    """Another simulator runs on this ROS domain: nothing was started (exit 2), the other run goes on untouched."""
+
+
 class Supervisor:
     """Starts the processes and watches them: a child that dies, or another simulator, ends the run."""
 
@@ -137,6 +141,22 @@ class Supervisor:
             raise RunFailed(f'another simulator or /clock source is running on this ROS domain ({seen}; '
                             f'{ros_domain()}): stop it, or run with another ROS_DOMAIN_ID')
 
+    def refuse_a_taken_domain(self) -> None:
+        """Before any child starts: watch the domain for the simulator's discovery window and refuse (DomainTaken)
+        if another simulator is there: its /clock ticking or published, its announcement, a node called sim.
+        Started after the check, our controller once drove the other run's robot before our simulator refused."""
+        monitor, window = self.monitor, float(tables.sim_default('discovery_window'))
+        while not self.stop_requested.is_set():
+            monitor.spin(WATCH_SLICE)
+            found = sorted(set(monitor.clock_sources()) | set(monitor.other_simulators())) or \
+                [f'the simulator pid {a.pid} on {a.host}' for a in monitor.announcements] or \
+                (['/clock ticking'] if monitor.clock_messages else [])
+            if found:
+                raise DomainTaken(f'another simulator is running on this ROS domain ({", ".join(found)}; '
+                                  f'{ros_domain()}): nothing was started; stop it, or run with another ROS_DOMAIN_ID')
+            if time.monotonic() >= monitor.created + window:
+                return
+
     def connected(self) -> bool:
         """Everything the run needs is in the graph: sim up, recorder subscribed, controllers connected, view up."""
         monitor = self.monitor
@@ -175,6 +195,9 @@ class Supervisor:
         # created after them waited for their next periodic announcement, ~3 s later: measured with
         # benchmarks/bench_startup.py). Then the children, whose own start-up is the longest part.
         self.monitor = RunMonitor(args.namespace, self.sim_enclave, follow_robots=plan.record_dir is None)
+        self.refuse_a_taken_domain()
+        if self.stop_requested.is_set():
+            return
         self.start_all()
         self.watch(self.connected, READY_TIMEOUT, self.waiting_for)
         if self.stop_requested.is_set():
@@ -271,11 +294,11 @@ def run(args: argparse.Namespace, plan: Plan) -> int:
     supervisor = Supervisor(args, plan, children)
     for signum in (signal.SIGINT, signal.SIGTERM):
         signal.signal(signum, lambda *_: supervisor.stop_requested.set())
-    failure, failed_child = '', None
+    failure, failed_child, refused = '', None, False
     try:
         supervisor.run()
     except RunFailed as error:
-        failure, failed_child = str(error), error.child
+        failure, failed_child, refused = str(error), error.child, isinstance(error, DomainTaken)
     except FileNotFoundError as error:  # an executable is missing from the installation
         failure = str(error)
     finally:
@@ -301,7 +324,7 @@ def run(args: argparse.Namespace, plan: Plan) -> int:
         print(line, flush=True)
     for problem in ([failure] if failure else []) + problems:
         print(f'[bringup] error: {problem}', file=sys.stderr, flush=True)
-    return 1 if failure or problems else 0
+    return 2 if refused else 1 if failure or problems else 0
 
 
 def main(argv: list[str] | None = None) -> None:
