@@ -331,6 +331,43 @@ def test_a_controller_at_its_own_rate_is_not_held_to_lockstep(launch, tmp_path):
     assert processes_in_this_domain() == []
 
 
+def test_a_child_printing_a_huge_line_keeps_bringup_small(launch, tmp_path):
+    """A child printing 200 MB without a newline took bringup to 800 MB; a `\\r` progress line grew without bound.
+    Forwarding reads in chunks and cuts a line at 64 KiB: bringup's peak memory (VmHWM) stays far below 200 MB."""
+    script = tmp_path / 'chatty.py'
+    script.write_text(textwrap.dedent('''
+        import sys
+        import rclpy
+        from std_msgs.msg import Float64MultiArray
+
+        rclpy.init()
+        node = rclpy.create_node('chatty')
+        publisher = node.create_publisher(Float64MultiArray, 'wheel_cmd', 10)
+        for _ in range(200):
+            sys.stdout.write('x' * 1_000_000)
+        for done in range(5):
+            sys.stdout.write(f'progress {done}/5\\r')
+        sys.stdout.write('\\nlast line\\n')
+        sys.stdout.flush()
+        node.create_timer(0.032, lambda: publisher.publish(Float64MultiArray(data=[1.0, 1.0])))
+        rclpy.spin(node)
+    '''))
+    run = launch('bringup', '--controller', str(script), '--duration', '1', '--real-time-factor', '0')
+    peak = 0
+    while run.proc.poll() is None:
+        status = Path(f'/proc/{run.proc.pid}/status')
+        try:
+            peak = max(peak, int(re.search(r'VmHWM:\s+(\d+) kB', status.read_text())[1]))
+        except (OSError, TypeError):
+            pass
+        time.sleep(0.05)
+    assert run.proc.returncode == 0, run.output()[-3000:]
+    output = run.output()
+    assert '[... cut: a line of over 64 KiB]' in output and '[chatty.py] progress 4/5' in output
+    assert '[chatty.py] last line' in output and len(output) < 2_000_000
+    assert 0 < peak < 150_000, f'bringup peaked at {peak} kB'
+
+
 def test_a_webots_controller_script_runs_through_webots_controller(launch):
     script = Path(__file__).resolve().parents[1] / 'epuck_ros' / 'webots' / 'examples' / 'straight_line.py'
     run = launch('bringup', '--controller', str(script), '--duration', '3', '--real-time-factor', '0', '--no-noise')

@@ -13,6 +13,7 @@ from __future__ import annotations
 import collections
 import ctypes
 import os
+import re
 import shutil
 import signal
 import subprocess
@@ -27,6 +28,10 @@ STOP_SIGNAL = signal.SIGTERM
 default action ends the process without the KeyboardInterrupt traceback a SIGINT would print."""
 STOP_TIMEOUT = 10.0
 """Wall seconds a child has to end after STOP_SIGNAL before it is killed."""
+MAX_LINE = 64 * 1024
+"""Bytes of one line of a child's output forwarded at most; the rest of a longer line is dropped."""
+READ_CHUNK = 64 * 1024
+_LINE_END = re.compile(rb'\r\n|[\r\n]')
 ERROR_LINES = 5
 """Lines of a child's output kept to explain its failure."""
 PR_SET_PDEATHSIG = 1  # <linux/prctl.h>
@@ -88,13 +93,29 @@ class Child:
     output_done: threading.Event = field(default_factory=threading.Event)
 
     def forward_output(self) -> None:
-        """Echo the child's output with a `[name]` prefix and keep its last lines."""
+        """Echo the child's output with a `[name]` prefix and keep its last lines. Read in chunks, a line ends at
+        `\n` or `\r` (a progress line rewritten with `\r` is a line each time) and one longer than `MAX_LINE` is
+        cut: a child printing 200 MB without a newline took bringup to 800 MB."""
         assert self.process.stdout is not None
-        for line in self.process.stdout:
-            line = line.rstrip('\n')
-            self.tail.append(line)
-            print(f'[{self.name}] {line}', flush=True)
+        pending, cutting = b'', False
+        while chunk := self.process.stdout.read1(READ_CHUNK):
+            *lines, pending = _LINE_END.split(pending + chunk)
+            for line in lines:
+                if not cutting:
+                    self._emit(line)
+                cutting = False
+            if len(pending) > MAX_LINE:
+                if not cutting:
+                    self._emit(pending[:MAX_LINE] + f' [... cut: a line of over {MAX_LINE // 1024} KiB]'.encode())
+                pending, cutting = b'', True
+        if pending and not cutting:
+            self._emit(pending)
         self.output_done.set()
+
+    def _emit(self, data: bytes) -> None:
+        line = data.decode(errors='replace')
+        self.tail.append(line)
+        print(f'[{self.name}] {line}', flush=True)
 
     def failure(self) -> str:
         """What went wrong, once the process has ended unexpectedly: one line, ending with the child's last line
@@ -140,7 +161,7 @@ class Children:
         """Start `command` with its output forwarded. Its own session: the terminal's Ctrl-C reaches
         `bringup` only, which then stops the children in order."""
         process = subprocess.Popen(
-            command, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, start_new_session=True,
+            command, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, start_new_session=True,
             preexec_fn=_die_with(os.getpid()),
             env=dict(os.environ, PYTHONUNBUFFERED='1', RCUTILS_COLORIZED_OUTPUT='0'))
         self._watchdog.watch(process.pid)
