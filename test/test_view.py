@@ -10,7 +10,7 @@ from collections.abc import Iterator
 
 import pytest
 
-from epuck_ros.view.server import ACTIONS, Action, ActionError, ViewServer, parse_action
+from epuck_ros.view.server import ACTIONS, MAX_POLLED, MAX_STREAMS, Action, ActionError, ViewServer, parse_action
 from epuck_ros.view.state import ViewState, robot_topic
 from epuck_ros.world import Box, RobotStart, World
 
@@ -231,3 +231,58 @@ def test_the_event_stream_sends_the_world_then_the_newest_state(served) -> None:
     state.set_world(World())  # a new world reaches a connected page
     assert next(kind for kind, _ in events if kind == 'world') == 'world'
     connection.close()
+
+
+def test_hostile_requests_get_an_answer_and_cost_bounded_memory(served) -> None:
+    """Each of these once got no answer and a traceback, or kept memory for ever."""
+    server, state, recorder = served
+    for body in (b'[' * 2000 + b']' * 2000, b'{"linear": 1' + b'0' * 400 + b', "angular": 0, "robot": "epuck"}',
+                 b'{"factor": 1e400}', b'{"paused": ' + b'1' * 5000 + b'}'):
+        status, answer, _ = _request(server, 'POST', '/api/drive', body, JSON)
+        assert status == 400 and 'error' in json.loads(answer), body[:40]
+    status, _, _ = _request(server, 'POST', '/api/pause', b'{}', {**JSON, 'Content-Length': '9' * 5000})
+    assert status == 400
+    for i in range(3000):   # made-up robot names, before the world is known: at most MAX_POLLED remembered
+        _request(server, 'GET', f'/state?robot=r{i}')
+    assert len(server._polls) <= MAX_POLLED
+    state.set_world(THREE)
+    _request(server, 'GET', '/state?robot=nobody')
+    assert 'nobody' not in server.watched()
+    assert recorder.actions == []
+
+
+def test_every_request_from_a_foreign_host_is_refused(served) -> None:
+    """GET had no Host check: a DNS-rebinding page could read /state, /world and /events."""
+    server = served[0]
+    for path in ('/', '/state', '/world', '/events', '/static/view.js'):
+        status, answer, _ = _request(server, 'GET', path, headers={'Host': 'rebound.example:8765'})
+        assert status == 403 and b'is not this machine' in answer, path
+    assert _request(server, 'GET', '/state', headers={'Host': f'localhost:{server.server_address[1]}'})[0] == 200
+
+
+def test_a_nan_pose_still_gives_json_the_page_parses(served) -> None:
+    server, state, _ = served
+    state.set_world(THREE)
+    state.update('epuck1', pose=(math.nan, math.inf, 0.0), stamp=0.032)
+    def strict(constant: str) -> None:
+        raise ValueError(f'{constant} is not JSON')
+    frame = json.loads(_request(server, 'GET', '/state')[1], parse_constant=strict)
+    assert frame['robots']['epuck1']['pose'][:2] == [None, None]
+
+
+def test_event_streams_are_capped(served) -> None:
+    server = served[0]
+    connections = []
+    try:
+        for _ in range(MAX_STREAMS):
+            connection = http.client.HTTPConnection(*server.server_address[:2], timeout=10)
+            connection.request('GET', '/events')
+            response = connection.getresponse()
+            assert response.status == 200
+            next(_events(response))
+            connections.append(connection)
+        status, answer, _ = _request(server, 'GET', '/events')
+        assert status == 503 and f'{MAX_STREAMS} pages are open already'.encode() in answer
+    finally:
+        for connection in connections:
+            connection.close()

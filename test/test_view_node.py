@@ -101,6 +101,7 @@ def test_a_port_in_use_is_one_line_and_exit_code_2(launch) -> None:
                             capture_output=True, text=True, timeout=60)
     assert result.returncode == 2
     assert f'cannot serve on 127.0.0.1:{address[1]}' in result.stderr + result.stdout
+    assert 'take any free port with -p port:=0' in result.stderr + result.stdout
     assert 'Traceback' not in result.stderr + result.stdout
 
 

@@ -15,6 +15,7 @@ odometry and wheel speeds only for the robots a page shows in detail.
 """
 from __future__ import annotations
 
+import errno
 import math
 import queue
 import threading
@@ -114,7 +115,9 @@ class ViewNode(Node):
         try:
             self.server = ViewServer(host, port, self.state, self.act)
         except OSError as error:
-            raise CannotServe(f'cannot serve on {host}:{port}: {error.strerror or error}') from None
+            busy = ' (another view?): take any free port with -p port:=0, or -p view.port:=0 through bringup; ' \
+                'the view prints the address it got' if error.errno == errno.EADDRINUSE else ''
+            raise CannotServe(f'cannot serve on {host}:{port}: {error.strerror or error}{busy}') from None
         self._server_thread = threading.Thread(target=self.server.serve_forever, name='view_http', daemon=True)
         self._server_thread.start()
         if not is_loopback(host):

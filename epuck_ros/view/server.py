@@ -48,6 +48,16 @@ MAX_ANGULAR_SPEED = 10.0
 CONTENT_TYPES = {'.html': 'text/html; charset=utf-8', '.js': 'text/javascript; charset=utf-8',
                  '.css': 'text/css; charset=utf-8', '.png': 'image/png', '.svg': 'image/svg+xml'}
 LOOPBACK_NAMES = {'localhost', '127.0.0.1', '::1'}
+MAX_STREAMS = 16
+"""Event streams open at once at most (each a thread sending up to 30 frames a second; 800 halved the simulator's
+speed); one more is answered 503."""
+MAX_POLLED = 64
+"""Robot names remembered from GET /state at most (each distinct name was kept for ever: 3,000 made up names
+took the view from 75 to 146 MiB)."""
+IDLE_TIMEOUT = 10.0
+"""Wall seconds a connection may stay silent (no request, or a request's body not coming) before it is closed."""
+LISTEN_BACKLOG = 64
+"""Connections waiting to be accepted (http.server's default is 5)."""
 
 
 class ActionError(ValueError):
@@ -114,11 +124,16 @@ def parse_action(path: str, body: bytes) -> Action:
         raise ActionError(f'unknown action {path!r} (known: {", ".join(prefix + a for a in ACTIONS)})')
     try:
         decoded = json.loads(body.decode('utf-8')) if body.strip() else {}
-    except (UnicodeDecodeError, json.JSONDecodeError) as error:
-        raise ActionError(f'body is not JSON: {error}') from None
+    except (UnicodeDecodeError, ValueError) as error:   # JSONDecodeError, or an integer of over 4,300 digits
+        raise ActionError(f'body is not JSON: {str(error)[:200]}') from None
+    except RecursionError:
+        raise ActionError('body is not JSON this page sends: nested too deep') from None
     if not isinstance(decoded, dict):
         raise ActionError('body must be a JSON object')
-    return Action(name, ACTIONS[name](decoded))
+    try:
+        return Action(name, ACTIONS[name](decoded))
+    except (OverflowError, ValueError, TypeError) as error:   # e.g. a 400-digit integer as a speed
+        raise ActionError(f'{name}: bad argument: {str(error)[:200]}') from None
 
 
 ActionHandler = Callable[[Action], dict]
@@ -144,6 +159,7 @@ class ViewServer(ThreadingHTTPServer):
     """The HTTP server: `serve_forever()` in a thread, `close()` to stop it and every open event stream."""
 
     daemon_threads = True
+    request_queue_size = LISTEN_BACKLOG
 
     def __init__(self, host: str, port: int, state: ViewState, act: ActionHandler) -> None:
         self.state, self.act = state, act
@@ -175,17 +191,29 @@ class ViewServer(ThreadingHTTPServer):
         """The robots some page shows in detail now."""
         return self._looking() - {''}
 
-    def watch_stream(self, stream: int, robot: str) -> None:
+    def watch_stream(self, stream: int, robot: str) -> bool:
+        """Note an event stream showing `robot`; False when MAX_STREAMS are open already."""
         with self._watch_lock:
+            if len(self._streams) >= MAX_STREAMS:
+                return False
             self._streams[stream] = robot
+            return True
 
     def end_stream(self, stream: int) -> None:
         with self._watch_lock:
             self._streams.pop(stream, None)
 
     def note_poll(self, robot: str) -> None:
+        """Remember that a page polls `robot`: only robots the world has (once known), at most MAX_POLLED, expired
+        ones dropped."""
+        known = self.state.robot_names
+        if robot and known and robot not in known:
+            return
+        now = time.monotonic()
         with self._watch_lock:
-            self._polls[robot] = time.monotonic()
+            self._polls = {name: at for name, at in self._polls.items() if now - at < POLL_LEASE}
+            if robot in self._polls or len(self._polls) < MAX_POLLED:
+                self._polls[robot] = now
 
     def close(self) -> None:
         self.stopping.set()
@@ -196,6 +224,26 @@ class ViewServer(ThreadingHTTPServer):
 class _Handler(BaseHTTPRequestHandler):
     server: ViewServer
     protocol_version = 'HTTP/1.1'
+    timeout = IDLE_TIMEOUT   # the socket's: an idle or half-sent connection does not hold its thread for ever
+
+    def parse_request(self) -> bool:
+        """http.server's parsing, then the Host check for every request (GET too: a DNS-rebinding page could read
+        /state, /world and /events)."""
+        if not super().parse_request():
+            return False
+        refusal = self._foreign_host()
+        if refusal:
+            self.close_connection = True
+            self._send_error(HTTPStatus.FORBIDDEN, refusal)
+            return False
+        return True
+
+    def _foreign_host(self) -> str:
+        """Why this request's Host is not this server on loopback, or ''."""
+        host = self.headers.get('Host', '')
+        if self.server.loopback_only and urlsplit(f'//{host}').hostname not in LOOPBACK_NAMES:
+            return f'Host {host!r} is not this machine'
+        return ''
 
     def log_message(self, format: str, *args: object) -> None:  # noqa: A002 - the base class's name
         """Quiet: a page polling or streaming would fill the terminal."""
@@ -223,7 +271,7 @@ class _Handler(BaseHTTPRequestHandler):
             self._send_error(HTTPStatus.FORBIDDEN, refusal)
             return
         length = self.headers.get('Content-Length', '')
-        if not length.isdigit() or int(length) > MAX_BODY:
+        if not length.isdigit() or len(length) > 9 or int(length) > MAX_BODY:
             self._send_error(HTTPStatus.BAD_REQUEST, f'a body of at most {MAX_BODY} bytes with Content-Length')
             return
         try:
@@ -239,8 +287,6 @@ class _Handler(BaseHTTPRequestHandler):
         if self.headers.get('Content-Type', '').split(';')[0].strip() != 'application/json':
             return 'actions must be sent as application/json'
         host = self.headers.get('Host', '')
-        if self.server.loopback_only and urlsplit(f'//{host}').hostname not in LOOPBACK_NAMES:
-            return f'Host {host!r} is not this machine'
         origin = self.headers.get('Origin')
         if origin is not None and urlsplit(origin).netloc != host:
             return f'Origin {origin!r} is not this page'
@@ -268,7 +314,10 @@ class _Handler(BaseHTTPRequestHandler):
     def _stream_events(self, robot: str) -> None:
         """Send `world` and `state` events until the client goes away or the server stops."""
         state, stopping = self.server.state, self.server.stopping
-        self.server.watch_stream(id(self), robot)
+        if not self.server.watch_stream(id(self), robot):
+            self.close_connection = True
+            self._send_error(HTTPStatus.SERVICE_UNAVAILABLE, f'{MAX_STREAMS} pages are open already')
+            return
         self.send_response(HTTPStatus.OK)
         self.send_header('Content-Type', 'text/event-stream')
         self.send_header('Cache-Control', 'no-store')
@@ -290,8 +339,8 @@ class _Handler(BaseHTTPRequestHandler):
                     self._event('state', state.frame_json(now))
                     last_write = now
                 stopping.wait(1.0 / MAX_FRAME_RATE)
-        except (BrokenPipeError, ConnectionResetError):
-            pass  # the page was closed
+        except (BrokenPipeError, ConnectionResetError, TimeoutError):
+            pass  # the page was closed, or stopped reading
         finally:
             self.server.end_stream(id(self))
 

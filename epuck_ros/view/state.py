@@ -22,6 +22,22 @@ RTF_WINDOW = 1.0
 """Wall seconds of simulated-time samples over which the real-time factor reached is measured."""
 
 
+def page_json(value: object) -> str:
+    """JSON the page's JSON.parse accepts: NaN and infinities (a NaN pose from any node on the domain, or a replayed
+    bag) become null instead of the bare NaN Python writes."""
+    return json.dumps(_finite(value), allow_nan=False)
+
+
+def _finite(value: object) -> object:
+    if isinstance(value, float):
+        return value if math.isfinite(value) else None
+    if isinstance(value, dict):
+        return {key: _finite(item) for key, item in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_finite(item) for item in value]
+    return value
+
+
 def robot_topic(robot_names: tuple[str, ...], robot: str, topic: str) -> str:
     """A robot's topic as the simulator names it: `topic` when it simulates one robot, `<robot>/topic` otherwise."""
     return topic if len(robot_names) == 1 else f'{robot}/{topic}'
@@ -178,7 +194,7 @@ class ViewState:
                           for b in world.boxes],
                 'cylinders': [{'x': c.x, 'y': c.y, 'radius': c.radius} for c in world.cylinders],
                 'robots': [{'name': r.name, 'start': [r.x, r.y, r.yaw]} for r in world.robots]})
-        return json.dumps(body)
+        return page_json(body)
 
     def frame_json(self, wall_now: float) -> str:
         """The state event: time, real-time factor reached, settings, every robot's readings; cached per version."""
@@ -189,7 +205,7 @@ class ViewState:
             starts = {r.name: (r.x, r.y, r.yaw) for r in self.world.robots} if self.world is not None else {}
             robots = {name: readings.to_json(starts.get(name, (0.0, 0.0, 0.0)))
                       for name, readings in self.robots.items()}
-            text = json.dumps({
+            text = page_json({
                 'version': self.version, 'world_version': self.world_version, 'time': self.time,
                 'rtf': rtf, 'paused': self.settings.paused, 'real_time_factor': self.settings.real_time_factor,
                 'collisions': sum(r.collisions for r in self.robots.values()), 'robots': robots})
