@@ -255,6 +255,22 @@ def test_the_summary_is_the_bag_summary_and_lockstep_runs_are_identical(launch, 
     assert distances[0] == distances[1] > 0.2
 
 
+def test_the_summary_prints_the_shape_figures_of_bag_summary(launch, tmp_path):
+    """bringup said it printed `bag summary`'s figures but left out the shape's: the corners of a timed rectangle
+    (31 steps of 32 ms per turn: 82.4 degrees) and the circle fit, from the same code, recorded or not."""
+    rectangle = launch('bringup', 'rectangle', '--duration', '30', '--real-time-factor', '0', '-p', 'turn_mode:=timed',
+                       '--record', str(tmp_path / 'rect'))
+    assert rectangle.proc.wait(timeout=120) == 0, rectangle.output()
+    bag_summary = subprocess.run([str(BIN_DIR / 'bag'), 'summary', str(tmp_path / 'rect')], capture_output=True,
+                                 text=True, timeout=60)
+    corners = re.search(r'Corners:\s+(.+)', bag_summary.stdout)[1]
+    assert f'[bringup]   Corners: {corners}' in rectangle.output(), (rectangle.output(), bag_summary.stdout)
+    assert '82.4°, 82.4°, 82.4°, 82.4°' in corners
+    circle = launch('bringup', 'circle', '--duration', '10', '--real-time-factor', '0')
+    assert circle.proc.wait(timeout=120) == 0, circle.output()
+    assert re.search(r'\[bringup\]   Circle fit: radius 0\.078\d m', circle.output()), circle.output()
+
+
 def test_several_robots_one_behaviour_process_a_table_per_robot(launch, tmp_path):
     run = launch('bringup', 'avoid', '--robots', '3', '--duration', '3', '--real-time-factor', '0', '--seed', '2',
                  '--record', str(tmp_path / 'swarm'))

@@ -1,8 +1,10 @@
 """controller_4: a rectangle of FORWARD legs and in-place TURNs, the course's two-state machine.
 
 The course turns for a fixed 1 s "to adjust experimentally": at 0.3 * MAX_SPEED that is
-R/L * 0.6 * 6.28 = 1.449 rad/s for 1 s = 83 degrees, so its "rectangle" never closes. `timed` mode keeps
-that (sides become times: side / speed); `odometry` mode (default) closes the loop on the odometry pose:
+R/L * 0.6 * 6.28 = 1.449 rad/s, 83.0 degrees in 1 s of continuous time, so its "rectangle" never closes. In
+32 ms steps a turn lasts a whole number of steps: `timed` mode ends it on the step nearest `turn_time` (31 steps,
+0.992 s: 82.4 degrees); the course's own program, run unchanged, turns until `elapsed >= 1 s` (32 steps, 1.024 s:
+85.0 degrees). `timed` mode keeps that open loop (sides become times: side / speed); `odometry` mode (default) closes the loop on the odometry pose:
 each leg aims at the ideal corner and the ideal heading computed from the start pose, so small errors
 do not add up from leg to leg, and the robot slows down near each target to land on it.
 """
@@ -35,7 +37,8 @@ class RectangleConfig(Config):
     turn_mode: str = setting('odometry', 'how a turn ends: odometry = closed loop on the odometry yaw, true '
                                          '90-degree corners; timed = after turn_time, as the course does',
                              choices=TURN_MODES)
-    turn_time: float = setting(1.0, 'seconds per turn in timed mode (the course: 1 s, which turns 83 degrees)',
+    turn_time: float = setting(1.0, 'seconds per turn in timed mode, ended on the nearest 32 ms step (the course: '
+                                    '1 s, 31 steps here: 82.4 degrees; 83.0 in continuous time)',
                                0.01, 60.0)
     laps: int = setting(0, 'laps to drive before stopping; 0 = forever', 0, 1_000_000)
 

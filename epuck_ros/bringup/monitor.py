@@ -49,14 +49,17 @@ class RobotTrack:
     """Feeds one robot's ground-truth samples to the run's tally, decoded from the raw CDR as the bag reader does."""
 
     def __init__(self, tally: RunTally, name: str, label: str) -> None:
-        self._add, self._label = tally.add, label
+        self._add, self.label = tally.add, label
         self.name = name
         self.stamps: set[int] = set()
+        self.samples: list[tuple[int, float, float, float]] = []
+        """(stamp ns, x, y, yaw) as received: the shape driven, classified at the end as `bag summary` does."""
 
     def add(self, data: bytes) -> None:
-        stamp, x, y, _, _, _ = odometry_fields(data, 0)
+        stamp, x, y, yaw, _, _ = odometry_fields(data, 0)
         self.stamps.add(stamp)
-        self._add(self._label, stamp, x, y)
+        self.samples.append((stamp, x, y, yaw))
+        self._add(self.label, stamp, x, y)
 
 
 class RunMonitor:

@@ -264,12 +264,13 @@ def report(supervisor: Supervisor, sim_time: float, wall_time: float) -> list[st
                     f'waiting for a controller\'s answer, or a busy machine: see the lines above)')
     if plan.record_dir is not None:
         try:
-            figures = summary.from_bag(plan.record_dir)
+            figures, motions = summary.from_bag(plan.record_dir)
         except (BagError, OSError) as error:
             return head + [f'[bringup] cannot summarise the bag: {error}']
         notes.append(f'[bringup] recorded to {plan.record_dir} (bag summary {plan.record_dir} says more)')
     elif monitor.tally is not None:
         figures = monitor.tally.figures
+        motions = {track.label: summary.motion_of(track.samples) for track in monitor.tracks.values()}
         time_step = _time_step(plan)
         lost = sum(samples_missing(track, time_step, sim_time) for track in monitor.tracks.values())
         if lost:
@@ -277,7 +278,7 @@ def report(supervisor: Supervisor, sim_time: float, wall_time: float) -> list[st
                          f'others (record the run for exact figures)')
     else:
         return head
-    return head + [f'[bringup] {line}' for line in summary.lines(figures)] + notes
+    return head + [f'[bringup] {line}' for line in summary.lines(figures, motions)] + notes
 
 
 def _time_step(plan: Plan) -> float:

@@ -1,20 +1,38 @@
-"""The figures `bringup` prints at the end of a run, by the same code as `bag summary` (`run_summary.RunTally`):
-from the bag when the run was recorded, else from the ground-truth samples `bringup` received. One source of
-truth for distance and contacts, and one format (`run_summary.format_figures`)."""
+"""The figures `bringup` prints at the end of a run, by the same code as `bag summary` (`run_summary.RunTally` for
+distance and contacts, `run_summary.classify` and `shape_lines` for the shape driven): from the bag when the run
+was recorded, else from the ground-truth samples `bringup` received. One source of truth, and one format."""
 from __future__ import annotations
 
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 
+import numpy as np
+
 from epuck_ros.bag.reader import Bag
-from epuck_ros.bag.run_summary import RobotFigures, format_figures, load_runs, tally_runs
+from epuck_ros.bag.run_summary import (Motion, RobotFigures, Trajectory, classify, format_figures, load_runs,
+                                       shape_lines, tally_runs)
 
 
-def from_bag(path: Path) -> list[RobotFigures]:
-    """Each recorded robot's figures, as `bag summary` computes them."""
+def from_bag(path: Path) -> tuple[list[RobotFigures], dict[str, Motion]]:
+    """Each recorded robot's figures and the shape it drove, as `bag summary` computes them."""
     with Bag(path) as bag:
-        return tally_runs(load_runs(bag)).figures
+        runs = load_runs(bag)
+    return tally_runs(runs).figures, {run.name: classify(run.trajectory) for run in runs}
 
 
-def lines(figures: list[RobotFigures]) -> list[str]:
-    """One line per robot."""
-    return format_figures(figures).splitlines()
+def motion_of(samples: Sequence[tuple[int, float, float, float]]) -> Motion:
+    """The shape driven, from ground-truth samples (stamp ns, x, y, yaw) in any order, repeats allowed."""
+    rows = np.array(sorted(set(samples)), dtype=float).reshape(-1, 4)
+    stamps = rows[:, 0].astype(np.int64)
+    t = (stamps - stamps[0]) * 1e-9 if len(stamps) else stamps.astype(float)
+    return classify(Trajectory('ground_truth', t, rows[:, 1], rows[:, 2], np.unwrap(rows[:, 3]), stamps))
+
+
+def lines(figures: list[RobotFigures], motions: Mapping[str, Motion]) -> list[str]:
+    """One line per robot, then the figures of its shape (corners, circle fit, ...) as `bag summary` prints them."""
+    result = []
+    for figure, line in zip(figures, format_figures(figures).splitlines()):
+        result.append(line)
+        motion = motions.get(figure.name)
+        result += [f'  {label}: {text}' for label, text in (shape_lines(motion) if motion is not None else [])]
+    return result
