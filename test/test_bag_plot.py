@@ -147,3 +147,17 @@ def test_without_ground_truth_the_odometry_is_the_path_drawn_from_the_start_pose
     assert segments[0][0] == pytest.approx([x0, y0], abs=1e-12)
     assert segments[-1][1] == pytest.approx([x0, y0 + odom[-1][0]], abs=1e-12)  # driven along +y
     assert 'odometry (no ground truth), colour = time (s)' in legend_texts(figure)
+
+
+def test_a_bag_without_a_world_says_the_arena_is_unknown():
+    """Without a `world` topic no arena is drawn: the picture says so, and spans the path."""
+    import dataclasses
+    with Bag(REPO / 'bags' / 'spin') as bag:
+        runs = [dataclasses.replace(run, world=None) for run in load_runs(bag)]
+    figure = draw_runs(runs, summarise_runs(runs))
+    notes = [text.get_text() for text in figure.findobj(match=lambda artist: artist.get_gid() == 'no-world')]
+    assert notes == ['arena unknown: the bag has no world topic (the view spans the paths)']
+    with Bag(REPO / 'bags' / 'spin') as bag:
+        with_world = draw_runs(load_runs(bag), summarise_runs(load_runs(bag)))
+    assert not with_world.findobj(match=lambda artist: artist.get_gid() == 'no-world')
+    plt.close('all')

@@ -254,6 +254,9 @@ def draw_runs(runs: Sequence[RunData], summary: BagSummary,
     world = runs[0].world
     if world is not None:
         _draw_world(axes, world)
+    else:
+        axes.text(0.01, 0.99, 'arena unknown: the bag has no world topic (the view spans the paths)',
+                  transform=axes.transAxes, ha='left', va='top', fontsize=9, color='0.35', gid='no-world')
     paths = [run.path_in_world() for run in runs]
     if len(runs) == 1:
         odom = runs[0].odom_in_world()
