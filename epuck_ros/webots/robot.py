@@ -16,7 +16,6 @@ import difflib
 
 import math
 import numbers
-import os
 import signal
 import sys
 import threading
@@ -29,6 +28,7 @@ from rclpy.signals import SignalHandlerOptions
 
 from epuck_ros.model import SENSOR_NAMES, RobotModel
 from epuck_ros.nodes.dds_profile import use_package_profile
+from epuck_ros.nodes.spinning import end_process
 from epuck_ros.webots.devices import (
     LED, NANOSECONDS_PER_MS, Device, DistanceSensor, Motor, PositionSensor, public_methods, report, unsupported)
 from epuck_ros.webots.link import SimLink, StepData
@@ -78,17 +78,6 @@ class Session:
             timer.start()
         if not self.in_step:
             raise KeyboardInterrupt
-
-
-def end_process(code: int) -> None:
-    """End this controller process now, with `code`: nothing it left running (a thread, a caught
-    KeyboardInterrupt) keeps it alive, as Webots ends a controller."""
-    for stream in (sys.stdout, sys.stderr):
-        try:
-            stream.flush()
-        except (OSError, ValueError, AttributeError):
-            pass
-    os._exit(code)
 
 
 SESSION = Session()
@@ -245,6 +234,7 @@ class Robot:
         if name.startswith('_'):
             raise AttributeError(name)
         raise unsupported('Robot', name, public_methods(Robot))
+
 
 class _AnotherRobot(Robot):
     """A second Robot(): Webots prints an error and goes on; here its calls act on the first Robot."""

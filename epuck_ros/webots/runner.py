@@ -19,7 +19,8 @@ import rclpy
 
 from epuck_ros.nodes.params import HELP_FLAGS, ParameterError, check_arguments, user_arguments
 from epuck_ros.webots.link import LinkError
-from epuck_ros.webots.robot import close, configure, end_process
+from epuck_ros.nodes.spinning import end_process
+from epuck_ros.webots.robot import close, configure
 
 PROGRAM = 'webots_controller'
 ROBOT_NAME = re.compile(r'[A-Za-z_][A-Za-z0-9_]*')
