@@ -32,7 +32,6 @@ SPEED = re.compile(r'\[bringup\] simulated ([\d.]+) s in ([\d.]+) s wall \(([\d.
 STEPPING = re.compile(r'([\d.]+)x real time from the first step, which came ([\d.]+) s after the resume')
 
 
-
 def children_of(pid: int) -> list[int]:
     found = []
     for task in Path(f'/proc/{pid}/task').glob('*'):

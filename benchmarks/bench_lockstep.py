@@ -52,7 +52,6 @@ def executable(name: str) -> str:
     return shutil.which(name) or str(Path(sys.executable).parent / name)
 
 
-
 @dataclass
 class Result:
     label: str

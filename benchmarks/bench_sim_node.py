@@ -42,7 +42,6 @@ def executable(name: str) -> str:
     return shutil.which(name) or str(Path(sys.executable).parent / name)
 
 
-
 def core_steps_per_second(robots: int, steps: int) -> float:
     world = default_world() if robots == 1 else place_robots(default_world(), robots, seed=0)
     sim = Simulation(world, RobotModel(), noise=True)

@@ -144,8 +144,8 @@ def main() -> None:
     parser.add_argument('--scale', type=float, default=1.0, help='multiply the timed steps (e.g. 0.2 for a quick look)')
     parser.add_argument('--no-peer', action='store_true', help='do not run ir-sim')
     parser.add_argument('--peer-steps', type=int, default=2000, help='timed ir-sim steps per scenario')
-    parser.add_argument('--repeats', type=int, default=3, help='runs per N, ours and the peer\'s alternating; '
-                                                                'the best of each is reported')
+    parser.add_argument('--repeats', type=int, default=3,
+                        help='runs per N, ours and the peer\'s alternating; the best of each is reported')
     args = parser.parse_args()
     counts = [int(c) for c in args.counts.split(',') if c]
     python = None

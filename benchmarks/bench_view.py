@@ -144,8 +144,6 @@ def wait_for(condition: Callable[[], bool], what: str, timeout: float = 60.0) ->
         time.sleep(0.05)
 
 
-
-
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument('--seconds', type=float, default=5.0, help='wall seconds per phase (default 5)')
@@ -191,6 +189,7 @@ def main() -> None:
         if name != 'sim alone':
             print(f'  {"":22}ratio to the sim alone: real-time factor {mean.rtf / alone.rtf:.2f}, '
                   f'sim CPU per simulated second {mean.sim_cpu_per_sim_second / alone.sim_cpu_per_sim_second:.2f}')
+
 
 if __name__ == '__main__':
     main()

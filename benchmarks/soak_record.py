@@ -152,8 +152,8 @@ def main() -> None:
         report = [line.split(']: ', 1)[-1] for line in (workdir / 'processes.log').read_text().splitlines()
                   if 'lost' in line]
         print('\n'.join(f'record says: {line}' for line in report))
-        print('\n'.join(line for line in info.splitlines() if 'Messages' in line or 'missing' in line
-                         or 'Stamp gaps' in line))
+        print('\n'.join(line for line in info.splitlines()
+                        if 'Messages' in line or 'missing' in line or 'Stamp gaps' in line))
     finally:
         for process in (source, recorder):
             stop(process, timeout=5.0)

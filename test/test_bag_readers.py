@@ -10,7 +10,7 @@ from pathlib import Path
 
 import pytest
 from mcap.reader import make_reader
-from mcap_ros2._dynamic import generate_dynamic, serialize_dynamic
+from mcap_ros2._dynamic import serialize_dynamic
 from mcap_ros2.decoder import DecoderFactory
 from rosbags.highlevel import AnyReader
 from rosbags.typesys import Stores, get_typestore
@@ -41,7 +41,8 @@ def assert_every_message_reads_back_exactly(bag: Path) -> dict[str, int]:
             msg = reader.deserialize(rawdata, connection.msgtype)
             again = typestore.serialize_cdr(msg, connection.msgtype)
             if connection.topic not in FROM_RCL:
-                assert_same_cdr(bytes(again), bytes(rawdata), f'{connection.topic} message {counts.get(connection.topic, 0)}')
+                assert_same_cdr(bytes(again), bytes(rawdata),
+                                f'{connection.topic} message {counts.get(connection.topic, 0)}')
             counts[connection.topic] = counts.get(connection.topic, 0) + 1
     (mcap_file,) = bag.glob('*.mcap')
     decoded: dict[str, int] = {}

@@ -351,8 +351,8 @@ def test_closed_loop_timed_rectangle_turns_the_courses_83_degrees() -> None:
 
 @pytest.mark.parametrize('from_raw', [False, True], ids=['ranges', 'raw'])
 @pytest.mark.parametrize('mode', ['rules', 'braitenberg'])
-def test_closed_loop_avoid_explores_the_default_world_for_5_minutes_without_a_collision(mode: str,
-                                                                                     from_raw: bool) -> None:
+def test_closed_loop_avoid_explores_the_default_world_for_5_minutes_without_a_collision(
+        mode: str, from_raw: bool) -> None:
     """Bounds: cruising the whole time would drive 0.0628 m/s * 300 s = 18.8 m; at least half of that says the
     robot is not stuck turning. The 1 m arena has 100 cells of 10 cm and a wall-follower would visit only the
     36 along the walls; 40 says it crosses the room. Seeds 0 to 19 drove 12.0 to 17.1 m over 45 to 84 cells."""

@@ -159,8 +159,8 @@ def test_a_behaviour_commands_a_stop_when_it_ends(launch: object, test_node: obj
 
 
 @pytest.mark.parametrize('name', ['forward', 'avoid'])
-def test_help_says_what_the_behaviour_does_and_exits_without_driving(launch: object, test_node: object,
-                                                                    name: str) -> None:
+def test_help_says_what_the_behaviour_does_and_exits_without_driving(
+        launch: object, test_node: object, name: str) -> None:
     commands: list[Float64MultiArray] = test_node.collect(Float64MultiArray, '/wheel_cmd')
     process = launch(name, '--help')
     test_node.spin_until(lambda: process.proc.poll() is not None, timeout=TIMEOUT, what=f'{name} --help to end')

@@ -266,8 +266,8 @@ def test_one_robot_moves_the_same_alone_and_among_distant_others():
     base = dict(arena_size=(1.0, 2.0), boxes=(Box(0.2, 0.3, 0.1, 0.1, 0.4),), cylinders=(Cylinder(-0.2, -0.2, 0.05),))
     alone, alone_contacts = drive(World(**base))
     # three far robots in the other half of a taller arena: never in reach of robot 0's sensors or body
-    walled = World(**base | dict(arena_size=(1.0, 2.0)), robots=robots((0.0, 0.0, 0.0), (0.0, 0.8, 0.0),
-                                                                           (0.3, 0.8, 0.0), (-0.3, 0.8, 1.0)))
+    walled = World(**base | dict(arena_size=(1.0, 2.0)),
+                   robots=robots((0.0, 0.0, 0.0), (0.0, 0.8, 0.0), (0.3, 0.8, 0.0), (-0.3, 0.8, 1.0)))
     among, among_contacts = drive(walled)
     assert alone_contacts > 0 and alone_contacts == among_contacts
     np.testing.assert_allclose(among, alone, atol=1e-9)

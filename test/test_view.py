@@ -264,6 +264,7 @@ def test_a_nan_pose_still_gives_json_the_page_parses(served) -> None:
     server, state, _ = served
     state.set_world(THREE)
     state.update('epuck1', pose=(math.nan, math.inf, 0.0), stamp=0.032)
+
     def strict(constant: str) -> None:
         raise ValueError(f'{constant} is not JSON')
     frame = json.loads(_request(server, 'GET', '/state')[1], parse_constant=strict)

@@ -4,7 +4,8 @@ The course turns for a fixed 1 s "to adjust experimentally": at 0.3 * MAX_SPEED 
 R/L * 0.6 * 6.28 = 1.449 rad/s, 83.0 degrees in 1 s of continuous time, so its "rectangle" never closes. In
 32 ms steps a turn lasts a whole number of steps: `timed` mode ends it on the step nearest `turn_time` (31 steps,
 0.992 s: 82.4 degrees); the course's own program, run unchanged, turns until `elapsed >= 1 s` (32 steps, 1.024 s:
-85.0 degrees). `timed` mode keeps that open loop (sides become times: side / speed); `odometry` mode (default) closes the loop on the odometry pose:
+85.0 degrees). `timed` mode keeps that open loop (sides become times: side / speed); `odometry` mode (default)
+closes the loop on the odometry pose:
 each leg aims at the ideal corner and the ideal heading computed from the start pose, so small errors
 do not add up from leg to leg, and the robot slows down near each target to land on it.
 """

@@ -74,8 +74,8 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument('--robots', type=int, metavar='N',
                         help='simulate N robots placed clear of everything (seeded); the behaviour drives them all')
     parser.add_argument('--duration', type=float, default=0.0,
-                        help='simulated seconds after which the run ends by itself, on the first 32 ms step at or after '
-                             'it (10 ends at 10.016 s; default: until Ctrl-C)')
+                        help='simulated seconds after which the run ends by itself, on the first 32 ms step at or '
+                             'after it (10 ends at 10.016 s; default: until Ctrl-C)')
     parser.add_argument('--world', default='', help='world YAML file (default: the built-in 1 m x 1 m arena)')
     parser.add_argument('--seed', type=int, default=0, help='seed of every random draw (default 0)')
     parser.add_argument('--real-time-factor', type=float, default=1.0,

@@ -131,7 +131,8 @@ class Watchdog:
     def __init__(self) -> None:
         self.process = subprocess.Popen(
             [sys.executable, '-m', 'epuck_ros.bringup.watchdog', str(STOP_TIMEOUT)], stdin=subprocess.PIPE,
-            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, text=True, start_new_session=True, env={k: v for k, v in os.environ.items() if k != 'ROS_DOMAIN_ID'})
+            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, text=True, start_new_session=True,
+            env={k: v for k, v in os.environ.items() if k != 'ROS_DOMAIN_ID'})
 
     def watch(self, pid: int) -> None:
         start = process_start_time(pid)

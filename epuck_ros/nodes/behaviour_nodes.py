@@ -291,8 +291,8 @@ class BehaviourNode(Node):
 
 def parse_robots(name: str, user_args: list[str]) -> list[str] | None:
     """The `--robots` names (or ['all']), None without the option; exits 2 on anything else."""
-    parser = argparse.ArgumentParser(prog=name, add_help=False, usage=f'{name} [--robots NAME [NAME ...] | all] '
-                                                                     '[--ros-args ...]')
+    parser = argparse.ArgumentParser(prog=name, add_help=False,
+                                     usage=f'{name} [--robots NAME [NAME ...] | all] [--ros-args ...]')
     parser.add_argument('--robots', nargs='+', metavar='NAME')
     robots = parser.parse_args(user_args).robots
     if robots and ALL_ROBOTS in robots and len(robots) > 1:

@@ -186,8 +186,8 @@ def help_text(specs: Iterable[ParamSpec], usage: Usage) -> str:
     """What `--help` prints: the summary, options, a parameter table and an example."""
     rows = [(spec.name, _show(spec.default), _range_text(spec), spec.description + (' (read-only)' if spec.read_only
                                                                                     else '')) for spec in specs]
-    widths = [max([len(header)] + [len(row[i]) for row in rows]) for i, header in enumerate(('name', 'default',
-                                                                                               'range'))]
+    widths = [max([len(header)] + [len(row[i]) for row in rows])
+              for i, header in enumerate(('name', 'default', 'range'))]
     lines = [f'usage: {usage.program} [-h] [--ros-args -p NAME:=VALUE ...]', '', textwrap.fill(usage.summary, 100), '']
     if usage.options:
         lines += ['options:', usage.options.rstrip(), '']

@@ -2,9 +2,9 @@
 
 It follows the latched `world` topic (arena, obstacles, robot names: one robot uses the unprefixed topics,
 several use `<name>/...`), keeps the newest ground truth, odometry, IR readings, wheel speeds and collision count
-of every robot and the simulated time (the stamp of the first robot's ground truth), and serves them to the page (`epuck_ros.view.server`). The page's controls
-reach the simulator only through its own interfaces: its `paused` and `real_time_factor` parameters, its `step`
-and `reset` services and each robot's `cmd_vel`.
+of every robot and the simulated time (the stamp of the first robot's ground truth), and serves them to the page
+(`epuck_ros.view.server`). The page's controls reach the simulator only through its own interfaces: its `paused`
+and `real_time_factor` parameters, its `step` and `reset` services and each robot's `cmd_vel`.
 
 The view must never slow the simulator down, which may step thousands of times a second. Every subscription is
 best-effort with a history of one, and the node takes its messages `SPIN_RATE` times a second rather than as they

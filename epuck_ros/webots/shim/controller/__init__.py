@@ -16,4 +16,3 @@ def __getattr__(name: str) -> object:
     # An ImportError (not AttributeError) so that `from controller import Camera` shows this message.
     raise ImportError(f'controller.{name} is part of the Webots API but not supported by epuck_ros\'s Webots shim; '
                       f'supported: {", ".join(__all__)}', name='controller')
-
