@@ -31,6 +31,21 @@ def summary_of(output: str) -> tuple[float, float, int]:
     return float(simulated[1]), float(robots[0][1]), int(robots[0][2])
 
 
+def rclpy_script(path: Path, body: str) -> Path:
+    """An rclpy controller script: `body` (indented as in a test, makes `node`) between rclpy.init() and the Jazzy
+    spin with try / except / finally."""
+    path.write_text('import rclpy\nfrom rclpy.executors import ExternalShutdownException\n\nrclpy.init()\n'
+                    + textwrap.dedent(body) + textwrap.dedent('''
+        try:
+            rclpy.spin(node)
+        except (KeyboardInterrupt, ExternalShutdownException):
+            pass
+        finally:
+            rclpy.try_shutdown()
+    '''))
+    return path
+
+
 def child_pids() -> list[int]:
     """The ROS processes of this test's domain other than bringup itself."""
     return [pid for pid, cmd in processes_in_this_domain() if '/bringup' not in cmd]
@@ -283,25 +298,15 @@ def test_several_robots_one_behaviour_process_a_table_per_robot(launch, tmp_path
 
 
 def test_an_rclpy_controller_script_runs_with_sim_time_and_gets_the_summary(launch, tmp_path):
-    script = tmp_path / 'my_node.py'
-    script.write_text(textwrap.dedent('''
+    script = rclpy_script(tmp_path / 'my_node.py', '''
         """A student's own node: both wheels at 2 rad/s on every simulated tick."""
-        import rclpy
-        from rclpy.executors import ExternalShutdownException
         from std_msgs.msg import Float64MultiArray
 
-        rclpy.init()
         node = rclpy.create_node('my_node')
         assert node.get_parameter('use_sim_time').value
         publisher = node.create_publisher(Float64MultiArray, 'wheel_cmd', 10)
         node.create_timer(0.032, lambda: publisher.publish(Float64MultiArray(data=[2.0, 2.0])))
-        try:
-            rclpy.spin(node)
-        except (KeyboardInterrupt, ExternalShutdownException):
-            pass
-        finally:
-            rclpy.try_shutdown()
-    '''))
+    ''')
     run = launch('bringup', '--controller', str(script), '--duration', '3', '--real-time-factor', '0', '--no-noise')
     assert run.proc.wait(timeout=90) == 0, run.output()
     simulated, distance, _ = summary_of(run.output())
@@ -317,25 +322,15 @@ def test_a_controller_at_its_own_rate_is_not_held_to_lockstep(launch, tmp_path):
     four: lockstep waited a `lockstep_timeout` for every step it skipped (1.02 simulated s in 32 wall s). After
     two such steps the sim says why and what to do, and from then on waits only briefly for that controller's
     answer at each step: the run reaches its duration with the robot driven as commanded."""
-    script = tmp_path / 'ten_hertz.py'
-    script.write_text(textwrap.dedent('''
-        import rclpy
+    script = rclpy_script(tmp_path / 'ten_hertz.py', '''
         from geometry_msgs.msg import Twist
-        from rclpy.executors import ExternalShutdownException
 
-        rclpy.init()
         node = rclpy.create_node('ten_hertz')
         publisher = node.create_publisher(Twist, 'cmd_vel', 10)
         command = Twist()
         command.linear.x = 0.05
         node.create_timer(0.1, lambda: publisher.publish(command))
-        try:
-            rclpy.spin(node)
-        except (KeyboardInterrupt, ExternalShutdownException):
-            pass
-        finally:
-            rclpy.try_shutdown()
-    '''))
+    ''')
     run = launch('bringup', '--controller', str(script), '--duration', '6', '--real-time-factor', '0', '--no-noise')
     assert run.proc.wait(timeout=120) == 0, run.output()
     assert run.output().count('runs at its own rate (a timer?)') == 1, run.output()
