@@ -274,3 +274,24 @@ def test_ctrl_c_takes_what_dds_already_holds_before_closing(launch, test_node, t
     with Bag(tmp_path / 'bag') as bag:
         values = [int.from_bytes(m.data[4:8], 'little') for m in bag.messages()]
     assert values == list(range(5000))
+
+
+def test_rclpy_still_takes_a_message_as_the_recorder_does(test_node):
+    """The recorder drains its topic with rclpy's private `Subscription.handle.take_message(msg_type, raw)`, which
+    returns (bytes, info dict) or None: pinned here, so a change in rclpy fails loudly instead of losing messages."""
+    from rclpy.qos import QoSProfile
+    node = test_node.node
+    subscription = node.create_subscription(String, 'pinned', lambda _: None, QoSProfile(depth=10), raw=True)
+    publisher = node.create_publisher(String, 'pinned', QoSProfile(depth=10))
+    test_node.spin_until(lambda: publisher.get_subscription_count() == 1, timeout=30, what='the match')
+    assert subscription.handle.take_message(subscription.msg_type, True) is None
+    publisher.publish(String(data='hello'))
+    deadline = time.monotonic() + 30
+    taken = None
+    while taken is None and time.monotonic() < deadline:
+        taken = subscription.handle.take_message(subscription.msg_type, True)
+        time.sleep(0.01)
+    data, info = taken
+    assert isinstance(data, bytes) and data.endswith(b'hello\x00') and 'source_timestamp' in info
+    node.destroy_subscription(subscription)
+    node.destroy_publisher(publisher)

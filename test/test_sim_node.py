@@ -278,3 +278,20 @@ def test_one_robot_keeps_its_names_with_a_frame_prefix_and_the_markers_are_latch
 ])
 def test_lockstep_on_the_command_line_publishes_synchronously(args, mode):
     assert publication_mode(['sim', *args]) == mode
+
+
+def test_another_middleware_gets_one_warning(monkeypatch):
+    import rclpy
+
+    from epuck_ros.nodes.dds_profile import FAST_DDS, warn_if_not_fast_dds
+    said = []
+
+    class Logger:
+        def warning(self, text: str) -> None:
+            said.append(text)
+    assert rclpy.get_rmw_implementation_identifier() == FAST_DDS   # what this package is measured with
+    warn_if_not_fast_dds(Logger())
+    assert said == []
+    monkeypatch.setattr(rclpy, 'get_rmw_implementation_identifier', lambda: 'rmw_cyclonedds_cpp')
+    warn_if_not_fast_dds(Logger())
+    assert len(said) == 1 and 'middleware rmw_cyclonedds_cpp: epuck_ros is tuned for rmw_fastrtps_cpp' in said[0]

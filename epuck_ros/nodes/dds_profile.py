@@ -6,7 +6,12 @@ Why, in short (the file itself has the figures):
   (benchmarks/bench_startup.py);
 - acknowledgements: reliable writers send a heartbeat every 50 ms instead of 3 s and readers answer it at once,
   so a behaviour's last zero command and the simulator's ack window (nodes/ack_window.py) are acknowledged
-  within milliseconds (benchmarks/bench_lockstep.py).
+  within milliseconds (benchmarks/bench_lockstep.py);
+- liveliness: a participant that stops announcing is dropped after 2 s, not 20 s.
+
+This tuning, the ack window's sizes (Fast DDS's reader limits) and the recorder's take of every message DDS holds
+(rclpy's `Subscription.handle.take_message`, pinned by test_record's test of it) are Fast DDS's and rclpy 7.1's:
+`warn_if_not_fast_dds` says so at start under another middleware.
 """
 from __future__ import annotations
 
@@ -15,6 +20,18 @@ from pathlib import Path
 
 PROFILES_FILE = Path(__file__).with_name('fastdds_profiles.xml')
 PROFILES_VARIABLE = 'FASTRTPS_DEFAULT_PROFILES_FILE'
+
+
+FAST_DDS = 'rmw_fastrtps_cpp'
+
+
+def warn_if_not_fast_dds(logger: object) -> None:
+    """One warning when the middleware is not Fast DDS: the package's timings and limits were measured with it."""
+    import rclpy
+    found = rclpy.get_rmw_implementation_identifier()
+    if found != FAST_DDS:
+        logger.warning(f'middleware {found}: epuck_ros is tuned for {FAST_DDS} (its DDS profile, the simulator\'s '
+                       f'acknowledgement window, the recorder): runs work, their figures may differ')
 
 
 def use_package_profile() -> None:

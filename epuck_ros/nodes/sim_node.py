@@ -34,7 +34,7 @@ from epuck_ros.markers import world_markers
 from epuck_ros.model import RobotModel
 from epuck_ros.nodes.ack_window import AckWindow, history_steps, window_steps
 from epuck_ros.nodes.announcements import ANNOUNCEMENT_QOS, SIMULATORS_TOPIC, announcement, parse_announcement
-from epuck_ros.nodes.dds_profile import use_package_profile
+from epuck_ros.nodes.dds_profile import use_package_profile, warn_if_not_fast_dds
 from epuck_ros.nodes.params import ParamSpec, Usage, command_line_value, declare_parameters, prepare_arguments
 from epuck_ros.nodes.robot_ports import JOINT_NAMES, WARN_PERIOD, WORLD_FRAME, RobotPorts, quiet_publisher
 from epuck_ros.nodes.serialized import Patch
@@ -257,6 +257,7 @@ class SimNode(Node):
         self._acks = AckWindow(self._stream_publishers, window_steps(history), self._on_ack_stall, self._kept_all)
         shown = ', '.join(world.names[:5]) + (', ...' if len(world.names) > 5 else '')
         robots = f'{len(world.names)} robots ({shown})' if several else 'one robot'
+        warn_if_not_fast_dds(self.get_logger())
         self.get_logger().info(
             f'sim ready: world {values["world"] or "default arena"}, {robots}, time step {self._time_step} s, '
             f'real-time factor {self._rtf or "max"}, seed {values["seed"]}, noise {"on" if values["noise"] else "off"}'
