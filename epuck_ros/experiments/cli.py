@@ -1,0 +1,172 @@
+"""`sweep SPEC.yaml -o OUT`: every trial of a spec, headless, on Dask; a table, a CSV and a picture.
+
+OUT/trials.csv holds one row per robot per trial (figures from `RunTally`, the code of `bag summary`; floats in
+round-trip precision), written as trials finish, so `--resume` runs only the trials not in it yet. A trial that
+fails is a row with its error and the sweep goes on (exit 1 at the end); a bad spec or an unreachable scheduler
+is one line and exit 2 before any trial.
+"""
+from __future__ import annotations
+
+import argparse
+import csv
+import statistics
+import sys
+import time
+from collections.abc import Iterable, Iterator
+from pathlib import Path
+
+from epuck_ros.experiments.cluster import ClusterError, default_workers, open_client
+from epuck_ros.experiments.spec import SpecError, load_spec
+from epuck_ros.experiments.trial import COLUMNS, Trial, run_trial
+
+EXIT_FAILED, EXIT_BAD_INPUT = 1, 2
+PROGRESS_PERIOD = 0.5
+"""Wall seconds between two progress lines at most."""
+
+
+def parse_args(argv: list[str]) -> argparse.Namespace:
+    parser = argparse.ArgumentParser(
+        prog='sweep', description='Run every combination of a spec (controllers x worlds x robot counts x seeds) '
+        'headless on the pure core, on Dask: OUT/trials.csv (a row per robot per trial), a summary table per '
+        'controller and world, OUT/sweep.png. A trial gives the ground truth of `bringup ... --lockstep '
+        '--real-time-factor 0` with the same seed, to the bit.',
+        epilog='example: sweep epuck_ros/experiments/examples/avoid_seeds.yaml -o sweep_out --workers 2')
+    parser.add_argument('spec', type=Path, help='the spec (YAML); its relative paths are relative to it')
+    parser.add_argument('-o', '--output', type=Path, required=True, help='output folder (made if missing)')
+    parser.add_argument('--workers', type=int, default=None,
+                        help=f'local Dask worker processes (default: one per core, here {default_workers()}); '
+                             '0 = every trial in this process, one after the other')
+    parser.add_argument('--scheduler', help='tcp://HOST:PORT of an existing Dask scheduler (its workers run the '
+                                            'trials; they need epuck_ros installed)')
+    parser.add_argument('--resume', action='store_true', help='skip the trials already in OUT/trials.csv')
+    args = parser.parse_args(argv)
+    if args.workers is not None and args.workers < 0:
+        parser.error('--workers must be 0 or more')
+    return args
+
+
+def main(argv: list[str] | None = None) -> None:
+    args = parse_args(sys.argv[1:] if argv is None else argv)
+    try:
+        spec = load_spec(args.spec)
+    except SpecError as error:
+        print(f'sweep: {error}', file=sys.stderr)
+        raise SystemExit(EXIT_BAD_INPUT) from None
+    args.output.mkdir(parents=True, exist_ok=True)
+    table = args.output / 'trials.csv'
+    done = done_trials(table) if args.resume else set()
+    if not args.resume:
+        table.unlink(missing_ok=True)
+    todo = [trial for trial in spec.trials if trial.index not in done]
+    print(f'[sweep] {len(spec.trials)} trials ({len(done)} done before), {_where(args)}', file=sys.stderr, flush=True)
+    try:
+        with open_client(args.workers, args.scheduler) as client, open(table, 'a', newline='') as out:
+            writer = csv.DictWriter(out, COLUMNS)
+            if out.tell() == 0:
+                writer.writeheader()
+            failures = 0
+            for finished, rows in enumerate(results(client, todo), 1):
+                writer.writerows(rows)
+                out.flush()
+                failures += any(row['error'] for row in rows)
+                progress.show(finished, len(todo), failures)
+    except ClusterError as error:
+        print(f'sweep: {error}', file=sys.stderr)
+        raise SystemExit(EXIT_BAD_INPUT) from None
+    rows = sorted(read_rows(table), key=lambda row: (int(row['trial']), row['robot']))
+    write_rows(table, rows)
+    print(summary_table(rows))
+    from epuck_ros.experiments.picture import draw_sweep
+    draw_sweep(rows, args.output / 'sweep.png')
+    failed = sorted({int(row['trial']) for row in rows if row['error']})
+    print(f'[sweep] wrote {table} and {args.output / "sweep.png"}' +
+          (f'; {len(failed)} trials failed (their rows say why)' if failed else ''), file=sys.stderr)
+    if failed:
+        raise SystemExit(EXIT_FAILED)
+
+
+def _where(args: argparse.Namespace) -> str:
+    if args.scheduler:
+        return f'on the Dask cluster at {args.scheduler}'
+    if args.workers == 0:
+        return 'in this process'
+    return f'on a local Dask cluster of {args.workers or default_workers()} workers'
+
+
+def results(client: object | None, trials: list[Trial]) -> Iterator[list[dict]]:
+    """Each trial's rows as it finishes (any order)."""
+    if client is None:
+        for trial in trials:
+            yield run_trial(trial)
+        return
+    from dask.distributed import as_completed
+    futures = client.map(run_trial, trials, pure=True)
+    for future in as_completed(futures):
+        yield future.result()
+
+
+class _Progress:
+    """One progress line on stderr: done/total, failures, and the time left at the pace so far."""
+
+    def __init__(self) -> None:
+        self._began = time.monotonic()
+        self._said = 0.0
+
+    def show(self, done: int, total: int, failures: int) -> None:
+        now = time.monotonic()
+        if now - self._said < PROGRESS_PERIOD and done < total:
+            return
+        self._said = now
+        left = (now - self._began) / done * (total - done)
+        end = '\n' if done == total else '\r'
+        print(f'[sweep] {done}/{total} trials, {failures} failed, ETA {left:.0f} s   ', end=end, file=sys.stderr,
+              flush=True)
+
+
+progress = _Progress()
+
+
+def done_trials(table: Path) -> set[int]:
+    """The trials with rows in `table` (an interrupted sweep's last line may be cut: it is dropped)."""
+    return {int(row['trial']) for row in read_rows(table) if row.get('error') is not None}
+
+
+def read_rows(table: Path) -> list[dict]:
+    if not table.exists():
+        return []
+    with open(table, newline='') as stream:
+        return [row for row in csv.DictReader(stream) if None not in row.values() and None not in row]
+
+
+def write_rows(table: Path, rows: Iterable[dict]) -> None:
+    partial = table.with_suffix('.csv.partial')
+    with open(partial, 'w', newline='') as out:
+        writer = csv.DictWriter(out, COLUMNS)
+        writer.writeheader()
+        writer.writerows(rows)
+    partial.replace(table)
+
+
+def summary_table(rows: list[dict]) -> str:
+    """Mean and spread (standard deviation) of distance and contacts per controller, world and robot count."""
+    groups: dict[tuple[str, str, str], list[dict]] = {}
+    for row in rows:
+        if not row['error']:
+            groups.setdefault((row['controller'], row['world'], row['robots']), []).append(row)
+    header = f'{"controller":24} {"world":20} {"robots":>6} {"runs":>5} {"distance m":>16} {"contacts":>14}'
+    lines = [header, '-' * len(header)]
+    for (controller, world, robots), members in sorted(groups.items()):
+        distance = [float(row['distance_m']) for row in members]
+        contacts = [float(row['contacts_obstacles']) + float(row['contacts_robots']) for row in members]
+        lines.append(f'{controller[:24]:24} {world[:20]:20} {robots:>6} {len(members):>5} '
+                     f'{_mean_spread(distance, 3):>16} {_mean_spread(contacts, 2):>14}')
+    return '\n'.join(lines)
+
+
+def _mean_spread(values: list[float], digits: int) -> str:
+    spread = statistics.stdev(values) if len(values) > 1 else 0.0
+    return f'{statistics.fmean(values):.{digits}f} ± {spread:.{digits}f}' if values else 'nan'
+
+
+if __name__ == '__main__':
+    main()

@@ -1,0 +1,160 @@
+"""One headless trial: a controller against the pure core, in this process, with no DDS.
+
+A trial is (controller, world, robots, seed, duration, noise) and `run_trial` is a pure function of it: the same
+trial gives the same rows on any machine, any worker, any retry. Its ground truth is that of the same run over
+ROS, `bringup CONTROLLER --lockstep --real-time-factor 0 --seed S --duration D [--robots N] [--world W]`, to the
+last bit, because it steps the core in the order lockstep does (nodes/sim_node.py, nodes/behaviour_nodes.py):
+- the simulator takes its first step with no command (the wheels still), publishes it, and pauses itself on the
+  first step at or after the duration (`pause_at`);
+- each step is answered by every robot's controller, and the answers drive the next step: the controller of a
+  robot sees what the simulator published, the IR values through `ranges_from_raw` and the odometry through its
+  quaternion (`yaw_from_quaternion`), at the step's time.
+"""
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import Any
+
+from epuck_ros.bag.run_summary import RunTally
+from epuck_ros.behaviours import BEHAVIOURS, Behaviour, Observation, WheelCommand
+from epuck_ros.behaviours.base import ranges_from_raw
+from epuck_ros.model import RobotModel
+from epuck_ros.simulation import Simulation
+from epuck_ros.world import World, default_world, load_world, place_robots
+
+TIME_STEP = 0.032
+"""The simulator's default `time_step` (Webots' basicTimeStep), which `bringup` runs with."""
+DEFAULT_WORLD = 'default'
+"""A spec's name for the built-in world (`sim` with no `world` parameter)."""
+Policy = Callable[[Observation], WheelCommand]
+"""A plain Python controller: an observation in, wheel speeds (rad/s) out."""
+COLUMNS = ('trial', 'controller', 'world', 'robots', 'seed', 'robot', 'distance_m', 'contacts_obstacles',
+           'contacts_robots', 'final_x', 'final_y', 'final_yaw', 'sim_time', 'wall_s', 'error')
+"""The columns of a trial's rows (`trials.csv`)."""
+
+
+@dataclass(frozen=True)
+class Controller:
+    """A built-in behaviour (`epuck_ros.behaviours.BEHAVIOURS`) with settings, as its ROS node takes them."""
+
+    behaviour: str
+    parameters: tuple[tuple[str, Any], ...] = ()
+
+    @property
+    def label(self) -> str:
+        settings = ' '.join(f'{name}={value}' for name, value in self.parameters)
+        return f'{self.behaviour}{" " + settings if settings else ""}'
+
+    def make(self) -> Behaviour:
+        spec = BEHAVIOURS[self.behaviour]
+        return spec.make(replace(spec.defaults, **dict(self.parameters)))
+
+
+@dataclass(frozen=True)
+class Trial:
+    """Everything a run depends on; `world` is a path or DEFAULT_WORLD, `robots` 0 = the world's own."""
+
+    controller: Controller
+    world: str = DEFAULT_WORLD
+    robots: int = 0
+    seed: int = 0
+    duration: float = 60.0
+    noise: bool = True
+    index: int = 0
+    """The trial's number in its sweep (its `trial` column); no effect on the run."""
+    world_label: str = field(default=DEFAULT_WORLD, compare=False)
+    """How the spec named the world (its `world` column)."""
+
+    def load_world(self) -> World:
+        world = default_world() if self.world == DEFAULT_WORLD else load_world(Path(self.world))
+        return place_robots(world, self.robots, self.seed) if self.robots > 0 else world
+
+
+def run_trial(trial: Trial, policy: Policy | None = None) -> list[dict[str, Any]]:
+    """The trial's rows, one per robot (columns COLUMNS). A failure is a row with its `error`, never an exception:
+    a sweep goes on. `policy` replaces the behaviour (a plain Python controller, the same for every robot)."""
+    began = time.perf_counter()
+    try:
+        sim, tally = run(trial, policy)
+    except Exception as error:  # noqa: BLE001 - whatever went wrong is the trial's result
+        return [_row(trial, '', error=f'{type(error).__name__}: {error}', wall=time.perf_counter() - began)]
+    wall = time.perf_counter() - began
+    return [_row(trial, name, figures, sim.true_pose[i].tolist(), sim.time, wall, robots=len(sim.names))
+            for i, (name, figures) in enumerate(zip(sim.names, tally.figures))]
+
+
+def run(trial: Trial, policy: Policy | None = None,
+        each_step: Callable[[Simulation], None] | None = None) -> tuple[Simulation, RunTally]:
+    """Step the trial to its end: the simulation as it ended and the tally of its ground truth (what `bag
+    summary` and `bringup` count); `each_step(sim)` sees every step as the simulator publishes it."""
+    world = trial.load_world()
+    sim = Simulation(world, RobotModel(), time_step=TIME_STEP, seed=trial.seed, noise=trial.noise)
+    several = len(world.robots) > 1
+    tally = RunTally([name if several else '' for name in sim.names], world)
+    controllers = [policy or trial.controller.make() for _ in sim.names]
+    # What each controller's node subscribes (a plain policy gets everything).
+    needs_odom = [getattr(controller, 'needs_odom', True) for controller in controllers]
+    needs_ranges = [getattr(controller, 'needs_proximity', True) for controller in controllers]
+    sim.step()   # the first step goes out with no command: the wheels are still
+    _published(sim, tally, several, each_step)
+    while not sim.time + 1e-9 >= trial.duration:   # the simulator pauses on the first step at or after it
+        now = _stamp_seconds(sim.time)
+        for robot, controller in enumerate(controllers):
+            odom = _odometry_as_received(sim.odom_pose[robot]) if needs_odom[robot] else None
+            ranges = ranges_from_raw(sim.ir_raw[robot].tolist()) if needs_ranges[robot] else None
+            command = _update(controller, Observation(now, odom, ranges))
+            sim.command_wheels(robot, command.left, command.right)
+        sim.step()
+        _published(sim, tally, several, each_step)
+    return sim, tally
+
+
+def _update(controller: Behaviour | Policy, observation: Observation) -> WheelCommand:
+    return controller.update(observation) if hasattr(controller, 'update') else controller(observation)
+
+
+def _published(sim: Simulation, tally: RunTally, several: bool, each_step: Callable[[Simulation], None] | None
+               ) -> None:
+    """A step as the simulator publishes it: its ground truth (stamped with the step) into the tally."""
+    if each_step is not None:
+        each_step(sim)
+    sec, nanosec = divmod(round(sim.time * 1e9), 1_000_000_000)
+    stamp = sec * 1_000_000_000 + nanosec
+    for name, (x, y, _) in zip(sim.names, sim.true_pose.tolist()):
+        tally.add(name if several else '', stamp, x, y)
+
+
+def _stamp_seconds(seconds: float) -> float:
+    """A time as a controller receives it: a (sec, nanosec) stamp, back in seconds."""
+    return round(seconds * 1e9) * 1e-9
+
+
+def _odometry_as_received(pose: Sequence[float]) -> tuple[float, float, float]:
+    """The odometry pose a node reads: the yaw travels as a quaternion about z (nodes/robot_ports.py)."""
+    x, y, yaw = (float(value) for value in pose)
+    qz, qw = math.sin(yaw / 2.0), math.cos(yaw / 2.0)
+    return x, y, math.atan2(2.0 * (qw * qz), 1.0 - 2.0 * (qz * qz))
+
+
+def _row(trial: Trial, robot: str, figures: Any = None, pose: Sequence[float] = (math.nan,) * 3,
+         sim_time: float = math.nan, wall: float = math.nan, error: str = '', robots: int | None = None
+         ) -> dict[str, Any]:
+    return {
+        'trial': trial.index, 'controller': trial.controller.label, 'world': trial.world_label,
+        'robots': trial.robots if robots is None else robots, 'seed': trial.seed, 'robot': robot,
+        'distance_m': figures.distance if figures else math.nan,
+        'contacts_obstacles': figures.world_contacts if figures else '',
+        'contacts_robots': figures.robot_contacts if figures else '',
+        'final_x': pose[0], 'final_y': pose[1], 'final_yaw': pose[2], 'sim_time': sim_time, 'wall_s': wall,
+        'error': error}
+
+
+def controller_from(name: str, parameters: Mapping[str, Any] | None = None) -> Controller:
+    """A Controller for behaviour `name` with `parameters` (checked as its Config checks them: ConfigError)."""
+    controller = Controller(name, tuple(sorted((parameters or {}).items())))
+    controller.make()
+    return controller
