@@ -54,9 +54,11 @@ def main(argv: list[str] | None = None) -> None:
         raise SystemExit(EXIT_BAD_INPUT) from None
     args.output.mkdir(parents=True, exist_ok=True)
     table = args.output / 'trials.csv'
-    done = done_trials(table) if args.resume else set()
-    if not args.resume:
+    if args.resume:   # the complete rows only: an interrupted sweep may have left a line cut short
+        write_rows(table, read_rows(table))
+    else:
         table.unlink(missing_ok=True)
+    done = {int(row['trial']) for row in read_rows(table)}
     todo = [trial for trial in spec.trials if trial.index not in done]
     print(f'[sweep] {len(spec.trials)} trials ({len(done)} done before), {_where(args)}', file=sys.stderr, flush=True)
     try:
@@ -126,12 +128,8 @@ class _Progress:
 progress = _Progress()
 
 
-def done_trials(table: Path) -> set[int]:
-    """The trials with rows in `table` (an interrupted sweep's last line may be cut: it is dropped)."""
-    return {int(row['trial']) for row in read_rows(table) if row.get('error') is not None}
-
-
 def read_rows(table: Path) -> list[dict]:
+    """The complete rows of `table` (a line cut short by an interruption has missing fields: dropped)."""
     if not table.exists():
         return []
     with open(table, newline='') as stream:

@@ -1,0 +1,196 @@
+"""Headless trials and sweeps: the same runs as over ROS to the bit, on a real Dask cluster, resumable, and bad
+specs refused before any trial."""
+from __future__ import annotations
+
+import csv
+import os
+import signal
+import socket
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+from conftest import BIN_DIR
+
+from epuck_ros.bag.reader import Bag
+from epuck_ros.bag.run_summary import load_runs
+from epuck_ros.experiments.trial import Trial, controller_from, run, run_trial
+
+REPO = Path(__file__).resolve().parents[1]
+EXAMPLE = REPO / 'epuck_ros' / 'experiments' / 'examples' / 'avoid_seeds.yaml'
+SWEEP = str(BIN_DIR / 'sweep')
+
+
+@pytest.mark.parametrize('robots', [0, 3])
+def test_a_headless_trial_is_the_lockstep_bringup_run_to_the_bit(launch, tmp_path, robots):
+    """Every ground-truth pose of a recorded `bringup avoid --lockstep --real-time-factor 0` run equals the
+    headless trial's, bit for bit (noise on, obstacles met)."""
+    bag = tmp_path / 'ros'
+    run_ros = launch('bringup', 'avoid', '--duration', '12', '--real-time-factor', '0', '--seed', '3', '--lockstep',
+                     *(['--robots', str(robots)] if robots else []), '--record', str(bag))
+    assert run_ros.proc.wait(timeout=180) == 0, run_ros.output()
+    poses: list[np.ndarray] = []
+    run(Trial(controller_from('avoid'), robots=robots, seed=3, duration=12), each_step=lambda sim: poses.append(
+        sim.true_pose.copy()))
+    headless = np.array(poses)
+    with Bag(bag) as reader:
+        runs = load_runs(reader)
+    assert len(runs) == max(robots, 1)
+    for index, recorded in enumerate(runs):
+        truth = recorded.truth
+        assert len(truth.x) == len(headless), recorded.name
+        assert np.array_equal(truth.x, headless[:, index, 0]) and np.array_equal(truth.y, headless[:, index, 1]), \
+            f'{recorded.name}: first difference at step {np.flatnonzero(truth.x != headless[:, index, 0])[:1]}'
+
+
+def test_a_failing_controller_is_a_row_with_its_error():
+    def broken(observation):
+        raise RuntimeError('controller bug')
+    (row,) = run_trial(Trial(controller_from('avoid'), duration=1), policy=broken)
+    assert row['error'] == 'RuntimeError: controller bug' and row['robot'] == ''
+
+
+def rows_of(table: Path) -> list[dict]:
+    """The rows without their wall time (the only column that depends on the machine)."""
+    with open(table, newline='') as stream:
+        return [{key: value for key, value in row.items() if key != 'wall_s'} for row in csv.DictReader(stream)]
+
+
+def sweep(*args: str, timeout: float = 300) -> subprocess.CompletedProcess:
+    return subprocess.run([SWEEP, *args], capture_output=True, text=True, timeout=timeout)
+
+
+def small_spec(tmp_path: Path, count: int = 6, duration: float = 10, robots: str = '[1, 3]') -> Path:
+    spec = tmp_path / 'spec.yaml'
+    spec.write_text(f'controllers: [avoid, {{behaviour: avoid, parameters: {{cruise_speed: 0.7}}}}]\n'
+                    f'robots: {robots}\nseeds: {{first: 0, count: {count}}}\nduration: {duration}\n')
+    return spec
+
+
+def test_in_process_and_on_a_local_cluster_give_the_same_rows(tmp_path):
+    spec = small_spec(tmp_path, count=3, duration=5)
+    alone, local = sweep(str(spec), '-o', str(tmp_path / 'alone'), '--workers', '0'), \
+        sweep(str(spec), '-o', str(tmp_path / 'local'), '--workers', '2')
+    assert alone.returncode == 0 and local.returncode == 0, alone.stderr + local.stderr
+    rows = rows_of(tmp_path / 'alone' / 'trials.csv')
+    assert len(rows) == 2 * 3 * (1 + 3) and rows == rows_of(tmp_path / 'local' / 'trials.csv')
+    assert 'on a local Dask cluster of 2 workers' in local.stderr and '12/12 trials, 0 failed' in local.stderr
+    assert (tmp_path / 'local' / 'sweep.png').stat().st_size > 10_000
+    assert 'avoid cruise_speed=0.7' in alone.stdout and '±' in alone.stdout
+    first = rows[0]
+    assert float(first['final_x']) == float(repr(float(first['final_x']))) and first['error'] == ''
+
+
+def free_port() -> int:
+    with socket.socket() as probe:
+        probe.bind(('127.0.0.1', 0))
+        return probe.getsockname()[1]
+
+
+def test_a_real_cluster_with_a_worker_killed_mid_sweep_runs_every_trial_once(tmp_path):
+    """`dask scheduler` and two `dask worker` processes on loopback; one worker is SIGKILLed once a third of the
+    trials are written: Dask re-runs its trials elsewhere and the rows equal an in-process run's."""
+    spec = small_spec(tmp_path, count=12, duration=120, robots='[1]')
+    port = free_port()
+    address = f'tcp://127.0.0.1:{port}'
+    dask = str(BIN_DIR / 'dask')
+    env = dict(os.environ, PYTHONPATH=str(REPO))
+    started = [subprocess.Popen([dask, 'scheduler', '--host', '127.0.0.1', '--port', str(port),
+                                 '--dashboard-address', ':0'], env=env, stdout=subprocess.DEVNULL,
+                                stderr=subprocess.DEVNULL, start_new_session=True)]
+    try:
+        for _ in range(2):
+            started.append(subprocess.Popen([dask, 'worker', address, '--nthreads', '1', '--no-dashboard',
+                                             '--host', '127.0.0.1'], env=env, stdout=subprocess.DEVNULL,
+                                            stderr=subprocess.DEVNULL, start_new_session=True))
+        out = tmp_path / 'cluster'
+        run_sweep = subprocess.Popen([SWEEP, str(spec), '-o', str(out), '--scheduler', address],
+                                     stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        table = out / 'trials.csv'
+        deadline = time.monotonic() + 240
+        while time.monotonic() < deadline and run_sweep.poll() is None and \
+                (not table.exists() or len(table.read_text().splitlines()) < 1 + 8):
+            time.sleep(0.05)
+        written = len(table.read_text().splitlines()) - 1 if table.exists() else 0
+        assert run_sweep.poll() is None and written < 24, 'the sweep ended before a worker could be killed'
+        victim = started[1]
+        victim.kill()
+        victim.wait(timeout=30)
+        stdout, stderr = run_sweep.communicate(timeout=300)
+        assert run_sweep.returncode == 0, stderr
+        alone = sweep(str(spec), '-o', str(tmp_path / 'alone'), '--workers', '0')
+        assert alone.returncode == 0, alone.stderr
+        rows = rows_of(table)
+        assert [int(row['trial']) for row in rows] == list(range(24))
+        assert rows == rows_of(tmp_path / 'alone' / 'trials.csv')
+    finally:
+        for process in started:
+            if process.poll() is None:
+                os.killpg(process.pid, signal.SIGTERM)
+        for process in started:
+            try:
+                process.wait(timeout=30)
+            except subprocess.TimeoutExpired:
+                os.killpg(process.pid, signal.SIGKILL)
+                process.wait()
+
+
+def test_resume_runs_only_the_trials_not_written_yet(tmp_path):
+    spec = small_spec(tmp_path, count=4, duration=5, robots='[1]')
+    out = tmp_path / 'out'
+    assert sweep(str(spec), '-o', str(out), '--workers', '0').returncode == 0
+    whole = rows_of(out / 'trials.csv')
+    lines = (out / 'trials.csv').read_text().splitlines(keepends=True)
+    (out / 'trials.csv').write_text(''.join(lines[:4]) + lines[4][:20])   # 3 trials, then a line cut short
+    resumed = sweep(str(spec), '-o', str(out), '--workers', '0', '--resume')
+    assert resumed.returncode == 0, resumed.stderr
+    assert '8 trials (3 done before)' in resumed.stderr and '5/5 trials' in resumed.stderr
+    assert rows_of(out / 'trials.csv') == whole
+
+
+@pytest.mark.parametrize('text, message', [
+    ('controllers: [avoidd]\nseeds: [0]\nduration: 5\n',
+     "controllers[0]: unknown behaviour 'avoidd' (did you mean avoid?)"),
+    ('controllers: [{behaviour: avoid, parameters: {cruise_sped: 1}}]\nseeds: [0]\nduration: 5\n',
+     'controllers[0].parameters.cruise_sped: avoid has no such setting (did you mean cruise_speed?)'),
+    ('controllers: [avoid]\nworlds: [missing.yaml]\nseeds: [0]\nduration: 5\n', 'worlds[0]: '),
+    ('controllers: [avoid]\nseeds: [0]\nduration: 0\n', 'duration: expected simulated seconds above 0'),
+    ('controllers: [avoid]\nseeds: [0]\nduration: 1e9\n', 'duration: expected simulated seconds above 0'),
+    ('controllers: [avoid]\nseeds: {first: 0, count: 100000}\nrobots: [1, 2]\nduration: 5\n',
+     '200000 trials, more than 100000'),
+    ('controllers: [avoid]\nseeds: [0]\nduration: 5\nnoisy: true\n', 'noisy: unknown key (did you mean noise?)'),
+    ('controllers: [{script: my_controller.py}]\nseeds: [0]\nduration: 5\n', 'controllers[0].script: '),
+    ('controllers: [avoid]\nseeds: [0]\nrobots: [500]\nduration: 5\n', 'robots: 500 in default: '),
+    ('controllers: [avoid]\nduration: 5\n', 'seeds: missing'),
+])
+def test_a_bad_spec_is_one_line_and_exit_2_before_any_trial(tmp_path, text, message):
+    spec = tmp_path / 'bad.yaml'
+    spec.write_text(text)
+    result = sweep(str(spec), '-o', str(tmp_path / 'out'), '--workers', '0', timeout=60)
+    assert result.returncode == 2 and message in result.stderr, result.stderr
+    assert result.stderr.count('\n') == 1 and str(spec) in result.stderr
+    assert not (tmp_path / 'out' / 'trials.csv').exists()
+
+
+def test_an_unreachable_scheduler_is_one_line_and_exit_2(tmp_path):
+    began = time.monotonic()
+    result = sweep(str(small_spec(tmp_path, count=1, duration=1)), '-o', str(tmp_path / 'out'), '--scheduler',
+                   f'tcp://127.0.0.1:{free_port()}', timeout=120)
+    assert result.returncode == 2 and 'cannot reach the Dask scheduler' in result.stderr, result.stderr
+    assert 'Traceback' not in result.stderr
+    print(f'\nunreachable scheduler reported after {time.monotonic() - began:.1f} s')
+
+
+def test_sweep_help_names_the_options():
+    result = subprocess.run([SWEEP, '--help'], capture_output=True, text=True, timeout=60)
+    assert result.returncode == 0 and all(option in result.stdout for option in ('--workers', '--scheduler',
+                                                                                 '--resume', '-o'))
+
+
+def test_the_example_spec_loads():
+    from epuck_ros.experiments.spec import load_spec
+    assert len(load_spec(EXAMPLE).trials) == 2 * 2 * 4
+    assert sys.executable
