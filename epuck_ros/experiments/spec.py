@@ -2,12 +2,13 @@
 counts x seeds, each a `Trial`. Bad input is one `SpecError` line naming the file and field, before any trial runs.
 
 ```yaml
-controllers: [avoid, {behaviour: avoid, parameters: {cruise_speed: 0.4}}]
+controllers: [avoid, {behaviour: avoid, parameters: {cruise_speed: 0.4}}, {script: my_controller.py}]
 worlds: [default, my_world.yaml]   # relative to the spec file; 'default' = the built-in world
 robots: [1, 5]                      # 0 or 1: the world's own robots; N > 1: N placed as `sim -p robots:=N`
 seeds: {first: 0, count: 10}        # or a list
 duration: 60                        # simulated seconds per trial
 noise: true
+time_limit: 600                     # wall seconds a trial with a script may take before it is killed
 ```
 """
 from __future__ import annotations
@@ -21,7 +22,7 @@ from typing import Any
 from epuck_ros import untrusted_yaml
 from epuck_ros.behaviours import BEHAVIOURS, ConfigError
 from epuck_ros.behaviours.base import describe
-from epuck_ros.experiments.trial import DEFAULT_WORLD, Controller, Trial
+from epuck_ros.experiments.trial import DEFAULT_TIME_LIMIT, DEFAULT_WORLD, Controller, Script, Trial
 from epuck_ros.world import WorldError, default_world, load_world, place_robots
 
 MAX_TRIALS = 100_000
@@ -30,7 +31,8 @@ MAX_DURATION = 3600.0
 """Simulated seconds per trial at most."""
 MAX_ROBOTS = 10_000
 MAX_FILE_BYTES = 1 << 20
-KEYS = ('controllers', 'worlds', 'robots', 'seeds', 'duration', 'noise')
+MAX_TIME_LIMIT = 86_400.0
+KEYS = ('controllers', 'worlds', 'robots', 'seeds', 'duration', 'noise', 'time_limit')
 
 
 class SpecError(ValueError):
@@ -104,6 +106,10 @@ def _trials(fields: _Fields, data: Any) -> list[Trial]:
     noise = data.get('noise', True)
     if not isinstance(noise, bool):
         raise fields.fail('noise', f'expected true or false, got {untrusted_yaml.cut(repr(noise), 60)}')
+    limit = data.get('time_limit', DEFAULT_TIME_LIMIT)
+    if isinstance(limit, bool) or not isinstance(limit, (int, float)) or not 0 < limit <= MAX_TIME_LIMIT:
+        raise fields.fail('time_limit', f'expected wall seconds above 0 and at most {MAX_TIME_LIMIT:g}, '
+                                        f'got {untrusted_yaml.cut(repr(limit), 60)}')
     count = len(controllers) * len(worlds) * len(robots) * len(seeds)
     if count > MAX_TRIALS:
         raise fields.fail('<top level>', f'{count} trials, more than {MAX_TRIALS} in one spec: split it')
@@ -114,21 +120,24 @@ def _trials(fields: _Fields, data: Any) -> list[Trial]:
             except WorldError as error:
                 raise fields.fail('robots', f'{robot_count} in {label}: {error}') from None
     return [Trial(controller, world, robot_count if robot_count > 1 else 0, seed, float(duration), noise, index,
-                  label)
+                  label, float(limit))
             for index, (controller, (label, world), robot_count, seed)
             in enumerate(itertools.product(controllers, worlds, robots, seeds))]
 
 
-def _controller(fields: _Fields, item: Any, field: str) -> Controller:
+def _controller(fields: _Fields, item: Any, field: str) -> Controller | Script:
     if isinstance(item, dict) and 'script' in item:
-        raise fields.fail(f'{field}.script', 'Webots-style scripts are not run by sweep yet: use a behaviour '
-                                             f'({", ".join(BEHAVIOURS)})')
+        return _script(fields, item, field)
     if isinstance(item, str):
         name, parameters = item, {}
     elif isinstance(item, dict) and set(item) <= {'behaviour', 'parameters'} and 'behaviour' in item:
         name, parameters = item['behaviour'], item.get('parameters') or {}
+    elif isinstance(item, dict) and 'behaviour' in item:
+        unknown = sorted(str(key) for key in item if key not in ('behaviour', 'parameters'))
+        raise fields.fail(f'{field}.{unknown[0]}', 'unknown key (expected: behaviour, parameters)')
     else:
-        raise fields.fail(field, 'expected a behaviour name or {behaviour: NAME, parameters: {...}}')
+        raise fields.fail(field, 'expected a behaviour name, {behaviour: NAME, parameters: {...}} or '
+                                 '{script: PATH}')
     if name not in BEHAVIOURS:
         close = difflib.get_close_matches(str(name), list(BEHAVIOURS), n=1)
         hint = f'did you mean {close[0]}?' if close else f'known: {", ".join(BEHAVIOURS)}'
@@ -147,6 +156,31 @@ def _controller(fields: _Fields, item: Any, field: str) -> Controller:
     except (ConfigError, TypeError, ValueError) as error:
         raise fields.fail(f'{field}.parameters', str(error)) from None
     return controller
+
+
+def _script(fields: _Fields, item: dict, field: str) -> Script:
+    """A Webots-style script: it must exist and compile (a syntax error would otherwise fail every trial)."""
+    if set(item) != {'script'}:
+        unknown = sorted(str(key) for key in item if key != 'script')
+        raise fields.fail(f'{field}.{unknown[0]}', 'unknown key (a script controller is {script: PATH})')
+    name = item['script']
+    if not isinstance(name, str) or not name:
+        raise fields.fail(f'{field}.script', f'expected the path of a Python script, got '
+                                             f'{untrusted_yaml.cut(repr(name), 60)}')
+    path = (fields.path.parent / name).resolve()
+    try:
+        source = path.read_bytes() if path.stat().st_size <= MAX_FILE_BYTES else None
+    except OSError as error:
+        raise fields.fail(f'{field}.script', f'cannot read {name}: {error.strerror}') from None
+    if source is None:
+        raise fields.fail(f'{field}.script', f'{name} is larger than {MAX_FILE_BYTES} bytes')
+    try:
+        compile(source, str(path), 'exec')
+    except (SyntaxError, ValueError) as error:
+        where = f' (line {error.lineno})' if getattr(error, 'lineno', None) else ''
+        raise fields.fail(f'{field}.script', f'{name} is not valid Python: {getattr(error, "msg", error)}{where}'
+                          ) from None
+    return Script(str(path), name)
 
 
 def _world(fields: _Fields, item: Any, field: str) -> tuple[str, str]:

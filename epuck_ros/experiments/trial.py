@@ -20,6 +20,7 @@ from pathlib import Path
 from typing import Any
 
 from epuck_ros.bag.run_summary import RunTally
+from epuck_ros.experiments.isolation import ChildFailed, call_in_child
 from epuck_ros.behaviours import BEHAVIOURS, Behaviour, Observation, WheelCommand
 from epuck_ros.behaviours.base import ranges_from_raw
 from epuck_ros.model import RobotModel
@@ -29,6 +30,8 @@ from epuck_ros.world import World, default_world, load_world, place_robots
 TIME_STEP = 0.032
 """The simulator's default `time_step` (Webots' basicTimeStep), which `bringup` runs with."""
 DEFAULT_WORLD = 'default'
+DEFAULT_TIME_LIMIT = 600.0
+"""Wall seconds a trial with a script may take by default (a spec's `time_limit`)."""
 """A spec's name for the built-in world (`sim` with no `world` parameter)."""
 Policy = Callable[[Observation], WheelCommand]
 """A plain Python controller: an observation in, wheel speeds (rad/s) out."""
@@ -55,10 +58,29 @@ class Controller:
 
 
 @dataclass(frozen=True)
+class Script:
+    """A Webots-style controller script (`from controller import Robot`), as `bringup --controller SCRIPT` runs it:
+    each robot runs it in a thread of its own (`epuck_ros.webots.headless`), and a trial with scripts runs in a
+    process of its own (`isolation`), so that whatever a script does ends with its trial."""
+
+    path: str
+    name: str = ''
+    """How the spec names it (the `controller` column)."""
+
+    @property
+    def label(self) -> str:
+        return self.name or Path(self.path).name
+
+    def make(self) -> Behaviour:
+        from epuck_ros.webots.headless import ScriptSeat   # the shim's Robot imports rclpy (no DDS is started)
+        return ScriptSeat(Path(self.path), TIME_STEP)
+
+
+@dataclass(frozen=True)
 class Trial:
     """Everything a run depends on; `world` is a path or DEFAULT_WORLD, `robots` 0 = the world's own."""
 
-    controller: Controller
+    controller: Controller | Script
     world: str = DEFAULT_WORLD
     robots: int = 0
     seed: int = 0
@@ -68,6 +90,8 @@ class Trial:
     """The trial's number in its sweep (its `trial` column); no effect on the run."""
     world_label: str = field(default=DEFAULT_WORLD, compare=False)
     """How the spec named the world (its `world` column)."""
+    time_limit: float = DEFAULT_TIME_LIMIT
+    """Wall seconds a trial with a script may take before its process is killed (the trial then fails)."""
 
     def load_world(self) -> World:
         world = default_world() if self.world == DEFAULT_WORLD else load_world(Path(self.world))
@@ -76,12 +100,21 @@ class Trial:
 
 def run_trial(trial: Trial, policy: Policy | None = None) -> list[dict[str, Any]]:
     """The trial's rows, one per robot (columns COLUMNS). A failure is a row with its `error`, never an exception:
-    a sweep goes on. `policy` replaces the behaviour (a plain Python controller, the same for every robot)."""
+    a sweep goes on. `policy` replaces the behaviour (a plain Python controller, the same for every robot).
+    A trial with a script runs in a child process (`isolation`) under its time limit."""
     began = time.perf_counter()
     try:
-        sim, tally = run(trial, policy)
+        if isinstance(trial.controller, Script) and policy is None:
+            return call_in_child(_rows, trial, trial.time_limit)
+        return _rows(trial, policy)
     except Exception as error:  # noqa: BLE001 - whatever went wrong is the trial's result
-        return [_row(trial, '', error=f'{type(error).__name__}: {error}', wall=time.perf_counter() - began)]
+        what = str(error) if isinstance(error, ChildFailed) else f'{type(error).__name__}: {error}'
+        return [_row(trial, '', error=what, wall=time.perf_counter() - began)]
+
+
+def _rows(trial: Trial, policy: Policy | None = None) -> list[dict[str, Any]]:
+    began = time.perf_counter()
+    sim, tally = run(trial, policy)
     wall = time.perf_counter() - began
     return [_row(trial, name, figures, sim.true_pose[i].tolist(), sim.time, wall, robots=len(sim.names))
             for i, (name, figures) in enumerate(zip(sim.names, tally.figures))]
@@ -96,21 +129,33 @@ def run(trial: Trial, policy: Policy | None = None,
     several = len(world.robots) > 1
     tally = RunTally([name if several else '' for name in sim.names], world)
     controllers = [policy or trial.controller.make() for _ in sim.names]
+    for robot, controller in enumerate(controllers):   # a script's seat reads the step's raw data itself
+        getattr(controller, 'bind', _nothing)(sim, robot)
     # What each controller's node subscribes (a plain policy gets everything).
     needs_odom = [getattr(controller, 'needs_odom', True) for controller in controllers]
     needs_ranges = [getattr(controller, 'needs_proximity', True) for controller in controllers]
-    sim.step()   # the first step goes out with no command: the wheels are still
-    _published(sim, tally, several, each_step)
-    while not sim.time + 1e-9 >= trial.duration:   # the simulator pauses on the first step at or after it
-        now = _stamp_seconds(sim.time)
-        for robot, controller in enumerate(controllers):
-            odom = _odometry_as_received(sim.odom_pose[robot]) if needs_odom[robot] else None
-            ranges = ranges_from_raw(sim.ir_raw[robot].tolist()) if needs_ranges[robot] else None
-            command = _update(controller, Observation(now, odom, ranges))
-            sim.command_wheels(robot, command.left, command.right)
-        sim.step()
+    try:
+        sim.step()   # the first step goes out with no command: the wheels are still
         _published(sim, tally, several, each_step)
+        while not sim.time + 1e-9 >= trial.duration:   # the simulator pauses on the first step at or after it
+            now = _stamp_seconds(sim.time)
+            for robot, controller in enumerate(controllers):
+                odom = _odometry_as_received(sim.odom_pose[robot]) if needs_odom[robot] else None
+                ranges = ranges_from_raw(sim.ir_raw[robot].tolist()) if needs_ranges[robot] else None
+                command = _update(controller, Observation(now, odom, ranges))
+                sim.command_wheels(robot, command.left, command.right)
+            sim.step()
+            _published(sim, tally, several, each_step)
+    finally:   # a script's step() returns -1
+        for controller in controllers:
+            getattr(controller, 'close', _nothing)()
+    for controller in controllers:   # a script may fail after the end, too
+        getattr(controller, 'check', _nothing)()
     return sim, tally
+
+
+def _nothing(*_: object) -> None:
+    """What a controller without a seat's hooks (bind, close, check) does with them."""
 
 
 def _update(controller: Behaviour | Policy, observation: Observation) -> WheelCommand:

@@ -8,7 +8,10 @@ Webots does, a controller still running one second after that is stopped. One di
 the simulator from its first step on, so `getTime()` is 0.032 (not 0) before the first `step`.
 
 The runner (`epuck_ros.webots.runner`) calls `configure()` before the script runs; a script run some other
-way gets the defaults (the single robot, rclpy's own command line).
+way gets the defaults (the single robot, rclpy's own command line). A headless run (`epuck_ros.webots.headless`)
+binds the thread that runs the script to a link of its own (`bind_thread`): the same Robot and devices, stepped
+by the pure core in this process instead of by the simulator over ROS. A link has `connect()` (the time step in
+seconds), `first_step()` and `answer_and_wait(left, right)` (a `StepData`, None at the end) and `close()`.
 """
 from __future__ import annotations
 
@@ -32,6 +35,9 @@ from epuck_ros.nodes.spinning import end_process
 from epuck_ros.webots.devices import (
     LED, NANOSECONDS_PER_MS, Device, DistanceSensor, Motor, PositionSensor, public_methods, report, unsupported)
 from epuck_ros.webots.link import SimLink, StepData
+
+_THREAD = threading.local()
+"""A headless run's link (`link`) and its Robot (`robot`), per thread: each robot's script runs in its own."""
 
 MOTOR_NAMES = ('left wheel motor', 'right wheel motor')
 ENCODER_NAMES = ('left wheel sensor', 'right wheel sensor')
@@ -89,22 +95,38 @@ def configure(robot: str, ros_args: list[str]) -> None:
     SESSION.ros_args = list(ros_args)
 
 
+def bind_thread(link: object, name: str) -> None:
+    """The Robot this thread's script creates is robot `name` and talks to `link`, not to the simulator over ROS."""
+    _THREAD.link, _THREAD.name, _THREAD.robot = link, name, None
+
+
+def _first_robot() -> Robot | None:
+    return _THREAD.robot if getattr(_THREAD, 'link', None) is not None else Robot.created
+
+
 class Robot:
     """The e-puck: motors, wheel encoders, ps0..ps7, led0..led9, simulated time."""
 
     created: Robot | None = None
 
     def __init__(self) -> None:
-        if Robot.created is not None:
+        if _first_robot() is not None:
             report('Error: only one Robot instance can be created per controller process.')
             self.__class__ = _AnotherRobot  # Webots goes on; its API calls act on the one robot there is
             return
-        Robot.created = self
-        SESSION.start()
+        self._ended = False
+        """The link said the simulation is over (the simulator gone, or a headless run's end)."""
+        self._in_step = False
+        if getattr(_THREAD, 'link', None) is not None:
+            _THREAD.robot = self
+            self._name, self._link = _THREAD.name, _THREAD.link
+        else:
+            Robot.created = self
+            SESSION.start()
+            node_name = 'webots_controller' + (f'_{SESSION.robot}' if SESSION.robot else '')
+            self._name = SESSION.robot or SINGLE_ROBOT_NAME
+            self._link = SimLink(node_name, SESSION.robot, lambda: SESSION.ending)
         model = RobotModel()
-        node_name = 'webots_controller' + (f'_{SESSION.robot}' if SESSION.robot else '')
-        self._name = SESSION.robot or SINGLE_ROBOT_NAME
-        self._link = SimLink(node_name, SESSION.robot, lambda: SESSION.ending)
         time_step = self._link.connect()
         data = self._link.first_step() if time_step is not None else None
         if data is None:
@@ -140,7 +162,7 @@ class Robot:
         simulation is ending, else 0. Without lockstep a slow controller may find more time has passed."""
         if duration is None:
             duration = int(self._basic_step_ms)
-        if SESSION.ending:
+        if SESSION.ending or self._ended:
             return -1
         if not isinstance(duration, numbers.Real) or not math.isfinite(duration):
             report(f'Error: wb_robot_step() called with an invalid duration ({duration!r}): it takes a whole number '
@@ -156,10 +178,10 @@ class Robot:
         """Say once per stall when the script has not called step() for `STEP_SILENCE` wall seconds: the simulation
         waits for it (lockstep) or drives on without it, and an endless loop otherwise shows nothing at all."""
         said_for = None
-        while not SESSION.ending:
+        while not (SESSION.ending or self._ended):
             time.sleep(STEP_WATCH_PERIOD)
             left = self._left_step
-            if not SESSION.in_step and time.monotonic() - left >= STEP_SILENCE and said_for != left:
+            if not self._in_step and time.monotonic() - left >= STEP_SILENCE and said_for != left:
                 said_for = left
                 report(f'{Path(sys.argv[0]).name} has not called robot.step() for {STEP_SILENCE:g} s (at simulated '
                        f't={self.getTime():.3f} s): the simulator waits for its answer; an endless loop without '
@@ -169,17 +191,17 @@ class Robot:
         # Whole simulator steps, rounded up: step(16) or step(40) with a 32 ms basic step take one and two steps.
         steps = math.ceil(duration / self._basic_step_ms - 1e-9)
         target_ns = self._time_ns + round((steps - 0.5) * self._basic_step_ms * NANOSECONDS_PER_MS)
-        SESSION.in_step = True
+        SESSION.in_step = self._in_step = True
         try:
             while self._time_ns < target_ns:
                 left, right = (motor.command(angle) for motor, angle in zip(self._motors, self._data.wheel_angles))
                 data = self._link.answer_and_wait(left, right)
                 if data is None:
-                    SESSION.ending = True
+                    self._ended = True
                     return -1
                 self._read(data)
         finally:
-            SESSION.in_step = False
+            SESSION.in_step = self._in_step = False
             self._left_step = time.monotonic()
         return -1 if SESSION.ending else 0
 
@@ -242,7 +264,7 @@ class _AnotherRobot(Robot):
     def __getattribute__(self, name: str) -> object:
         if name in ('__class__', '__dict__'):
             return object.__getattribute__(self, name)
-        return getattr(Robot.created, name)
+        return getattr(_first_robot(), name)
 
 
 def close() -> None:

@@ -17,6 +17,7 @@ from types import TracebackType
 
 import rclpy
 
+from epuck_ros import untrusted_yaml
 from epuck_ros.nodes.params import HELP_FLAGS, ParameterError, check_arguments, user_arguments
 from epuck_ros.webots.link import LinkError
 from epuck_ros.nodes.spinning import end_process
@@ -27,11 +28,15 @@ ROBOT_NAME = re.compile(r'[A-Za-z_][A-Za-z0-9_]*')
 SHIM_DIR = Path(__file__).resolve().parent / 'shim'
 EXAMPLES_DIR = Path(__file__).resolve().parent / 'examples'
 HELP = f"""usage: {PROGRAM} SCRIPT.py [ARG ...] [--robot NAME] [--ros-args ...]
+       {PROGRAM} SCRIPT.py --headless [--world W] [--robots N] [--seed S] [--duration D] [--record BAG]
 
 Run an unmodified Webots controller script (Python: from controller import Robot ...) against the e-puck
 simulator over ROS. The script's Robot is one rclpy node: it publishes wheel_cmd and reads /clock,
 joint_states and ir_raw; step(32) is exactly one simulator step, and with the simulator in lockstep the run
 is the same every time. Start `sim` first, or let `bringup --controller SCRIPT.py` start everything.
+
+--headless runs the script against the simulator's core in this process, without ROS, at full speed: the
+same run as `bringup --controller SCRIPT.py --lockstep --real-time-factor 0` (see --headless --help).
 
 options:
   SCRIPT.py [ARG ...]  the controller script and its own arguments (its sys.argv[1:])
@@ -68,26 +73,30 @@ def fail(message: str) -> None:
     raise SystemExit(2)
 
 
-def run_script(path: Path, script_args: list[str]) -> int:
-    """Run the script as __main__; its exit code (1 and its traceback when it raises)."""
+def run_script(path: Path, script_args: list[str]) -> tuple[int, str]:
+    """Run the script as __main__: its exit code (1 and its traceback when it raises), and one line saying what
+    went wrong ('' when nothing did)."""
     sys.path[:0] = [str(SHIM_DIR), str(path.parent)]
     sys.argv = [str(path), *script_args]
     try:
         runpy.run_path(str(path), run_name='__main__')
     except KeyboardInterrupt:
-        return 0
+        return 0, ''
     except SystemExit as end:
         if end.code is None or isinstance(end.code, int):
-            return end.code or 0
+            return end.code or 0, f'sys.exit({end.code})' if end.code else ''
         print(end.code, file=sys.stderr)
-        return 1
+        return 1, f'sys.exit({untrusted_yaml.cut(repr(end.code), 200)})'
     except LinkError as error:
         print(f'{PROGRAM}: {error}', file=sys.stderr)
-        return 2
+        return 2, str(error)
     except BaseException as error:  # noqa: BLE001 - whatever the script raises is reported as Python would
-        traceback.print_exception(type(error), error, _from_script(error.__traceback__, path))
-        return 1
-    return 0
+        where = _from_script(error.__traceback__, path)
+        traceback.print_exception(type(error), error, where)
+        lines = [frame.lineno for frame in traceback.extract_tb(where) if Path(frame.filename) == path]
+        return 1, untrusted_yaml.cut(f'{type(error).__name__}: {error}', 300) + \
+            (f' (line {lines[-1]} of {path.name})' if lines else '')
+    return 0, ''
 
 
 def _from_script(tb: TracebackType | None, path: Path) -> TracebackType | None:
@@ -100,6 +109,14 @@ def _from_script(tb: TracebackType | None, path: Path) -> TracebackType | None:
 
 def main(argv: list[str] | None = None) -> None:
     argv = [PROGRAM, *(sys.argv[1:] if argv is None else argv)]
+    if '--headless' in argv[1:]:   # on the pure core in this process, no ROS (see its --help)
+        from epuck_ros.experiments.headless_cli import main as headless
+        code = 0
+        try:
+            headless([arg for arg in argv[1:] if arg != '--headless'])
+        except SystemExit as end:
+            code = end.code if isinstance(end.code, int) else 1
+        end_process(code)   # not SystemExit: a thread the script left running would keep the process alive
     if any(arg in HELP_FLAGS for arg in user_arguments(argv)):
         print(HELP)
         raise SystemExit(0)
@@ -114,7 +131,7 @@ def main(argv: list[str] | None = None) -> None:
     configure(robot, args[1:])
     code = 0
     try:
-        code = run_script(path, script_args)
+        code, _ = run_script(path, script_args)
     finally:
         close()
         rclpy.try_shutdown()
