@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import csv
 import os
+import shutil
 import signal
 import socket
 import subprocess
@@ -22,6 +23,8 @@ from epuck_ros.experiments.trial import Trial, controller_from, run, run_trial
 REPO = Path(__file__).resolve().parents[1]
 EXAMPLE = REPO / 'epuck_ros' / 'experiments' / 'examples' / 'avoid_seeds.yaml'
 SWEEP = str(BIN_DIR / 'sweep')
+COURSE_AVOIDANCE = REPO / 'test' / 'data' / 'course_controllers' / 'obstacle_avoidance.py'
+STEP_TOPICS = ('/clock', '/ground_truth', '/odom', '/ir_raw', '/joint_states', '/proximity', '/collisions')
 
 
 @pytest.mark.parametrize('robots', [0, 3])
@@ -44,6 +47,43 @@ def test_a_headless_trial_is_the_lockstep_bringup_run_to_the_bit(launch, tmp_pat
         assert len(truth.x) == len(headless), recorded.name
         assert np.array_equal(truth.x, headless[:, index, 0]) and np.array_equal(truth.y, headless[:, index, 1]), \
             f'{recorded.name}: first difference at step {np.flatnonzero(truth.x != headless[:, index, 0])[:1]}'
+
+
+def messages_by_topic(bag: Path) -> dict[str, list[tuple[int, bytes]]]:
+    """Every message of a bag as rosbags' AnyReader reads (and deserialises) it: topic -> [(log time, CDR)]."""
+    from rosbags.highlevel import AnyReader
+    from rosbags.typesys import Stores, get_typestore
+    found: dict[str, list[tuple[int, bytes]]] = {}
+    with AnyReader([bag], default_typestore=get_typestore(Stores.ROS2_JAZZY)) as reader:
+        for connection, stamp, data in reader.messages():
+            reader.deserialize(data, connection.msgtype)
+            found.setdefault(connection.topic, []).append((stamp, bytes(data)))
+    return found
+
+
+def test_a_headless_script_is_the_lockstep_bringup_run_and_records_the_same_bag(launch, tmp_path):
+    """The course's obstacle_avoidance.py, unchanged, through `bringup --controller` in lockstep (simulator and
+    webots_controller over DDS) and through `webots_controller --headless --record`: the same summary, and every
+    step message of the two bags the same bytes, stamps included (ground truth, odometry, IR, joints, contacts),
+    read back by rosbags."""
+    common = ['--seed', '3', '--duration', '15']
+    ros_bag, headless_bag = tmp_path / 'ros', tmp_path / 'headless'
+    over_ros = launch('bringup', '--controller', str(COURSE_AVOIDANCE), '--lockstep', '--real-time-factor', '0',
+                      *common, '--record', str(ros_bag))
+    headless = subprocess.run([str(BIN_DIR / 'webots_controller'), str(COURSE_AVOIDANCE), '--headless', *common,
+                               '--record', str(headless_bag)], capture_output=True, text=True, timeout=120)
+    assert headless.returncode == 0, headless.stderr
+    assert over_ros.proc.wait(timeout=180) == 0, over_ros.output()
+    figures = [line.split('] ', 1)[1] for line in headless.stdout.splitlines()[1:] if 'recorded to' not in line]
+    assert 'contacts with walls/obstacles' in figures[0]
+    assert all(f'[bringup] {line}' in over_ros.output() for line in figures), (figures, over_ros.output())
+    ros, mine = messages_by_topic(ros_bag), messages_by_topic(headless_bag)
+    assert len(mine['/ground_truth']) == round(15.008 / 0.032)
+    for topic in STEP_TOPICS:   # the recorder's log times are its clock's when a message came: not compared
+        assert [data for _, data in mine[topic]] == [data for _, data in ros[topic]], topic
+    with Bag(headless_bag) as reader:
+        (recorded,) = load_runs(reader)
+    assert recorded.truth.x[-1] != recorded.truth.x[0]
 
 
 def test_a_failing_controller_is_a_row_with_its_error():
@@ -162,13 +202,22 @@ def test_resume_runs_only_the_trials_not_written_yet(tmp_path):
     ('controllers: [avoid]\nseeds: {first: 0, count: 100000}\nrobots: [1, 2]\nduration: 5\n',
      '200000 trials, more than 100000'),
     ('controllers: [avoid]\nseeds: [0]\nduration: 5\nnoisy: true\n', 'noisy: unknown key (did you mean noise?)'),
-    ('controllers: [{script: my_controller.py}]\nseeds: [0]\nduration: 5\n', 'controllers[0].script: '),
+    ('controllers: [{script: my_controller.py}]\nseeds: [0]\nduration: 5\n',
+     'controllers[0].script: cannot read my_controller.py: No such file or directory'),
+    ('controllers: [avoid, {script: broken.py}]\nseeds: [0]\nduration: 5\n',
+     'controllers[1].script: broken.py is not valid Python: '),
+    ('controllers: [{script: broken.py, args: 1}]\nseeds: [0]\nduration: 5\n', 'controllers[0].args: unknown key'),
+    ('controllers: [{behaviour: avoid, parameter: {}}]\nseeds: [0]\nduration: 5\n',
+     'controllers[0].parameter: unknown key'),
+    ('controllers: [avoid]\nseeds: [0]\nduration: 5\ntime_limit: 0\n', 'time_limit: expected wall seconds above 0'),
+    ('controllers: [avoid]\nseeds: [0]\nduration: -1\n', 'duration: expected simulated seconds above 0'),
     ('controllers: [avoid]\nseeds: [0]\nrobots: [500]\nduration: 5\n', 'robots: 500 in default: '),
     ('controllers: [avoid]\nduration: 5\n', 'seeds: missing'),
 ])
 def test_a_bad_spec_is_one_line_and_exit_2_before_any_trial(tmp_path, text, message):
     spec = tmp_path / 'bad.yaml'
     spec.write_text(text)
+    (tmp_path / 'broken.py').write_text('from controller import Robot\nwhile True\n')
     result = sweep(str(spec), '-o', str(tmp_path / 'out'), '--workers', '0', timeout=60)
     assert result.returncode == 2 and message in result.stderr, result.stderr
     assert result.stderr.count('\n') == 1 and str(spec) in result.stderr
@@ -176,6 +225,7 @@ def test_a_bad_spec_is_one_line_and_exit_2_before_any_trial(tmp_path, text, mess
 
 
 def test_an_unreachable_scheduler_is_one_line_and_exit_2(tmp_path):
+    """Nothing listens on the port: said at once (a scheduler that does not answer is said after 5 s)."""
     began = time.monotonic()
     result = sweep(str(small_spec(tmp_path, count=1, duration=1)), '-o', str(tmp_path / 'out'), '--scheduler',
                    f'tcp://127.0.0.1:{free_port()}', timeout=120)
@@ -194,3 +244,44 @@ def test_the_example_spec_loads():
     from epuck_ros.experiments.spec import load_spec
     assert len(load_spec(EXAMPLE).trials) == 2 * 2 * 4
     assert sys.executable
+
+
+MISBEHAVING = {
+    'raises.py': 'from controller import Robot\nrobot = Robot()\nrobot.step(32)\n1 / 0\n',
+    'exits.py': 'import sys\nfrom controller import Robot\nrobot = Robot()\nrobot.step(32)\nsys.exit(3)\n',
+    'dies.py': 'import os\nfrom controller import Robot\nrobot = Robot()\nrobot.step(32)\nos._exit(5)\n',
+    'loops.py': 'from controller import Robot\nrobot = Robot()\nwhile True:\n    pass\n',
+    'chatters.py': 'import os\nfrom controller import Robot\nrobot = Robot()\nwhile robot.step(32) != -1:\n'
+                   '    print("x" * 1_000_000)\n    os.write(1, b"y" * 1_000_000)\n',
+}
+
+
+def test_script_trials_that_misbehave_are_rows_saying_what_happened_and_the_sweep_goes_on(tmp_path):
+    """Each in a forked child of the sweep: a script that raises, calls sys.exit(3) or os._exit(5), loops without
+    step(), or prints 2 MB per step is one row with its error each; the course's controller beside them runs, gives
+    the rows of the same trial in this process, and its bag (--record) is read by rosbags."""
+    for name, text in MISBEHAVING.items():
+        (tmp_path / name).write_text(text)
+    shutil.copy(COURSE_AVOIDANCE, tmp_path / 'course.py')
+    spec = tmp_path / 'scripts.yaml'
+    spec.write_text('controllers: [' + ', '.join(f'{{script: {name}}}' for name in [*MISBEHAVING, 'course.py']) +
+                    ']\nseeds: [1]\nduration: 3\ntime_limit: 3\n')
+    out = tmp_path / 'out'
+    result = sweep(str(spec), '-o', str(out), '--workers', '0', '--record', timeout=240)
+    assert result.returncode == 1, result.stderr
+    rows = {row['controller']: row for row in rows_of(out / 'trials.csv')}
+    assert rows['raises.py']['error'] == \
+        'ScriptError: raises.py: ZeroDivisionError: division by zero (line 4 of raises.py)'
+    assert rows['exits.py']['error'] == 'ScriptError: exits.py: sys.exit(3)'
+    assert rows['dies.py']['error'] == "the trial's process ended (exit code 5) before its result"
+    assert rows['loops.py']['error'] == \
+        "no result within 3 wall seconds (the time limit): the trial's process was killed"
+    assert rows['chatters.py']['error'] == '' and rows['course.py']['error'] == ''
+    from epuck_ros.experiments.spec import load_spec
+    course = next(trial for trial in load_spec(spec).trials if trial.controller.label == 'course.py')
+    (alone,) = run_trial(course)
+    assert {key: str(value) for key, value in alone.items() if key != 'wall_s'} == \
+        {key: value for key, value in rows['course.py'].items()}
+    bag = out / 'bags' / rows['course.py']['trial']
+    truth = messages_by_topic(bag)['/ground_truth']
+    assert len(truth) == round(3.008 / 0.032) and truth[-1][0] == round(float(rows['course.py']['sim_time']) * 1e9)

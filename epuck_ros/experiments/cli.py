@@ -13,6 +13,7 @@ import statistics
 import sys
 import time
 from collections.abc import Iterable, Iterator
+from dataclasses import replace
 from pathlib import Path
 
 from epuck_ros.experiments.cluster import ClusterError, default_workers, open_client
@@ -29,7 +30,8 @@ def parse_args(argv: list[str]) -> argparse.Namespace:
         prog='sweep', description='Run every combination of a spec (controllers x worlds x robot counts x seeds) '
         'headless on the pure core, on Dask: OUT/trials.csv (a row per robot per trial), a summary table per '
         'controller and world, OUT/sweep.png. A trial gives the ground truth of `bringup ... --lockstep '
-        '--real-time-factor 0` with the same seed, to the bit.',
+        '--real-time-factor 0` with the same seed, to the bit. Exit code: 0; 1 when a trial failed (its row says '
+        'why); 2 for a bad spec or option, or an unreachable scheduler, before any trial.',
         epilog='example: sweep epuck_ros/experiments/examples/avoid_seeds.yaml -o sweep_out --workers 2')
     parser.add_argument('spec', type=Path, help='the spec (YAML); its relative paths are relative to it')
     parser.add_argument('-o', '--output', type=Path, required=True, help='output folder (made if missing)')
@@ -39,6 +41,9 @@ def parse_args(argv: list[str]) -> argparse.Namespace:
     parser.add_argument('--scheduler', help='tcp://HOST:PORT of an existing Dask scheduler (its workers run the '
                                             'trials; they need epuck_ros installed)')
     parser.add_argument('--resume', action='store_true', help='skip the trials already in OUT/trials.csv')
+    parser.add_argument('--record', action='store_true',
+                        help='also write each trial as a rosbag2 MCAP bag, OUT/bags/<trial>/, readable by `bag` and '
+                             'rosbags (the workers write there: with --scheduler, OUT must be on a shared file system)')
     args = parser.parse_args(argv)
     if args.workers is not None and args.workers < 0:
         parser.error('--workers must be 0 or more')
@@ -60,6 +65,9 @@ def main(argv: list[str] | None = None) -> None:
         table.unlink(missing_ok=True)
     done = {int(row['trial']) for row in read_rows(table)}
     todo = [trial for trial in spec.trials if trial.index not in done]
+    if args.record:
+        bags = args.output.resolve() / 'bags'
+        todo = [replace(trial, record=str(bags / str(trial.index))) for trial in todo]
     print(f'[sweep] {len(spec.trials)} trials ({len(done)} done before), {_where(args)}', file=sys.stderr, flush=True)
     try:
         with open_client(args.workers, args.scheduler) as client, open(table, 'a', newline='') as out:

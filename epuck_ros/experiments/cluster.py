@@ -7,11 +7,16 @@ gives the same rows and the sweep still ends with every trial exactly once.
 from __future__ import annotations
 
 import os
-from collections.abc import Iterator
+import socket
+from collections.abc import Callable, Iterable, Iterator
 from contextlib import contextmanager
+from typing import Any, TypeVar
+from urllib.parse import urlsplit
 
-CONNECT_TIMEOUT = 10.0
-"""Seconds to reach a scheduler before saying it is unreachable."""
+T = TypeVar('T')
+
+CONNECT_TIMEOUT = 5.0
+"""Seconds to reach a scheduler before saying it is unreachable (a refused connection is said at once)."""
 
 
 class ClusterError(RuntimeError):
@@ -32,6 +37,7 @@ def open_client(workers: int | None, scheduler: str | None) -> Iterator[object |
         return
     from dask.distributed import Client, LocalCluster
     if scheduler is not None:
+        _probe(scheduler)
         try:
             client = Client(scheduler, timeout=CONNECT_TIMEOUT)
         except (OSError, TimeoutError, ValueError) as error:
@@ -50,3 +56,30 @@ def open_client(workers: int | None, scheduler: str | None) -> Iterator[object |
     finally:
         client.close()
         cluster.close()
+
+
+def _probe(scheduler: str) -> None:
+    """ClusterError at once when nothing listens at a tcp:// address (Dask's own connect retries until its timeout)."""
+    parts = urlsplit(scheduler if '://' in scheduler else f'tcp://{scheduler}')
+    try:
+        port = parts.port
+    except ValueError:
+        port = None
+    if parts.scheme != 'tcp' or not parts.hostname or port is None:
+        return   # another transport (tls://, ucx://, inproc://): Dask's connect says what is wrong
+    try:
+        socket.create_connection((parts.hostname, port), timeout=CONNECT_TIMEOUT).close()
+    except OSError as error:
+        raise ClusterError(f'cannot reach the Dask scheduler {scheduler}: {error.strerror or error}') from None
+
+
+def map_in_order(client: object | None, function: Callable[[Any], T], items: Iterable[Any],
+                 retries: int = 2) -> list[T]:
+    """`function(item)` for every item, results in the items' order: each item a task on the Dask `client` (from
+    `open_client`), or one after the other in this process for None. `function` must be a pure, importable
+    function (a worker runs it): Dask re-runs the tasks of a worker that dies, and `retries` times a task that
+    raised, so a result never depends on which worker or attempt gave it."""
+    items = list(items)
+    if client is None:
+        return [function(item) for item in items]
+    return client.gather(client.map(function, items, pure=True, retries=retries))

@@ -13,6 +13,7 @@ last bit, because it steps the core in the order lockstep does (nodes/sim_node.p
 from __future__ import annotations
 
 import math
+import shutil
 import time
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field, replace
@@ -92,6 +93,8 @@ class Trial:
     """How the spec named the world (its `world` column)."""
     time_limit: float = DEFAULT_TIME_LIMIT
     """Wall seconds a trial with a script may take before its process is killed (the trial then fails)."""
+    record: str = ''
+    """A folder to write the trial to as a rosbag2 MCAP bag (`recording`); '' = none. A retry writes it anew."""
 
     def load_world(self) -> World:
         world = default_world() if self.world == DEFAULT_WORLD else load_world(Path(self.world))
@@ -114,7 +117,16 @@ def run_trial(trial: Trial, policy: Policy | None = None) -> list[dict[str, Any]
 
 def _rows(trial: Trial, policy: Policy | None = None) -> list[dict[str, Any]]:
     began = time.perf_counter()
-    sim, tally = run(trial, policy)
+    if trial.record:
+        from epuck_ros.experiments.recording import TrialRecorder
+        shutil.rmtree(trial.record, ignore_errors=True)   # what a run cut short (a killed worker) left
+        recorder = TrialRecorder(Path(trial.record), trial.load_world())
+        try:
+            sim, tally = run(trial, policy, recorder.step)
+        finally:
+            recorder.close()
+    else:
+        sim, tally = run(trial, policy)
     wall = time.perf_counter() - began
     return [_row(trial, name, figures, sim.true_pose[i].tolist(), sim.time, wall, robots=len(sim.names))
             for i, (name, figures) in enumerate(zip(sim.names, tally.figures))]
