@@ -242,7 +242,7 @@ def test_sweep_help_names_the_options():
 
 def test_the_example_spec_loads():
     from epuck_ros.experiments.spec import load_spec
-    assert len(load_spec(EXAMPLE).trials) == 2 * 2 * 4
+    assert len(load_spec(EXAMPLE).trials) == 3 * 2 * 4
     assert sys.executable
 
 

@@ -68,9 +68,11 @@ def main(argv: list[str] | None = None) -> None:
     if args.record:
         bags = args.output.resolve() / 'bags'
         todo = [replace(trial, record=str(bags / str(trial.index))) for trial in todo]
-    print(f'[sweep] {len(spec.trials)} trials ({len(done)} done before), {_where(args)}', file=sys.stderr, flush=True)
+    interrupted = False
     try:
         with open_client(args.workers, args.scheduler) as client, open(table, 'a', newline='') as out:
+            print(f'[sweep] {len(spec.trials)} trials ({len(done)} done before), {_where(args)}', file=sys.stderr,
+                  flush=True)
             writer = csv.DictWriter(out, COLUMNS)
             if out.tell() == 0:
                 writer.writeheader()
@@ -83,11 +85,17 @@ def main(argv: list[str] | None = None) -> None:
     except ClusterError as error:
         print(f'sweep: {error}', file=sys.stderr)
         raise SystemExit(EXIT_BAD_INPUT) from None
+    except KeyboardInterrupt:   # Ctrl-C: the rows written so far are kept, --resume runs the rest
+        interrupted = True
     rows = sorted(read_rows(table), key=lambda row: (int(row['trial']), row['robot']))
     write_rows(table, rows)
     print(summary_table(rows))
     from epuck_ros.experiments.picture import draw_sweep
     draw_sweep(rows, args.output / 'sweep.png')
+    if interrupted:
+        print(f'\n[sweep] interrupted with {len({row["trial"] for row in rows})} of {len(spec.trials)} trials in '
+              f'{table}; the same command with --resume runs the others', file=sys.stderr)
+        return
     failed = sorted({int(row['trial']) for row in rows if row['error']})
     print(f'[sweep] wrote {table} and {args.output / "sweep.png"}' +
           (f'; {len(failed)} trials failed (their rows say why)' if failed else ''), file=sys.stderr)
@@ -164,9 +172,14 @@ def summary_table(rows: list[dict]) -> str:
     for (controller, world, robots), members in sorted(groups.items()):
         distance = [float(row['distance_m']) for row in members]
         contacts = [float(row['contacts_obstacles']) + float(row['contacts_robots']) for row in members]
-        lines.append(f'{controller[:24]:24} {world[:20]:20} {robots:>6} {len(members):>5} '
+        lines.append(f'{_fit(controller, 24):24} {_fit(world, 20):20} {robots:>6} {len(members):>5} '
                      f'{_mean_spread(distance, 3):>16} {_mean_spread(contacts, 2):>14}')
     return '\n'.join(lines)
+
+
+def _fit(label: str, width: int) -> str:
+    """A label cut to `width` characters from the front: a script's or world's path ends with its name."""
+    return label if len(label) <= width else '…' + label[-(width - 1):]
 
 
 def _mean_spread(values: list[float], digits: int) -> str:

@@ -7,6 +7,7 @@ gives the same rows and the sweep still ends with every trial exactly once.
 from __future__ import annotations
 
 import os
+import signal
 import socket
 from collections.abc import Callable, Iterable, Iterator
 from contextlib import contextmanager
@@ -48,8 +49,14 @@ def open_client(workers: int | None, scheduler: str | None) -> Iterator[object |
         finally:
             client.close()
         return
-    cluster = LocalCluster(n_workers=workers or default_workers(), threads_per_worker=1, processes=True,
-                           dashboard_address=None, silence_logs=50)
+    # The worker processes start with Ctrl-C ignored (inherited): Ctrl-C in the terminal reaches the whole process
+    # group, and it is the sweep's to handle (it closes the cluster); each worker printed a KeyboardInterrupt.
+    handler = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        cluster = LocalCluster(n_workers=workers or default_workers(), threads_per_worker=1, processes=True,
+                               dashboard_address=':0', silence_logs=50)
+    finally:
+        signal.signal(signal.SIGINT, handler)
     client = Client(cluster)
     try:
         yield client

@@ -65,6 +65,9 @@ def call_in_child(function: Callable[[Any], T], argument: Any, limit: float) -> 
         pass
     try:
         data = _read_until(read_end, time.monotonic() + limit)
+    except BaseException:   # Ctrl-C in the caller: the child goes with it
+        _kill(pid)
+        raise
     finally:
         os.close(read_end)
     if data is None:
@@ -87,7 +90,7 @@ def _child(function: Callable[[Any], Any], argument: Any, write_end: int) -> Non
         os.dup2(quiet, 1)
         os.dup2(quiet, 2)
         sys.stdout = sys.stderr = _Tail()
-        signal.signal(signal.SIGINT, signal.SIG_DFL)   # the parent's handlers are not the child's business
+        signal.signal(signal.SIGINT, signal.SIG_IGN)   # Ctrl-C is the caller's to handle: it kills the child
         signal.signal(signal.SIGTERM, signal.SIG_DFL)
         try:
             result = ('value', function(argument))

@@ -1,0 +1,110 @@
+"""How fast trials run headless, against the same trial through ROS, and how a sweep grows with Dask workers.
+
+Measured in one run on this machine:
+- one trial (avoid, default world, 1 robot, `--seconds` simulated) through `bringup --lockstep --real-time-factor
+  0` (start-up included, wall time of the whole command) and headless (`run_trial`): the ratio per trial;
+- a headless trial's speed as a multiple of real time (single core, this process);
+- the course's `obstacle_avoidance.py` (a Webots-style script) the same way: through `bringup --controller` and
+  headless, in this process (`trial.run`) and as a sweep runs it (`run_trial`: in a forked child, fork included);
+- `--trials` such trials as a sweep: in this process (`--workers 0`), then on a local Dask cluster of 1 and of 2
+  workers (start-up of the cluster excluded: it is paid once per sweep): trials per second, the speed-up of 2
+  workers over 1, and Dask's overhead per trial against the in-process sweep.
+
+Run (ROS_DOMAIN_ID of your own): python benchmarks/bench_sweep.py [--seconds 60] [--trials 200]
+"""
+from __future__ import annotations
+
+import argparse
+import os
+import shutil
+import subprocess
+import sys
+import time
+from collections.abc import Callable
+from dataclasses import replace
+from pathlib import Path
+
+from epuck_ros.experiments.cluster import open_client
+from epuck_ros.experiments.cli import results
+from epuck_ros.experiments.trial import Script, Trial, controller_from, run, run_trial
+
+
+COURSE_AVOIDANCE = Path(__file__).resolve().parents[1] / 'test' / 'data' / 'course_controllers' / \
+    'obstacle_avoidance.py'
+
+
+def bringup_trial(seconds: float, *controller: str) -> float:
+    """Wall seconds of a whole `bringup` command (avoid, or `controller`) in lockstep at real_time_factor 0."""
+    bringup = shutil.which('bringup') or str(Path(sys.executable).with_name('bringup'))
+    begin = time.perf_counter()
+    subprocess.run([bringup, *(controller or ['avoid']), '--duration', f'{seconds:g}', '--real-time-factor', '0',
+                    '--lockstep'], check=True, stdout=subprocess.DEVNULL,
+                   env=dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST'))
+    return time.perf_counter() - begin
+
+
+def best_of(count: int, measure: Callable[[], float]) -> float:
+    return min(measure() for _ in range(count))
+
+
+def wall(action: Callable[[], object]) -> float:
+    begin = time.perf_counter()
+    action()
+    return time.perf_counter() - begin
+
+
+def sweep_rate(trials: list[Trial], workers: int) -> float:
+    """Trials per wall second of a sweep of `trials` (cluster start-up excluded)."""
+    with open_client(workers, None) as client:
+        if client is not None:
+            client.submit(sum, [1]).result()   # the workers are up
+        begin = time.perf_counter()
+        for _ in results(client, trials):
+            pass
+        return len(trials) / (time.perf_counter() - begin)
+
+
+def best_rates(trials: list[Trial], counts: tuple[int, ...], rounds: int) -> list[float]:
+    """The best rate of each worker count over `rounds` rounds, the counts interleaved in each round (other jobs on
+    the machine then slow each count alike)."""
+    rates = [[sweep_rate(trials, workers) for workers in counts] for _ in range(rounds)]
+    return [max(column) for column in zip(*rates)]
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
+    parser.add_argument('--seconds', type=float, default=60.0, help='simulated seconds per trial (default 60)')
+    parser.add_argument('--trials', type=int, default=200, help='trials of the sweep (default 200)')
+    parser.add_argument('--rounds', type=int, default=3, help='rounds of the sweeps, best kept (default 3)')
+    args = parser.parse_args()
+    print(f'load average at the start: {os.getloadavg()[0]:.1f} ({os.cpu_count()} cores)')
+    trial = Trial(controller_from('avoid'), duration=args.seconds, seed=0)
+    run_trial(trial)   # imports and caches warm
+    ros = min(bringup_trial(args.seconds) for _ in range(2))
+    headless = min(run_trial(trial)[0]['wall_s'] for _ in range(3))
+    print(f'one {args.seconds:g} s avoid trial: bringup {ros:.2f} s wall (start-up included), headless '
+          f'{headless * 1000:.1f} ms: {ros / headless:.0f}x faster per trial; headless runs at '
+          f'{args.seconds / headless:.0f}x real time on one core')
+    script = Trial(Script(str(COURSE_AVOIDANCE)), duration=args.seconds, seed=0)
+    script_ros = best_of(2, lambda: bringup_trial(args.seconds, '--controller', str(COURSE_AVOIDANCE)))
+    in_process = best_of(3, lambda: wall(lambda: run(script)))
+    isolated = best_of(3, lambda: wall(lambda: run_trial(script)))
+    print(f'the course\'s obstacle_avoidance.py for {args.seconds:g} s: bringup --controller {script_ros:.2f} s '
+          f'wall; headless {in_process * 1000:.1f} ms in this process ({args.seconds / in_process:.0f}x real time), '
+          f'{isolated * 1000:.1f} ms as a sweep runs it in a forked child ({args.seconds / isolated:.0f}x real '
+          f'time, {script_ros / isolated:.0f}x faster than bringup)')
+    trials = [Trial(controller_from('avoid'), duration=args.seconds, seed=seed, index=seed)
+              for seed in range(args.trials)]
+    alone, one, two = best_rates(trials, (0, 1, 2), args.rounds)
+    print(f'{args.trials} avoid trials: in this process {alone:.1f} trials/s; local Dask, 1 worker {one:.1f} '
+          f'trials/s, 2 workers {two:.1f} trials/s ({two / one:.2f}x of 1 worker); Dask overhead per trial '
+          f'{(1 / one - 1 / alone) * 1000:.2f} ms ({(alone / one - 1) * 100:.1f} % of a trial in this process)')
+    scripts = [replace(script, seed=seed, index=seed) for seed in range(args.trials // 4)]
+    alone, two = best_rates(scripts, (0, 2), args.rounds)
+    print(f'{len(scripts)} obstacle_avoidance.py trials (each in a forked child): in this process {alone:.1f} '
+          f'trials/s, local Dask of 2 workers {two:.1f} trials/s ({two / alone:.2f}x)')
+    print(f'load average at the end: {os.getloadavg()[0]:.1f}')
+
+
+if __name__ == '__main__':
+    main()
