@@ -2,8 +2,8 @@
 
 The run is that of `bringup --controller SCRIPT --lockstep --real-time-factor 0` with the same world, seed and
 duration (`trial.run`), at the core's speed; the script's output goes to the terminal as usual, and the end is
-`bringup`'s summary, computed by the same code. Exit code: 0, 1 when the script failed (its traceback above),
-2 for a bad command line.
+`bringup`'s summary, computed by the same code. Exit code: 0 (also after Ctrl-C), 1 when the script failed (its
+traceback above), 2 for a bad command line.
 """
 from __future__ import annotations
 
@@ -91,6 +91,10 @@ def main(argv: list[str]) -> None:
     except ScriptError as error:
         print(f'{PROGRAM}: {error}', file=sys.stderr)
         raise SystemExit(EXIT_FAILED) from None
+    except KeyboardInterrupt:   # Ctrl-C ends the run, as it ends one through bringup (the bag is closed)
+        print(f'[{PROGRAM}] interrupted' + (f'; recorded to {args.record}' if recorder is not None else ''),
+              flush=True)
+        return
     finally:
         if recorder is not None:
             recorder.close()

@@ -33,6 +33,8 @@ def draw_sweep(rows: list[dict], path: Path) -> None:
             axis.grid(True, alpha=0.3)
             axis.xaxis.set_major_locator(MaxNLocator(integer=True))
         axes[1][column].yaxis.set_major_locator(MaxNLocator(integer=True))
+        most = max((int(row['contacts_obstacles']) + int(row['contacts_robots']) for row in mine), default=0)
+        axes[1][column].set_ylim(-0.5, max(most, 1) + 0.5)   # whole contacts from 0, even when there were none
         if mine:
             axes[0][column].legend(fontsize=8)
     failed = len({row['trial'] for row in rows if row['error']})
