@@ -8,7 +8,8 @@ last bit, because it steps the core in the order lockstep does (nodes/sim_node.p
   first step at or after the duration (`pause_at`);
 - each step is answered by every robot's controller, and the answers drive the next step: the controller of a
   robot sees what the simulator published, the IR values through `ranges_from_raw` and the odometry through its
-  quaternion (`yaw_from_quaternion`), at the step's time.
+  quaternion (`yaw_from_quaternion`), at the step's time; a Webots-style script's seat (`webots.headless`) reads
+  the joint states and raw IR values the simulator published, as `webots_controller` does.
 """
 from __future__ import annotations
 
@@ -18,15 +19,18 @@ import time
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from epuck_ros.bag.run_summary import RunTally
-from epuck_ros.experiments.isolation import ChildFailed, call_in_child
 from epuck_ros.behaviours import BEHAVIOURS, Behaviour, Observation, WheelCommand
 from epuck_ros.behaviours.base import ranges_from_raw
+from epuck_ros.experiments.isolation import ChildFailed, call_in_child
 from epuck_ros.model import RobotModel
 from epuck_ros.simulation import Simulation
 from epuck_ros.world import World, default_world, load_world, place_robots
+
+if TYPE_CHECKING:
+    from epuck_ros.webots.headless import ScriptSeat
 
 TIME_STEP = 0.032
 """The simulator's default `time_step` (Webots' basicTimeStep), which `bringup` runs with."""
@@ -72,7 +76,7 @@ class Script:
     def label(self) -> str:
         return self.name or Path(self.path).name
 
-    def make(self) -> Behaviour:
+    def make(self) -> ScriptSeat:
         from epuck_ros.webots.headless import ScriptSeat   # the shim's Robot imports rclpy (no DDS is started)
         return ScriptSeat(Path(self.path), TIME_STEP)
 
