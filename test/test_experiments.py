@@ -241,7 +241,7 @@ def test_a_bad_spec_is_one_line_and_exit_2_before_any_trial(tmp_path, text, mess
 
 
 def test_an_unreachable_scheduler_is_one_line_and_exit_2(tmp_path):
-    """Nothing listens on the port: said at once (a scheduler that does not answer is said after 5 s)."""
+    """Nothing listens on the port: said at once (an address that does not answer: after 5 s)."""
     began = time.monotonic()
     result = sweep(str(small_spec(tmp_path, count=1, duration=1)), '-o', str(tmp_path / 'out'), '--scheduler',
                    f'tcp://127.0.0.1:{free_port()}', timeout=120)

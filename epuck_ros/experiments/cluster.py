@@ -17,7 +17,9 @@ from urllib.parse import urlsplit
 T = TypeVar('T')
 
 CONNECT_TIMEOUT = 5.0
-"""Seconds to reach a scheduler before saying it is unreachable (a refused connection is said at once)."""
+"""Seconds for a TCP connection to a scheduler's address before saying it is unreachable (refused: at once)."""
+HANDSHAKE_TIMEOUT = 30.0
+"""Seconds for a scheduler that accepted the connection to answer as one (a busy machine's can be slow)."""
 
 
 class ClusterError(RuntimeError):
@@ -40,9 +42,9 @@ def open_client(workers: int | None, scheduler: str | None) -> Iterator[object |
     if scheduler is not None:
         _probe(scheduler)
         try:
-            client = Client(scheduler, timeout=CONNECT_TIMEOUT)
+            client = Client(scheduler, timeout=HANDSHAKE_TIMEOUT)
         except (OSError, TimeoutError, ValueError) as error:
-            raise ClusterError(f'cannot reach the Dask scheduler {scheduler} within {CONNECT_TIMEOUT:g} s: '
+            raise ClusterError(f'cannot reach the Dask scheduler {scheduler} within {HANDSHAKE_TIMEOUT:g} s: '
                                f'{error}') from None
         try:
             yield client
