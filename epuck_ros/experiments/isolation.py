@@ -1,18 +1,18 @@
-"""A function run in a child process of its own, under a wall-time limit, its output kept to a short tail.
+"""A function run in a child process of its own, under a wall-time limit, its output thrown away.
 
 What a Webots-style script does is beyond our control: it may crash the interpreter, call `os._exit`, loop for
 ever, or print without end. In a forked child none of that reaches the caller (a Dask worker, or `sweep` itself):
-the child is killed at the limit with everything it started (its own process group), its stdout and stderr go
-to /dev/null at the file-descriptor level and, for Python's own `print`, into a buffer that keeps the last
-`TAIL_CHARS`, and the caller gets the function's value or one line saying what happened.
+the child is killed at the limit with everything it started (its own process group), its stdout and stderr
+(file descriptors and Python's streams) go to /dev/null, so no pipe fills and no memory grows with its output,
+and the caller gets the function's value or one line saying what happened.
 
 Forking (not a new interpreter) keeps the cost per trial to milliseconds: the child starts with every module the
-parent has imported. The child only runs pure Python and NumPy code and then `os._exit`s, so the other threads
-of the parent (a Dask worker's) and their locks never matter to it.
+parent has imported. The parent's other threads (a Dask worker's) do not exist in the child; only a lock one of
+them held at the fork could matter, and the child's code (the core, the script, pickle) takes none of theirs.
+Whatever else happens, the time limit ends it.
 """
 from __future__ import annotations
 
-import io
 import os
 import pickle
 import select
@@ -23,31 +23,11 @@ from collections.abc import Callable
 from typing import Any, TypeVar
 
 T = TypeVar('T')
-TAIL_CHARS = 2000
-"""Characters of a child's Python-level output kept (the end of a traceback)."""
 MAX_RESULT_BYTES = 64 << 20
 
 
 class ChildFailed(RuntimeError):
     """The child gave no value: it raised (the message is its error's), died, or ran out of time."""
-
-
-class _Tail(io.TextIOBase):
-    """A text stream that keeps only its last `TAIL_CHARS` characters: printing without end costs no memory."""
-
-    def __init__(self) -> None:
-        self._text = ''
-
-    def writable(self) -> bool:
-        return True
-
-    def write(self, text: str) -> int:
-        self._text = (self._text + text)[-TAIL_CHARS:]
-        return len(text)
-
-    @property
-    def text(self) -> str:
-        return self._text
 
 
 def call_in_child(function: Callable[[Any], T], argument: Any, limit: float) -> T:
@@ -89,7 +69,7 @@ def _child(function: Callable[[Any], Any], argument: Any, write_end: int) -> Non
         quiet = os.open(os.devnull, os.O_WRONLY)
         os.dup2(quiet, 1)
         os.dup2(quiet, 2)
-        sys.stdout = sys.stderr = _Tail()
+        sys.stdout = sys.stderr = open(quiet, 'w', closefd=False)
         signal.signal(signal.SIGINT, signal.SIG_IGN)   # Ctrl-C is the caller's to handle: it kills the child
         signal.signal(signal.SIGTERM, signal.SIG_DFL)
         try:
