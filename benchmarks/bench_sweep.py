@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import resource
 import shutil
 import subprocess
 import sys
@@ -33,24 +34,30 @@ COURSE_AVOIDANCE = Path(__file__).resolve().parents[1] / 'test' / 'data' / 'cour
     'obstacle_avoidance.py'
 
 
-def bringup_trial(seconds: float, *controller: str) -> float:
-    """Wall seconds of a whole `bringup` command (avoid, or `controller`) in lockstep at real_time_factor 0."""
+def bringup_trial(seconds: float, *controller: str) -> None:
+    """A whole `bringup` command (avoid, or `controller`) in lockstep at real_time_factor 0."""
     bringup = shutil.which('bringup') or str(Path(sys.executable).with_name('bringup'))
-    begin = time.perf_counter()
     subprocess.run([bringup, *(controller or ['avoid']), '--duration', f'{seconds:g}', '--real-time-factor', '0',
                     '--lockstep'], check=True, stdout=subprocess.DEVNULL,
                    env=dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST'))
-    return time.perf_counter() - begin
 
 
-def best_of(count: int, measure: Callable[[], float]) -> float:
-    return min(measure() for _ in range(count))
+def cpu_seconds() -> float:
+    """CPU time of this process and of every child it has waited for (bringup's own children included)."""
+    mine, children = resource.getrusage(resource.RUSAGE_SELF), resource.getrusage(resource.RUSAGE_CHILDREN)
+    return mine.ru_utime + mine.ru_stime + children.ru_utime + children.ru_stime
 
 
-def wall(action: Callable[[], object]) -> float:
-    begin = time.perf_counter()
-    action()
-    return time.perf_counter() - begin
+def best_of(count: int, action: Callable[[], object]) -> tuple[float, float]:
+    """The least wall and the least CPU seconds of `count` runs of `action` (other jobs on a shared machine
+    lengthen the wall time far more than the CPU time)."""
+    walls, cpus = [], []
+    for _ in range(count):
+        wall, cpu = time.perf_counter(), cpu_seconds()
+        action()
+        walls.append(time.perf_counter() - wall)
+        cpus.append(cpu_seconds() - cpu)
+    return min(walls), min(cpus)
 
 
 def sweep_rate(trials: list[Trial], workers: int) -> float:
@@ -80,19 +87,22 @@ def main() -> None:
     print(f'load average at the start: {os.getloadavg()[0]:.1f} ({os.cpu_count()} cores)')
     trial = Trial(controller_from('avoid'), duration=args.seconds, seed=0)
     run_trial(trial)   # imports and caches warm
-    ros = min(bringup_trial(args.seconds) for _ in range(2))
-    headless = min(run_trial(trial)[0]['wall_s'] for _ in range(3))
-    print(f'one {args.seconds:g} s avoid trial: bringup {ros:.2f} s wall (start-up included), headless '
-          f'{headless * 1000:.1f} ms: {ros / headless:.0f}x faster per trial; headless runs at '
+    ros, ros_cpu = best_of(2, lambda: bringup_trial(args.seconds))
+    headless, headless_cpu = best_of(3, lambda: run_trial(trial))
+    print(f'one {args.seconds:g} s avoid trial: bringup {ros:.2f} s wall, {ros_cpu:.2f} s CPU (start-up included, '
+          f'all its processes); headless {headless * 1000:.1f} ms wall, {headless_cpu * 1000:.1f} ms CPU: '
+          f'{ros / headless:.0f}x faster per trial ({ros_cpu / headless_cpu:.0f}x less CPU); headless runs at '
           f'{args.seconds / headless:.0f}x real time on one core')
     script = Trial(Script(str(COURSE_AVOIDANCE)), duration=args.seconds, seed=0)
-    script_ros = best_of(2, lambda: bringup_trial(args.seconds, '--controller', str(COURSE_AVOIDANCE)))
-    in_process = best_of(3, lambda: wall(lambda: run(script)))
-    isolated = best_of(3, lambda: wall(lambda: run_trial(script)))
+    script_ros, script_ros_cpu = best_of(2, lambda: bringup_trial(args.seconds, '--controller',
+                                                                  str(COURSE_AVOIDANCE)))
+    in_process, in_process_cpu = best_of(3, lambda: run(script))
+    isolated, isolated_cpu = best_of(3, lambda: run_trial(script))
     print(f'the course\'s obstacle_avoidance.py for {args.seconds:g} s: bringup --controller {script_ros:.2f} s '
-          f'wall; headless {in_process * 1000:.1f} ms in this process ({args.seconds / in_process:.0f}x real time), '
-          f'{isolated * 1000:.1f} ms as a sweep runs it in a forked child ({args.seconds / isolated:.0f}x real '
-          f'time, {script_ros / isolated:.0f}x faster than bringup)')
+          f'wall, {script_ros_cpu:.2f} s CPU; headless in this process {in_process * 1000:.1f} ms wall '
+          f'({args.seconds / in_process:.0f}x real time), {in_process_cpu * 1000:.1f} ms CPU; as a sweep runs it, '
+          f'in a forked child, {isolated * 1000:.1f} ms wall ({args.seconds / isolated:.0f}x real time, '
+          f'{script_ros / isolated:.0f}x faster than bringup), {isolated_cpu * 1000:.1f} ms CPU')
     trials = [Trial(controller_from('avoid'), duration=args.seconds, seed=seed, index=seed)
               for seed in range(args.trials)]
     alone, one, two = best_rates(trials, (0, 1, 2), args.rounds)

@@ -112,6 +112,7 @@ def run_trial(trial: Trial, policy: Policy | None = None) -> list[dict[str, Any]
     began = time.perf_counter()
     try:
         if isinstance(trial.controller, Script) and policy is None:
+            import epuck_ros.webots.headless  # noqa: F401 - imported here once, not in every child
             return call_in_child(_rows, trial, trial.time_limit)
         return _rows(trial, policy)
     except Exception as error:  # noqa: BLE001 - whatever went wrong is the trial's result
