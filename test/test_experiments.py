@@ -18,7 +18,7 @@ from conftest import BIN_DIR
 
 from epuck_ros.bag.reader import Bag
 from epuck_ros.bag.run_summary import load_runs
-from epuck_ros.experiments.trial import Trial, controller_from, run, run_trial
+from epuck_ros.experiments.trial import Script, Trial, controller_from, run, run_trial
 
 REPO = Path(__file__).resolve().parents[1]
 EXAMPLE = REPO / 'epuck_ros' / 'experiments' / 'examples' / 'avoid_seeds.yaml'
@@ -301,3 +301,48 @@ def test_script_trials_that_misbehave_are_rows_saying_what_happened_and_the_swee
     bag = out / 'bags' / rows['course.py']['trial']
     truth = messages_by_topic(bag)['/ground_truth']
     assert len(truth) == round(3.008 / 0.032) and truth[-1][0] == round(float(rows['course.py']['sim_time']) * 1e9)
+
+
+def stamp_ns(msg: object) -> int:
+    return msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
+
+
+def test_three_robots_each_driven_by_a_script_over_dds_are_the_headless_trial(launch, test_node):
+    """`sim` with 3 robots in lockstep and one `webots_controller --robot NAME` process per robot, all running the
+    course's obstacle_avoidance.py: every robot's ground truth and contact count equal the headless 3-robot
+    script trial's (a thread per robot in one process), to the bit."""
+    from nav_msgs.msg import Odometry
+    from rclpy.parameter import Parameter
+    from rclpy.parameter_client import AsyncParameterClient
+    from rclpy.qos import DurabilityPolicy, QoSProfile
+    from std_msgs.msg import UInt32
+    names = [f'epuck{i}' for i in range(3)]
+    truth = {name: test_node.collect(Odometry, f'{name}/ground_truth', 1000) for name in names}
+    contacts = {name: test_node.collect(UInt32, f'{name}/collisions', QoSProfile(
+        depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)) for name in names}
+    sim = launch('sim', '--ros-args', '-p', 'robots:=3', '-p', 'seed:=3', '-p', 'lockstep:=true', '-p',
+                 'lockstep_timeout:=3.0', '-p', 'real_time_factor:=0.0', '-p', 'paused:=true', '-p', 'pause_at:=8.0')
+    sim.wait_for_output('sim ready')
+    controllers = [launch('webots_controller', str(COURSE_AVOIDANCE), '--robot', name) for name in names]
+    node = test_node.node
+    test_node.spin_until(lambda: all(node.count_publishers(f'{name}/wheel_cmd') > 0 and
+                                     node.count_subscribers(f'{name}/ir_raw') > 0 for name in names),
+                         timeout=60.0, what='three controllers')
+    client = AsyncParameterClient(node, 'sim')
+    assert client.wait_for_services(20.0)
+    test_node.spin_until(client.set_parameters([Parameter('paused', value=False)]).done, what='the resume')
+    last = 8_000_000_000   # ns: the simulator pauses itself there
+    test_node.spin_until(lambda: all(received and stamp_ns(received[-1]) >= last for received in truth.values()),
+                         timeout=120.0, what='8 simulated s')
+    poses: list[np.ndarray] = []
+    headless, _ = run(Trial(Script(str(COURSE_AVOIDANCE)), robots=3, seed=3, duration=8.0),
+                      each_step=lambda sim: poses.append(sim.true_pose.copy()))
+    assert list(headless.names) == names
+    for index, name in enumerate(names):
+        steps = {stamp_ns(msg): (msg.pose.pose.position.x, msg.pose.pose.position.y) for msg in truth[name]}
+        over_dds = np.array([steps[stamp] for stamp in sorted(steps)])   # a first step re-sent in lockstep: once
+        assert np.array_equal(over_dds, np.array(poses)[:, index, :2]), name
+        assert contacts[name][-1].data == int(headless.collisions[index]), name
+    assert sum(int(count) for count in headless.collisions) > 0   # they met walls or each other: not a trivial run
+    for controller in controllers:
+        assert controller.stop() == 0, controller.output()
