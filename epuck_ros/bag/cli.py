@@ -16,7 +16,9 @@ from epuck_ros.bag.cdr import CdrError
 from epuck_ros.bag.export import export_csv
 from epuck_ros.bag.info import format_info
 from epuck_ros.bag.reader import Bag, BagError
-from epuck_ros.bag.run_summary import BagSummary, RunData, format_bag_summary, load_runs, summarise_runs
+from epuck_ros.bag.run_summary import BagSummary, summarise_runs
+from epuck_ros.bag.runs import RunData, load_runs
+from epuck_ros.bag.summary_text import format_bag_summary
 
 EXIT_ERROR = 2
 PLOT_FORMATS = ('png', 'svg', 'pdf')

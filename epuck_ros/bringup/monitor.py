@@ -23,7 +23,7 @@ from rosgraph_msgs.msg import Clock
 from std_msgs.msg import String
 
 from epuck_ros.bag.cdr import odometry_fields
-from epuck_ros.bag.run_summary import RunTally
+from epuck_ros.bag.tally import RunTally
 from epuck_ros.nodes.announcements import ANNOUNCEMENT_QOS, SIMULATORS_TOPIC, Announcement, parse_announcement
 from epuck_ros.nodes.dds_profile import use_package_profile
 from epuck_ros.nodes.robot_ports import topic_prefix

@@ -19,7 +19,7 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
-from epuck_ros.bag.run_summary import RunTally
+from epuck_ros.bag.tally import RunTally
 from epuck_ros.behaviours import BEHAVIOURS, Behaviour, Observation, WheelCommand
 from epuck_ros.behaviours.base import ranges_from_raw
 from epuck_ros.model import RobotModel
