@@ -19,7 +19,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from epuck_ros.kinematics import clamp_wheels, twist_from_wheels, wheels_from_twist
-from epuck_ros.model import RobotModel
+from epuck_ros.model import TIME_STEP, RobotModel
 from epuck_ros.stepping.ir_ring import IrRing
 from epuck_ros.stepping.one_robot import OneRobotStepper
 from epuck_ros.stepping.state import RobotArrays
@@ -50,7 +50,7 @@ class Simulation:
     them.
     """
 
-    def __init__(self, world: World, model: RobotModel = RobotModel(), time_step: float = 0.032,
+    def __init__(self, world: World, model: RobotModel = RobotModel(), time_step: float = TIME_STEP,
                  seed: int = 0, noise: bool = True, cmd_timeout: float = 0.5) -> None:
         if not (math.isfinite(time_step) and time_step > 0.0):
             raise ValueError(f'time_step must be a positive number of seconds, got {time_step}')

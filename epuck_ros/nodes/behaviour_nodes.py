@@ -34,7 +34,7 @@ from rclpy.duration import Duration
 from rclpy.exceptions import InvalidNamespaceException, ParameterException
 from rclpy.experimental import EventsExecutor
 from rclpy.node import Node
-from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.qos import QoSProfile, ReliabilityPolicy
 from rclpy.signals import SignalHandlerOptions
 from rclpy.validate_namespace import validate_namespace
 from sensor_msgs.msg import Range
@@ -42,18 +42,19 @@ from std_msgs.msg import Float64MultiArray, String
 
 from epuck_ros.behaviours import BEHAVIOURS, BehaviourSpec, ConfigError, Observation
 from epuck_ros.behaviours.base import describe, ranges_from_raw
-from epuck_ros.model import SENSOR_NAMES
+from epuck_ros.conversions import nanoseconds_from_stamp, yaw_from_quaternion
+from epuck_ros.model import SENSOR_NAMES, TIME_STEP
 from epuck_ros.nodes.ack_window import COMMAND_QOS
 from epuck_ros.nodes.dds_profile import use_package_profile
 from epuck_ros.nodes.params import ParamSpec, Usage, declare_parameters, prepare_arguments, user_arguments
+from epuck_ros.nodes.qos import LATCHED
 from epuck_ros.nodes.serialized import Patch, float64_values
 from epuck_ros.nodes.spinning import handle_shutdown_signals, shutdown_requested, spin_until_shutdown
 from epuck_ros.world import WorldError, world_from_yaml
 
-CONTROL_PERIOD = 0.032
+CONTROL_PERIOD = TIME_STEP
 """Seconds between two commands: the course's controllers run once per Webots basicTimeStep (32 ms)."""
 QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
-LATCHED = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
 GRAPH_POLL_PERIOD = 0.1
 """Wall seconds between two looks at the graph for an `ir_raw` publisher (until there is one)."""
 FALLBACK_DELAY = 1.0
@@ -86,14 +87,6 @@ class RangeAssembler:
         self._missing.remove(index)
         self._values[index] = value
         return None if self._missing else tuple(self._values)
-
-
-def _nanoseconds(stamp: Any) -> int:
-    return stamp.sec * 1_000_000_000 + stamp.nanosec
-
-
-def yaw_from_quaternion(x: float, y: float, z: float, w: float) -> float:
-    return math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
 
 
 def parameter_specs(spec: BehaviourSpec) -> list[ParamSpec]:
@@ -200,7 +193,7 @@ class BehaviourNode(Node):
         pose = msg.pose.pose
         q = pose.orientation
         self._odom = (pose.position.x, pose.position.y, yaw_from_quaternion(q.x, q.y, q.z, q.w))
-        self._odom_stamp = _nanoseconds(msg.header.stamp)
+        self._odom_stamp = nanoseconds_from_stamp(msg.header.stamp.sec, msg.header.stamp.nanosec)
         self._act_when_ready()
 
     def _on_ir_raw(self, data: bytes) -> None:
@@ -235,7 +228,7 @@ class BehaviourNode(Node):
             return
         if ranges is not None:
             self._ranges = ranges
-            self._ranges_stamp = _nanoseconds(msg.header.stamp)
+            self._ranges_stamp = nanoseconds_from_stamp(msg.header.stamp.sec, msg.header.stamp.nanosec)
             self._act_when_ready()
 
     def _on_tick(self) -> None:
