@@ -98,7 +98,7 @@ class NodeProcess:
 
 @pytest.fixture
 def launch(tmp_path: Path) -> Iterator[Callable[..., NodeProcess]]:
-    """Start a package executable: `launch('sim', '--ros-args', '-p', 'seed:=3')`; stopped after the test."""
+    """Start a package executable (`'sim', '--ros-args', '-p', 'seed:=3'`); stopped after the test."""
     started: list[NodeProcess] = []
 
     def start(name: str, *args: str) -> NodeProcess:

@@ -161,7 +161,7 @@ def test_a_sim_run_is_recorded_without_losing_a_message(launch, test_node, tmp_p
 # --- robustness: memory, losses, a full disk, the wrong domain ---------------------------------------------
 
 def test_spinning_the_recorder_keeps_no_object_per_message(test_node, tmp_path):
-    """rclpy 7.1 adds a callback to the future spin_until_future_complete waits on, at every spin: a recorder
+    """The rclpy 7.1 spin adds a callback to the future spin_until_future_complete waits on, at every spin: a recorder
     spinning on a future that never completes grew by ~280 bytes per message. The recorder's own spin loop,
     in this process, must keep no Python object per message."""
     from epuck_ros.nodes.record_node import Recorder, spin_until_finished

@@ -26,7 +26,7 @@ def fractions(command: WheelCommand) -> tuple[float, float]:
 
 
 def ranges(**close: float) -> tuple[float, ...]:
-    """Eight ranges, inf except the named sensors: ranges(ps0=0.03)."""
+    """Eight ranges, inf except the named sensors (ps0=0.03 and so on)."""
     return tuple(close.get(f'ps{i}', math.inf) for i in range(8))
 
 

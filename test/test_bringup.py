@@ -271,8 +271,8 @@ def test_the_summary_is_the_bag_summary_and_lockstep_runs_are_identical(launch, 
 
 
 def test_the_summary_prints_the_shape_figures_of_bag_summary(launch, tmp_path):
-    """bringup said it printed `bag summary`'s figures but left out the shape's: the corners of a timed rectangle
-    (31 steps of 32 ms per turn: 82.4 degrees) and the circle fit, from the same code, recorded or not."""
+    """The `bringup` summary said it printed `bag summary`'s figures but left out the shape's: the corners
+    of a timed rectangle (31 steps of 32 ms per turn: 82.4 degrees) and the circle fit, from the same code, recorded or not."""
     rectangle = launch('bringup', 'rectangle', '--duration', '30', '--real-time-factor', '0', '-p', 'turn_mode:=timed',
                        '--record', str(tmp_path / 'rect'))
     assert rectangle.proc.wait(timeout=120) == 0, rectangle.output()
@@ -343,7 +343,7 @@ def test_a_controller_at_its_own_rate_is_not_held_to_lockstep(launch, tmp_path):
 
 
 def test_a_child_printing_a_huge_line_keeps_bringup_small(launch, tmp_path):
-    """A child printing 200 MB without a newline took bringup to 800 MB; a `\\r` progress line grew without bound.
+    r"""A child printing 200 MB without a newline took bringup to 800 MB; a `\r` progress line grew without bound.
     Forwarding reads in chunks and cuts a line at 64 KiB: bringup's peak memory (VmHWM) stays far below 200 MB."""
     script = tmp_path / 'chatty.py'
     script.write_text(textwrap.dedent('''

@@ -103,7 +103,7 @@ def test_interrupt_stops_the_robot(test_node, teleop) -> None:
 
 
 def test_q_stops_at_the_robots_limits_and_the_stop_is_always_zero() -> None:
-    """q raised the speed to 0.133 m/s, above the e-puck's 0.126; 8,000 of them overflowed it to inf, and the stop
+    """Key q raised the speed to 0.133 m/s, above the e-puck's 0.126; 8,000 of them overflowed it to inf, and the stop
     on exit (0 x inf) became NaN, which the simulator refuses: with cmd_timeout 0 the robot drove on at full speed."""
     keys = Teleop(speed=0.1, turn=1.5)
     for _ in range(8000):
