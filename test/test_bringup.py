@@ -272,7 +272,8 @@ def test_the_summary_is_the_bag_summary_and_lockstep_runs_are_identical(launch, 
 
 def test_the_summary_prints_the_shape_figures_of_bag_summary(launch, tmp_path):
     """The `bringup` summary said it printed `bag summary`'s figures but left out the shape's: the corners
-    of a timed rectangle (31 steps of 32 ms per turn: 82.4 degrees) and the circle fit, from the same code, recorded or not."""
+    of a timed rectangle (31 steps of 32 ms per turn: 82.4 degrees) and the circle fit, from the same code,
+    recorded or not."""
     rectangle = launch('bringup', 'rectangle', '--duration', '30', '--real-time-factor', '0', '-p', 'turn_mode:=timed',
                        '--record', str(tmp_path / 'rect'))
     assert rectangle.proc.wait(timeout=120) == 0, rectangle.output()
