@@ -232,7 +232,7 @@ class Simulation:
 
 
 def _require_finite(**values: float) -> None:
-    """Raise CommandError unless every value is a finite float (math.isfinite: a NumPy call costs ~8 us per command)."""
+    """Raise CommandError unless every value is a finite float (math.isfinite: NumPy would cost more per command)."""
     try:
         bad = {name: value for name, value in values.items() if not _is_finite_float(value)}
     except TypeError:

@@ -27,7 +27,7 @@ PLOT_FORMATS = ('png', 'svg', 'pdf')
 
 RATES = (0.001, 1000.0)
 """`bag play --rate` bounds: beyond them a bag's times no longer fit the playback clock's arithmetic (1e308
-overflowed) and nothing useful is left (1,000x plays a minute in 60 ms)."""
+overflowed) and nothing useful is left (a thousandfold rate plays a minute in a blink)."""
 CLOCK_HZ = (0.1, 10_000.0)
 """`bag play --clock` bounds: /clock publications per wall second."""
 

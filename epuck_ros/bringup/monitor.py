@@ -163,8 +163,7 @@ class RunMonitor:
 
         The executor runs the callbacks from C++ all that time. A run brings `/clock` and each robot's ground truth
         every step, and returning to the caller after each of them (`spin_once`, then the caller's checks) made
-        this process a slow third party to every lockstep round trip (measured together with the longer history of
-        ack_window.HISTORY_BUDGET: one robot through `bringup` ran 46-49x real time before both, 56-57x after)."""
+        this process a slow third party to every lockstep round trip (see bench_bringup in the README)."""
         self._spin_until = until_sim_time
         self._reached = Future()
         if self.sim_time < until_sim_time - 1e-6:

@@ -12,10 +12,8 @@ node per robot, named like the executable, in the namespace `<namespace>/<robot>
 
 The nodes spin on rclpy's EventsExecutor (experimental in Jazzy, in rclpy since 7.1.4): it queues each ready
 entity's event in C++ instead of rebuilding a wait set of every node's subscriptions, timers and parameter
-services in Python before each callback. Measured with benchmarks/bench_lockstep.py (lockstep, real_time_factor
-0, alternating runs with SingleThreadedExecutor on a busy 2-core machine), `avoid` CPU per step: one robot on
-`ir_raw` 0.52-0.54 ms instead of 1.09-1.24 ms, on the eight Ranges 0.84-0.93 ms instead of 2.6-2.9 ms, 20 robots in
-one process 6.7-8.4 ms instead of 17-21 ms.
+services in Python before each callback: about half the CPU per lockstep step of SingleThreadedExecutor
+(benchmarks/bench_lockstep.py; its figures are in the README).
 """
 from __future__ import annotations
 
@@ -128,7 +126,7 @@ class BehaviourNode(Node):
     A behaviour that needs the IR alone (avoid) does not wait for the tick at all once `ir_raw` flows: it answers
     each message as it arrives, one command per simulator step (whatever `control_period`). `/clock` reaches the
     node after the step's `ir_raw` (the simulator sends it last), and waiting for it costs more than the step
-    itself: measured in lockstep at real_time_factor 0, 5.6-8.5x real time waiting, 23-26x answering at once.
+    itself (bench_lockstep in the README).
     The command's time is then the previous command's plus one period, or the clock if that is later (a step
     answered late, outside lockstep): in lockstep exactly the step's time, whichever of `ir_raw` and `/clock`
     came first.
@@ -277,7 +275,7 @@ class BehaviourNode(Node):
 
     def wait_until_stopped(self, timeout: float) -> None:
         """Wait until every reader acknowledged the zero command: a busy reader may have dropped it on arrival, and
-        only this writer, still alive, can send it again (measured: lost in 4 of 8 exits without this wait)."""
+        only this writer, still alive, can send it again (without this wait it was lost in about half the exits)."""
         if not self._publisher.wait_for_all_acked(Duration(seconds=max(timeout, 0.0))):
             self.get_logger().warning(f'the last (zero) wheel command was not acknowledged within {timeout:.1f} s')
 
