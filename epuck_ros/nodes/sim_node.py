@@ -18,7 +18,6 @@ from collections.abc import Callable
 
 import rclpy
 import yaml
-from rcl_interfaces.msg import SetParametersResult
 from rclpy.exceptions import ParameterException
 from rclpy.experimental import EventsExecutor
 from rclpy.node import Node
@@ -232,7 +231,7 @@ class SimNode(Node):
         self._thread = threading.Thread(target=self._run, name='sim_loop', daemon=True)
         self._timeouts = RepeatedCondition(self.get_logger().info, 'command time-out: wheels stopped')
         self._stalled_topics: set[str] = set()
-        self.add_on_set_parameters_callback(self._on_set_parameters)
+        self.add_post_set_parameters_callback(self._on_parameters_set)
 
         history = history_steps(len(world.robots))
         stream = QoSProfile(depth=history, reliability=ReliabilityPolicy.RELIABLE)
@@ -348,7 +347,9 @@ class SimNode(Node):
 
     # --- parameters, commands, services -----------------------------------------------------------------
 
-    def _on_set_parameters(self, params: list[Parameter]) -> SetParametersResult:
+    def _on_parameters_set(self, params: list[Parameter]) -> None:
+        """Apply parameters once they are set: their descriptors (ranges, types) already refused bad values, as in
+        the anchors' set_parameters_callback demo (checks before, effects after)."""
         with self._lock:
             for param in params:
                 if param.name == 'real_time_factor':
@@ -360,7 +361,6 @@ class SimNode(Node):
                 elif param.name == 'cmd_timeout':
                     self._sim.cmd_timeout = param.value
         self._wake.set()
-        return SetParametersResult(successful=True)
 
     def _on_command(self, robot: int, topic: str, kind: str, first: float, second: float) -> None:
         apply = self._sim.command_wheels if kind == 'wheels' else self._sim.command_twist
