@@ -5,7 +5,6 @@ then SIGKILL) when the test ends, so no process outlives its test.
 """
 from __future__ import annotations
 
-import fcntl
 import os
 import subprocess
 import sys
@@ -13,41 +12,29 @@ import time
 from collections.abc import Callable, Iterator
 from pathlib import Path
 
+import domain_coordinator
 import pytest
 
 from epuck_ros.bringup.processes import interrupt
 
 os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
 
-_DOMAIN_LOCK_DIR = Path('/tmp/epuck_ros_test_domains')
-
-
-def _lock_domain(domain: int) -> bool:
-    """Hold the lock of `domain` for as long as this process lives; False if another test run holds it."""
-    handle = open(_DOMAIN_LOCK_DIR / f'{domain}.lock', 'w')
-    try:
-        fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
-    except OSError:
-        handle.close()
-        return False
-    _lock_domain.handle = handle  # type: ignore[attr-defined]  # keep the lock alive
-    return True
-
 
 def _claim_domain_id() -> tuple[int, str]:
-    """The ROS_DOMAIN_ID of this test run and how it was chosen: the user's own if set and no other test run holds
-    it, else one between 10 and 99 that no other test run on this machine holds."""
-    _DOMAIN_LOCK_DIR.mkdir(exist_ok=True)
+    """The ROS_DOMAIN_ID of this test run and how it was chosen, claimed with `domain_coordinator` (as ROS 2's own
+    tests claim theirs) for as long as this process lives: the user's own if set and no other test run holds it,
+    else one between 1 and 100 that no other test run on this machine holds."""
     wanted = os.environ.get('ROS_DOMAIN_ID', '')
-    if wanted.isdigit() and _lock_domain(int(wanted)):
-        return int(wanted), 'set by you'
-    start = os.getpid() % 90
-    for offset in range(90):
-        domain = 10 + (start + offset) % 90
-        if _lock_domain(domain):
-            how = f'your ROS_DOMAIN_ID={wanted} is in use by another test run' if wanted else 'ROS_DOMAIN_ID unset'
-            return domain, f'{how}: a free one was claimed'
-    raise RuntimeError('no free ROS_DOMAIN_ID between 10 and 99 for this test run')
+    first = os.getpid() % 100   # test runs started together try different domains first
+    candidates = [int(wanted)] if wanted.isdigit() else []
+    candidates += [1 + (first + offset) % 100 for offset in range(100)]
+    claim = domain_coordinator.domain_id(iter(candidates).__next__)
+    domain = claim.__enter__()   # released when this process exits
+    _claim_domain_id.claim = claim  # type: ignore[attr-defined]  # keep the claim alive
+    if wanted.isdigit() and domain == int(wanted):
+        return domain, 'set by you'
+    how = f'your ROS_DOMAIN_ID={wanted} is in use by another test run' if wanted else 'ROS_DOMAIN_ID unset'
+    return domain, f'{how}: a free one was claimed'
 
 
 _DOMAIN, _DOMAIN_CHOICE = _claim_domain_id()
