@@ -139,6 +139,31 @@ class RosTestNode:
             self.executor.spin_once(timeout_sec=0.05)
         raise AssertionError(f'timed out after {timeout} s waiting for {what}')
 
+    def wait_for_simulator(self, namespace: str = '', timeout: float = 30.0) -> None:
+        """Wait until a simulator is up, from the graph: its `step` service is there, made after every robot's
+        topics and the latched world (what the simulator logs as 'sim ready' comes just after)."""
+        from std_srvs.srv import Trigger
+        client = self.node.create_client(Trigger, f'{namespace}/step')
+        try:
+            if not client.wait_for_service(timeout_sec=timeout):
+                raise AssertionError(f'timed out after {timeout} s waiting for the simulator ({namespace}/step)')
+        finally:
+            self.node.destroy_client(client)
+
+    def watch_log(self) -> list[str]:
+        """The messages every node logs from now on, as /rosout carries them (for a warning that is the product)."""
+        from rcl_interfaces.msg import Log
+        from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+        messages: list[str] = []
+        rosout = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE,
+                            durability=DurabilityPolicy.TRANSIENT_LOCAL)   # rclpy's own /rosout profile
+        self.node.create_subscription(Log, '/rosout', lambda msg: messages.append(msg.msg), rosout)
+        return messages
+
+    def wait_for_log(self, messages: list[str], text: str, timeout: float = 20.0) -> None:
+        """Spin until one of `messages` (from `watch_log`) contains `text`."""
+        self.spin_until(lambda: any(text in message for message in messages), timeout, f'a log message with {text!r}')
+
     def spin_for(self, seconds: float) -> None:
         deadline = time.monotonic() + seconds
         while time.monotonic() < deadline:
