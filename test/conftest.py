@@ -53,13 +53,19 @@ BIN_DIR = Path(sys.executable).parent
 class NodeProcess:
     """One executable of the package running in its own process, its output kept in a log file."""
 
-    def __init__(self, name: str, args: list[str], log_path: Path) -> None:
+    def __init__(self, name: str, args: list[str], log_path: Path, stdin: int | None = None) -> None:
+        """`stdin=subprocess.PIPE` gives the test a pipe to `type` into (teleop's keys)."""
         self.name = name
         self.log_path = log_path
         self._log = open(log_path, 'w')
         self.proc = subprocess.Popen(
-            [str(BIN_DIR / name), *args], stdout=self._log, stderr=subprocess.STDOUT,
+            [str(BIN_DIR / name), *args], stdin=stdin, stdout=self._log, stderr=subprocess.STDOUT,
             env=dict(os.environ, PYTHONUNBUFFERED='1'), start_new_session=True)
+
+    def type(self, keys: bytes) -> None:
+        """Write `keys` to the process's stdin pipe."""
+        self.proc.stdin.write(keys)
+        self.proc.stdin.flush()
 
     def output(self) -> str:
         self._log.flush()
@@ -88,8 +94,8 @@ def launch(tmp_path: Path) -> Iterator[Callable[..., NodeProcess]]:
     """Start a package executable (`'sim', '--ros-args', '-p', 'seed:=3'`); stopped after the test."""
     started: list[NodeProcess] = []
 
-    def start(name: str, *args: str) -> NodeProcess:
-        process = NodeProcess(name, list(args), tmp_path / f'{name}-{len(started)}.log')
+    def start(name: str, *args: str, stdin: int | None = None) -> NodeProcess:
+        process = NodeProcess(name, list(args), tmp_path / f'{name}-{len(started)}.log', stdin)
         started.append(process)
         return process
 
