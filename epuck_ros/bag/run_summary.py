@@ -14,14 +14,18 @@ import numpy as np
 
 from epuck_ros.bag.runs import (ODOMETRY, RANGE, STRING, TRAJECTORY_TOPICS, RunData, Trajectory, load_run, load_runs,
                                 robot_namespaces, start_pose)
-from epuck_ros.bag.shapes import (CircleFit, Corners, Motion, Spin, StraightLine, classify, fit_circle,
-                                  straight_segments)
+from epuck_ros.bag.shapes import (CIRCLE_RMS_RATIO, CORNER_RANGE_DEG, MIN_CORNER_DEG, MIN_SEGMENT_TIME, MIN_SIDE_RATIO,
+                                  MOVING_SPEED, STILL_DISTANCE, STRAIGHT_YAW_RATE, CircleFit, Corners, Motion, Spin,
+                                  StraightLine, classify, fit_circle, straight_segments)
 from epuck_ros.bag.summary_text import (format_bag_summary, format_figures, format_summary, shape_lines,
                                         turn_direction)
-from epuck_ros.bag.tally import CONTACT_MARGIN, Contact, RobotFigures, RunTally, contacts_from_slip, tally_runs
+from epuck_ros.bag.tally import (CONTACT_MARGIN, SLIP_RATIO, Contact, RobotFigures, RunTally, contacts_from_slip,
+                                 tally_runs)
 from epuck_ros.model import RobotModel
 
-__all__ = ['CONTACT_MARGIN', 'ODOMETRY', 'RANGE', 'STRING', 'TRAJECTORY_TOPICS', 'BagSummary', 'CircleFit', 'Contact',
+__all__ = ['CIRCLE_RMS_RATIO', 'CONTACT_MARGIN', 'CORNER_RANGE_DEG', 'MIN_CORNER_DEG', 'MIN_SEGMENT_TIME',
+           'MIN_SIDE_RATIO', 'MOVING_SPEED', 'ODOMETRY', 'RANGE', 'SLIP_RATIO', 'STILL_DISTANCE', 'STRAIGHT_YAW_RATE',
+           'STRING', 'TRAJECTORY_TOPICS', 'BagSummary', 'CircleFit', 'Contact',
            'Corners', 'Motion', 'RobotFigures', 'RunData', 'RunSummary', 'RunTally', 'Spin', 'StraightLine',
            'Trajectory', 'classify', 'contacts_from_slip', 'fit_circle', 'format_bag_summary', 'format_figures',
            'format_summary', 'load_run', 'load_runs', 'robot_namespaces', 'shape_lines', 'start_pose',
