@@ -13,6 +13,7 @@ import time
 from pathlib import Path
 
 from epuck_ros.bringup import summary
+from epuck_ros.conversions import nanoseconds_from_stamp, stamp_from_seconds
 from epuck_ros.experiments.spec import MAX_DURATION, MAX_ROBOTS
 from epuck_ros.experiments.trial import DEFAULT_WORLD, Script, Trial, run
 from epuck_ros.webots.headless import ScriptError
@@ -79,7 +80,7 @@ def main(argv: list[str]) -> None:
         recorder = TrialRecorder(args.record, trial.load_world())
 
     def each_step(sim: object) -> None:
-        stamp = round(sim.time * 1e9)
+        stamp = nanoseconds_from_stamp(*stamp_from_seconds(sim.time))
         for name, (x, y, yaw) in zip(sim.names, sim.true_pose.tolist()):
             samples.setdefault(name, []).append((stamp, x, y, yaw))
         if recorder is not None:

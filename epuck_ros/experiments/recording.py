@@ -9,7 +9,6 @@ here, so a headless bag has none.
 """
 from __future__ import annotations
 
-import math
 from pathlib import Path
 from typing import Any
 
@@ -19,6 +18,7 @@ from rosbags.typesys import Stores, get_typestore
 
 from epuck_ros.bag.qos import QosProfile
 from epuck_ros.bag.writer import BagWriter
+from epuck_ros.conversions import nanoseconds_from_stamp, quaternion_from_yaw, stamp_from_seconds
 from epuck_ros.markers import world_markers
 from epuck_ros.model import SENSOR_NAMES, RobotModel
 from epuck_ros.nodes.robot_ports import (JOINT_NAMES, POSE_COVARIANCE, TWIST_COVARIANCE, WORLD_FRAME, frame_prefix,
@@ -79,10 +79,10 @@ class TrialRecorder:
         self._collisions = [-1] * len(sim.names)
 
     def step(self, sim: Simulation) -> None:
-        stamp = round(sim.time * 1e9)
+        sec, nanosec = stamp_from_seconds(sim.time)
+        stamp = nanoseconds_from_stamp(sec, nanosec)
         if not self._started:
             self._start(sim, stamp)
-        sec, nanosec = divmod(stamp, 1_000_000_000)
         time = _t('builtin_interfaces/msg/Time')(sec=sec, nanosec=nanosec)
         for robot, name in enumerate(sim.names):
             topics, frames = topic_prefix(name, self._several), frame_prefix(name, self._several)
@@ -122,7 +122,8 @@ def _odometry(time: Any, frame_id: str, child: str, pose: np.ndarray, twist: np.
     x, y, yaw = pose.tolist()
     geometry = 'geometry_msgs/msg/'
     point = _t(geometry + 'Point')(x=x, y=y, z=0.0)
-    orientation = _t(geometry + 'Quaternion')(x=0.0, y=0.0, z=math.sin(yaw / 2.0), w=math.cos(yaw / 2.0))
+    z, w = quaternion_from_yaw(yaw)
+    orientation = _t(geometry + 'Quaternion')(x=0.0, y=0.0, z=z, w=w)
     linear, angular = twist.tolist()
     velocity = _t(geometry + 'Twist')(linear=_t(geometry + 'Vector3')(x=linear, y=0.0, z=0.0),
                                       angular=_t(geometry + 'Vector3')(x=0.0, y=0.0, z=angular))

@@ -15,6 +15,7 @@ import threading
 from pathlib import Path
 
 from epuck_ros.behaviours import Observation, WheelCommand
+from epuck_ros.conversions import nanoseconds_from_stamp, stamp_from_seconds
 from epuck_ros.simulation import Simulation
 from epuck_ros.webots.link import StepData
 from epuck_ros.webots.robot import KILL_DELAY, SINGLE_ROBOT_NAME, bind_thread
@@ -81,7 +82,7 @@ class ScriptSeat:
 
     def update(self, observation: Observation) -> WheelCommand:
         sim, robot = self._sim, self._robot
-        step = StepData(round(sim.time * 1e9), tuple(sim.wheel_angles[robot].tolist()),
+        step = StepData(nanoseconds_from_stamp(*stamp_from_seconds(sim.time)), tuple(sim.wheel_angles[robot].tolist()),
                         tuple(sim.wheel_speeds[robot].tolist()), tuple(sim.ir_raw[robot].tolist()))
         if self._thread is None:
             self._thread = threading.Thread(target=self._run, name=f'script {self.name}', daemon=True)
