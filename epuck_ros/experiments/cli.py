@@ -53,6 +53,14 @@ def parse_args(argv: list[str]) -> argparse.Namespace:
 def main(argv: list[str] | None = None) -> None:
     args = parse_args(sys.argv[1:] if argv is None else argv)
     try:
+        sweep(args)
+    except KeyboardInterrupt:   # after the trials (the table is replaced whole, never left half written)
+        print('\n[sweep] interrupted; the table holds every trial that finished', file=sys.stderr)
+
+
+def sweep(args: argparse.Namespace) -> None:
+    """Run the spec's trials, then write the sorted table, the summary and the picture."""
+    try:
         spec = load_spec(args.spec)
     except SpecError as error:
         print(f'sweep: {error}', file=sys.stderr)

@@ -68,7 +68,8 @@ def open_client(workers: int | None, scheduler: str | None) -> Iterator[object |
 
 
 def _probe(scheduler: str) -> None:
-    """ClusterError at once when nothing listens at a tcp:// address (Dask's own connect retries until its timeout)."""
+    """Raise ClusterError at once when nothing listens at a tcp:// address (Dask's connect retries until its
+    timeout)."""
     parts = urlsplit(scheduler if '://' in scheduler else f'tcp://{scheduler}')
     try:
         port = parts.port

@@ -113,6 +113,6 @@ class ScriptSeat:
             self._thread.join(KILL_DELAY)
 
     def check(self) -> None:
-        """ScriptError if the script has ended with an error."""
+        """Raise ScriptError if the script has ended with an error."""
         if self.exit_code:
             raise ScriptError(f'{self.script.name}: {self.failure or f"exit code {self.exit_code}"}')
