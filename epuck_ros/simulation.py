@@ -49,17 +49,18 @@ class Simulation:
     """The robots of a World, stepped by `time_step`; read the public properties after each `step()`.
 
     Robot i is `world.robots[i]` (`names[i]`); every state array has one row per robot. `seed` seeds the IR
-    noise (the only random draw); `noise=False` gives the exact table values. The arrays the properties return
-    are the simulator's own state, updated in place by `step()`: read them, copy what you keep, do not write to
-    them.
+    noise (the only random draw); `noise=False` gives the exact table values. `isolated=True` puts each robot alone
+    in its own copy of the world: robots neither touch nor see each other (independent worlds stepped together, as a
+    vector environment needs). The arrays the properties return are the simulator's own state, updated in place by
+    `step()`: read them, copy what you keep, do not write to them.
     """
 
     def __init__(self, world: World, model: RobotModel = RobotModel(), time_step: float = 0.032,
-                 seed: int = 0, noise: bool = True, cmd_timeout: float = 0.5) -> None:
+                 seed: int = 0, noise: bool = True, cmd_timeout: float = 0.5, isolated: bool = False) -> None:
         if not (math.isfinite(time_step) and time_step > 0.0):
             raise ValueError(f'time_step must be a positive number of seconds, got {time_step}')
         self.world, self.model, self.time_step = world, model, float(time_step)
-        self.noise = noise
+        self.noise, self.isolated = noise, isolated
         self.cmd_timeout = cmd_timeout
         """Seconds without a command before a robot's wheels stop; 0 = never. May be changed between steps."""
         self._rng = np.random.default_rng(seed)
@@ -230,7 +231,8 @@ class Simulation:
             arc_end[:, 0], arc_end[:, 1] = x, y
             xy, hit = self.world.resolve_collision(arc_end, radius, clear)
             obstacle |= hit
-            robot |= self._separate_robots(xy, clear, obstacle)
+            if not self.isolated:
+                robot |= self._separate_robots(xy, clear, obstacle)
         self._true[:, :2], self._true[:, 2] = xy, yaw
         x, y = xy[:, 0], xy[:, 1]
         self._true_twist[:, 0], self._true_twist[:, 1] = v, w
@@ -397,7 +399,8 @@ class Simulation:
             for start in range(0, count, _SENSE_BLOCK):
                 rows = slice(start, min(start + _SENSE_BLOCK, count))
                 distance[:, rows] = self._cast(rows, cos[rows], sin[rows])
-        self._see_robots(distance, cos, sin)
+        if not self.isolated:
+            self._see_robots(distance, cos, sin)
         for start in range(0, count, _SENSE_BLOCK):   # the noise is drawn robot by robot, as one draw would be
             rows = slice(start, min(start + _SENSE_BLOCK, count))
             self._read_sensors(rows, distance[:, rows].T.ravel())
@@ -474,7 +477,8 @@ class Simulation:
         """Every robot back to its start pose with odometry, wheel angles and command zeroed; time and collision
         counts go on."""
         self._true[:] = self._start
-        self._cover_pairs(self._true[:, :2], refresh=True)
+        if not self.isolated:
+            self._cover_pairs(self._true[:, :2], refresh=True)
         self._pair_offsets = None
         for state in (self._odom, self._true_twist, self._odom_twist, self._wheel_rotation, self._encoders,
                       self._wheel_speeds, self._command, self._command_twist):
