@@ -10,7 +10,7 @@ of everything), eight normals for the readings at reset, eight more at each step
 Observation (float32, 10 values): the eight IR activations, (raw - far) / (near - far) clipped to [0, 1], where
 far = 67.19 (nothing within 7 cm) and near = 4095 (touching), then the two wheel speeds applied in the last step as
 fractions of the maximum, in [-1, 1]. Action: the two wheel speeds (left, right) as fractions of the maximum
-(6.28 rad/s), in [-1, 1]. Reward: Floreano and Mondada's fitness of the step, V (1 - sqrt(dv)) (1 - i) in [0, 1].
+(6.28 rad/s), in [-1, 1]. Reward: Floreano and Mondada's fitness of the step, V (1 - sqrt(dv)) (1 - i) in [0, 1] (see `fitness`).
 """
 from __future__ import annotations
 
@@ -29,11 +29,16 @@ MAX_WORLDS = 65536
 
 
 def fitness(wheels: np.ndarray, activation: np.ndarray) -> np.ndarray:
-    """Floreano and Mondada's Phi = V (1 - sqrt(dv)) (1 - i) per world, each factor in [0, 1]: V the mean absolute
-    wheel speed, dv the absolute difference of the signed wheel speeds over 2 (both as fractions of the maximum),
-    i the highest IR activation. wheels (N, 2), activation (N, 8) -> (N,)."""
+    """Floreano and Mondada's Phi = V (1 - sqrt(dv)) (1 - i) per world, each factor in [0, 1]: V the mean of the two
+    wheel speeds, forward only (0 when reversing), dv the absolute difference of the wheel speeds over 2 (both as
+    fractions of the maximum), i the highest IR activation. wheels (N, 2), activation (N, 8) -> (N,).
+
+    V counts forward speed only: the paper's robot had motors with inertia, ours change speed at once, and with V
+    the mean absolute speed, evolution found full reverse and full forward on alternate steps (V = 1, dv = 0, no
+    obstacle ever near) within 40 generations.
+    """
     left, right = wheels[:, 0], wheels[:, 1]
-    speed = 0.5 * (np.abs(left) + np.abs(right))
+    speed = np.maximum(0.5 * (left + right), 0.0)
     turning = 0.5 * np.abs(left - right)
     return speed * (1.0 - np.sqrt(turning)) * (1.0 - activation.max(axis=1))
 

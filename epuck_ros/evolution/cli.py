@@ -21,7 +21,7 @@ from epuck_ros.evolution.ga import initial_population, next_generation
 from epuck_ros.evolution.network import GENES
 from epuck_ros.experiments.cluster import ClusterError, default_workers, open_client
 
-EXIT_BAD_INPUT = 2
+EXIT_BAD_INPUT, EXIT_INTERRUPTED = 2, 130
 PAPER_POPULATION, PAPER_GENERATIONS = 80, 100
 """Floreano and Mondada (1994)."""
 LIMITS = {'population': (2, 10000), 'generations': (1, 100000), 'seed': (0, 2 ** 32 - 1)}
@@ -63,36 +63,42 @@ def main(argv: list[str] | None = None) -> None:
     args = parse_args(sys.argv[1:] if argv is None else argv)
     args.output.mkdir(parents=True, exist_ok=True)
     began = time.monotonic()
+    history: list[tuple[int, float, float]] = []
+    best: dict = {'fitness': -np.inf}
     try:
         with open_client(args.workers, args.scheduler) as client:
-            history, best = evolve(args, client)
+            evolve(args, client, history, best)
     except ClusterError as error:
         print(f'evolve: {error}', file=sys.stderr)
         raise SystemExit(EXIT_BAD_INPUT) from None
+    except KeyboardInterrupt:
+        print(f'[evolve] interrupted after {len(history)} generations', file=sys.stderr)
+        if not history:
+            raise SystemExit(EXIT_INTERRUPTED) from None
     write_outputs(args, history, best)
-    print(f'[evolve] {args.generations} generations of {args.population} in {time.monotonic() - began:.1f} s; '
-          f'best fitness {history[-1][1]:.4f}; wrote {args.output}/fitness.csv, fitness.png, best_genome.json, '
-          'evolved_controller.py', file=sys.stderr)
+    print(f'[evolve] {len(history)} generations of {args.population} in {time.monotonic() - began:.1f} s; '
+          f'best fitness {best["fitness"]:.4f} (generation {best["generation"]}); wrote {args.output}/fitness.csv, '
+          'fitness.png, best_genome.json, evolved_controller.py', file=sys.stderr)
 
 
-def evolve(args: argparse.Namespace, client: object | None) -> tuple[list[tuple[int, float, float]], dict]:
-    """Run the generations; ([(generation, best, mean)], the best genome of the run with where it was found)."""
+def evolve(args: argparse.Namespace, client: object | None, history: list[tuple[int, float, float]],
+           best: dict) -> None:
+    """Run the generations, appending (generation, best, mean) to `history` and keeping the best genome found in
+    `best` (its fitness, generation and weights), so an interruption leaves what was done."""
     rng = np.random.default_rng(args.seed)
     population = initial_population(rng, args.population, GENES)
     batches = 1 if client is None else max(1, len(client.scheduler_info()['workers']))
-    history, best = [], {'fitness': -np.inf}
     for generation in range(args.generations):
         trial_seed = int(rng.integers(2 ** 31))
         fitness = score(client, population, trial_seed, args.duration, batches)
         top = int(np.argmax(fitness))
         history.append((generation, float(fitness[top]), float(fitness.mean())))
         if fitness[top] > best['fitness']:
-            best = {'fitness': float(fitness[top]), 'generation': generation, 'genome': population[top].tolist()}
+            best.update(fitness=float(fitness[top]), generation=generation, genome=population[top].tolist())
         print(f'[evolve] generation {generation}: best {fitness[top]:.4f} mean {fitness.mean():.4f}',
               file=sys.stderr, flush=True)
         if generation + 1 < args.generations:
             population = next_generation(rng, population, fitness)
-    return history, best
 
 
 def score(client: object | None, population: np.ndarray, seed: int, duration: float, batches: int) -> np.ndarray:

@@ -9,8 +9,8 @@ from collections.abc import Sequence
 
 from epuck_ros.model import RobotModel
 
-TEMPLATE = '''"""Obstacle avoidance evolved by `evolve` (Floreano and Mondada's network and fitness), generation {generation},
-fitness {fitness!r} (seed {seed}).
+TEMPLATE = '''"""Obstacle avoidance evolved by `evolve` (Floreano and Mondada's network and fitness):
+generation {generation}, fitness {fitness!r} (seed {seed}).
 
 A single-layer network: eight IR activations and a bias to two motor neurons, each also fed both motor outputs of
 the previous step; tanh outputs are the wheel speeds as fractions of the maximum.
