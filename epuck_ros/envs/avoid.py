@@ -1,6 +1,7 @@
 """`epuck_ros/Avoid-v0`: one e-puck learning obstacle avoidance, as one Gymnasium environment or N in one process.
 
-Observation, action and reward: see `epuck_ros.envs.worlds`. An episode starts at a random pose clear of every
+Observation, action and reward: see `epuck_ros.envs.worlds`; `info['contacts']`: the contacts with walls and
+obstacles so far in the episode (each counted once, when it began). An episode starts at a random pose clear of every
 obstacle and is truncated after `duration` simulated seconds (32 ms steps); it never terminates (a contact is not
 an end: the fitness already pays for it). The vector form steps N worlds together in NumPy; as Gymnasium's own
 vector environments, `reset(seed=s)` seeds world i with s + i, so world i replays a lone environment reset with
@@ -70,7 +71,7 @@ class AvoidEnv(gym.Env):
         observation, reward, truncated = self._worlds.step(actions)
         if self.render_mode is not None:
             self._trail.append(tuple(self._worlds.sim.true_pose[0, :2].tolist()))
-        return observation[0], float(reward[0]), False, truncated, {}
+        return observation[0], float(reward[0]), False, truncated, {'contacts': int(self._worlds.sim.collisions[0])}
 
     def render(self) -> np.ndarray | None:
         if self.render_mode is None or self._worlds.sim is None:
@@ -124,12 +125,16 @@ class AvoidVectorEnv(VectorEnv):
         ended = np.zeros(self.num_envs, dtype=bool)
         if self._autoreset:   # the step after the last: the new episodes' first observations, the actions unused
             self._autoreset = False
-            return self._begin(), np.zeros(self.num_envs), ended, ended.copy(), {}
+            return self._begin(), np.zeros(self.num_envs), ended, ended.copy(), self._info()
         observation, reward, truncated = self._worlds.step(actions)
         if self.render_mode:
             self._trails.append(self._worlds.sim.true_pose[:, :2].copy())
         self._autoreset = truncated
-        return observation, reward, ended, np.full(self.num_envs, truncated), {}
+        return observation, reward, ended, np.full(self.num_envs, truncated), self._info()
+
+    def _info(self) -> dict[str, np.ndarray]:
+        """Each world's contacts so far in its episode (Gymnasium's vector form: values and a mask of who has one)."""
+        return {'contacts': self._worlds.sim.collisions.copy(), '_contacts': np.ones(self.num_envs, dtype=bool)}
 
     def render(self) -> tuple[np.ndarray, ...] | None:
         """One frame per world."""
