@@ -69,6 +69,7 @@ class Worlds:
         self.rngs: list[np.random.Generator] = []
         self.steps = 0
         self.last_activation = np.zeros((count, 8))
+        self._normals = np.empty((count, 8))
 
     # --- episodes -----------------------------------------------------------------------------------------
 
@@ -112,8 +113,9 @@ class Worlds:
             self.steps += 1
             observation, reward = self._observe_one()
             return observation, reward, self.steps >= self.episode_steps
-        for i, (left, right) in enumerate(actions.tolist()):
-            sim.command_wheels(i, left * top, right * top)
+        command = sim.command_wheels
+        for i, (left, right) in enumerate((actions * top).tolist()):
+            command(i, left, right)
         sim.step()
         self.steps += 1
         observation = self._observe()
@@ -124,7 +126,9 @@ class Worlds:
     def _observe(self) -> np.ndarray:
         raw = self.sim.ir_raw
         if self.noise:
-            normals = np.array([rng.standard_normal(8) for rng in self.rngs])
+            normals = self._normals
+            for rng, row in zip(self.rngs, normals):
+                rng.standard_normal(out=row)
             raw = raw * (1.0 + np.interp(raw, self._noise_raws, self._noise_sigmas) * normals)
         self.last_activation = activations(raw, self.model)
         return observations(self.last_activation, self.sim.wheel_speeds, self.model)

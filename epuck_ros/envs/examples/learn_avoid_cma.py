@@ -44,17 +44,21 @@ def episode_returns(weights: np.ndarray, seeds: list[int], duration: float) -> t
             return total / steps, info['contacts']
 
 
-def learn(iterations: int, popsize: int, duration: float, seed: int) -> tuple[np.ndarray, list[float]]:
-    """The best weights CMA-ES found, and the mean score of each generation."""
+def learn(iterations: int, popsize: int, duration: float, seed: int) -> tuple[np.ndarray | None, list[float]]:
+    """The best weights CMA-ES found (None if Ctrl-C came before the first generation ended), and the mean score of
+    each generation; Ctrl-C ends the search early with what it found."""
     strategy = cma.CMAEvolutionStrategy(np.zeros(WEIGHTS), 0.5, {'popsize': popsize, 'seed': seed, 'verbose': -9})
     means = []
-    for iteration in range(iterations):
-        candidates = np.array(strategy.ask())
-        scores, _ = episode_returns(candidates, [seed * 100000 + iteration] * popsize, duration)
-        strategy.tell(list(candidates), list(-scores))   # cma minimises
-        means.append(float(scores.mean()))
-        print(f'iteration {iteration}: mean fitness {scores.mean():.3f}, best {scores.max():.3f}', flush=True)
-    return np.asarray(strategy.result.xbest), means
+    try:
+        for iteration in range(iterations):
+            candidates = np.array(strategy.ask())
+            scores, _ = episode_returns(candidates, [seed * 100000 + iteration] * popsize, duration)
+            strategy.tell(list(candidates), list(-scores))   # cma minimises
+            means.append(float(scores.mean()))
+            print(f'iteration {iteration}: mean fitness {scores.mean():.3f}, best {scores.max():.3f}', flush=True)
+    except KeyboardInterrupt:
+        print(f'interrupted after {len(means)} iterations', flush=True)
+    return (None if strategy.result.xbest is None else np.asarray(strategy.result.xbest)), means
 
 
 def picture(weights: np.ndarray, path: str, seed: int) -> None:
@@ -76,6 +80,8 @@ def main() -> None:
     parser.add_argument('--picture', help='save a picture of the learned policy driving (PNG)')
     args = parser.parse_args()
     best, _ = learn(args.iterations, args.popsize, args.duration, args.seed)
+    if best is None:
+        return
     tests = 20
     fresh = [10 ** 6 + k for k in range(tests)]   # episodes no generation was scored on
     straight = np.zeros(WEIGHTS)
