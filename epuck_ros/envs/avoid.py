@@ -1,7 +1,8 @@
 """`epuck_ros/Avoid-v0`: one e-puck learning obstacle avoidance, as one Gymnasium environment or N in one process.
 
 Observation, action and reward: see `epuck_ros.envs.worlds`; `info['contacts']`: the contacts with walls and
-obstacles so far in the episode (each counted once, when it began). An episode starts at a random pose clear of every
+obstacles so far in the episode (each counted once, when it began), `info['touching']`: whether the body touches
+something now. An episode starts at a random pose clear of every
 obstacle and is truncated after `duration` simulated seconds (32 ms steps); it never terminates (a contact is not
 an end: the fitness already pays for it). The vector form steps N worlds together in NumPy; as Gymnasium's own
 vector environments, `reset(seed=s)` seeds world i with s + i, so world i replays a lone environment reset with
@@ -71,7 +72,9 @@ class AvoidEnv(gym.Env):
         observation, reward, truncated = self._worlds.step(actions)
         if self.render_mode is not None:
             self._trail.append(tuple(self._worlds.sim.true_pose[0, :2].tolist()))
-        return observation[0], float(reward[0]), False, truncated, {'contacts': int(self._worlds.sim.collisions[0])}
+        sim = self._worlds.sim
+        return observation[0], float(reward[0]), False, truncated, {'contacts': int(sim.collisions[0]),
+                                                                    'touching': bool(sim.in_contact[0])}
 
     def render(self) -> np.ndarray | None:
         if self.render_mode is None or self._worlds.sim is None:
@@ -133,8 +136,11 @@ class AvoidVectorEnv(VectorEnv):
         return observation, reward, ended, np.full(self.num_envs, truncated), self._info()
 
     def _info(self) -> dict[str, np.ndarray]:
-        """Each world's contacts so far in its episode (Gymnasium's vector form: values and a mask of who has one)."""
-        return {'contacts': self._worlds.sim.collisions.copy(), '_contacts': np.ones(self.num_envs, dtype=bool)}
+        """Each world's contacts so far in its episode and whether it touches something now (Gymnasium's vector form:
+        values and a mask of the worlds that have one)."""
+        sim, every = self._worlds.sim, np.ones(self.num_envs, dtype=bool)
+        return {'contacts': sim.collisions.copy(), '_contacts': every, 'touching': sim.in_contact.copy(),
+                '_touching': every}
 
     def render(self) -> tuple[np.ndarray, ...] | None:
         """One frame per world."""

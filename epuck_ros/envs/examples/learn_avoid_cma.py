@@ -31,17 +31,19 @@ def act(weights: np.ndarray, observations: np.ndarray) -> np.ndarray:
 
 
 def episode_returns(weights: np.ndarray, seeds: list[int], duration: float) -> tuple[np.ndarray, np.ndarray]:
-    """(mean reward per step, contacts with walls and obstacles) of each policy (K, 22) on its seeded episode."""
+    """(mean reward per step, share of the steps touching a wall or an obstacle) of each policy (K, 22) on its
+    seeded episode."""
     env = gymnasium.make_vec(AVOID, num_envs=len(weights), vectorization_mode='vector_entry_point',
                              duration=duration)
     observations, _ = env.reset(seed=seeds)
-    total, steps = np.zeros(len(weights)), 0
+    total, touching, steps = np.zeros(len(weights)), np.zeros(len(weights)), 0
     while True:
         observations, rewards, _, truncated, info = env.step(act(weights, observations))
         total += rewards
+        touching += info['touching']
         steps += 1
         if truncated.all():
-            return total / steps, info['contacts']
+            return total / steps, touching / steps
 
 
 def learn(iterations: int, popsize: int, duration: float, seed: int) -> tuple[np.ndarray | None, list[float]]:
@@ -90,9 +92,9 @@ def main() -> None:
     for name, policies in (('learned policy', np.tile(best, (tests, 1))),
                            ('random policies of its form', rng.normal(0.0, 0.5, (tests, WEIGHTS))),
                            ('straight ahead, blind', np.tile(straight, (tests, 1)))):
-        scores, contacts = episode_returns(policies, fresh, 60.0)
+        scores, touching = episode_returns(policies, fresh, 60.0)
         print(f'{name:28} on {tests} fresh 60 s episodes: mean fitness {scores.mean():.3f}, '
-              f'{contacts.mean():.1f} contacts per episode')
+              f'touching a wall or an obstacle {touching.mean():.1%} of the time')
     if args.picture:
         picture(best, args.picture, fresh[0])
         print(f'wrote {args.picture}')
