@@ -1,6 +1,7 @@
 """How fast the learning environments step, against the bare core measured in the same run.
 
-Printed: the bare core's steps/s (bench_core's measure: one robot roaming the default world), one
+Printed, by process time (CPU seconds of this process, which other jobs on a shared machine change less than wall
+time): the bare core's steps/s (bench_core's measure: one robot roaming the default world), one
 `epuck_ros/Avoid-v0` environment driven by the same wheel speeds (goal: at least half the core's rate), the vector
 environment with 1, 64, 1,024 and 8,192 worlds in env-steps/s (goal: 1,024 worlds at least 10x the single
 environment), and with --evolve the wall time of `evolve` with the paper's population and generations on this
@@ -38,14 +39,14 @@ def single_env(seconds: float) -> float:
     env = gymnasium.make(AVOID)
     env.reset(seed=0)
     actions = (wheel_commands(100000) / MAX_WHEEL_SPEED).astype(np.float32)
-    steps, begin = 0, time.perf_counter()
-    while time.perf_counter() - begin < seconds:
+    steps, begin = 0, time.process_time()
+    while time.process_time() - begin < seconds:
         for _ in range(COMMAND_PERIOD):
             _, _, _, truncated, _ = env.step(actions[steps // COMMAND_PERIOD % len(actions)])
             steps += 1
             if truncated:
                 env.reset()
-    return steps / (time.perf_counter() - begin)
+    return steps / (time.process_time() - begin)
 
 
 def vector_env(worlds: int, seconds: float) -> float:
@@ -53,13 +54,13 @@ def vector_env(worlds: int, seconds: float) -> float:
     env = gymnasium.make_vec(AVOID, num_envs=worlds, vectorization_mode='vector_entry_point')
     env.reset(seed=0)
     rng = np.random.default_rng(1)
-    steps, begin = 0, time.perf_counter()
-    while time.perf_counter() - begin < seconds:
+    steps, begin = 0, time.process_time()
+    while time.process_time() - begin < seconds:
         actions = rng.uniform(-0.3, 1.0, size=(worlds, 2)).astype(np.float32)
         for _ in range(COMMAND_PERIOD):
             env.step(actions)
             steps += 1
-    return worlds * steps / (time.perf_counter() - begin)
+    return worlds * steps / (time.process_time() - begin)
 
 
 def evolve_wall_time() -> float:
@@ -78,8 +79,9 @@ def main() -> None:
     seconds = parser.parse_args().seconds
     args = parser.parse_args()
     run_core(500)   # warm-up
-    core = run_core(int(20000 * seconds / 3))[0]
+    core = run_core(int(20000 * seconds / 3))[1]
     single = single_env(seconds)
+    print('figures by process time (CPU seconds of this process: other jobs on the machine change them less)')
     print(f'bare core (bench_core): {core:,.0f} steps/s; one Avoid-v0 environment: {single:,.0f} steps/s '
           f'= {single / core:.0%} of the core (goal >= 50 %)   [load average {os.getloadavg()[0]:.1f}]')
     for worlds in WORLDS:
@@ -87,7 +89,7 @@ def main() -> None:
         print(f'vector environment, {worlds:>5} worlds: {rate:>10,.0f} env-steps/s = {rate / single:5.1f}x the single '
               f'environment' + ('   (goal >= 10x)' if worlds == 1024 else ''))
     if args.evolve:
-        wall = evolve_wall_time()
+        wall = evolve_wall_time()   # wall time: its Dask workers are other processes
         print(f'evolve, population 80 x 100 generations, {os.cpu_count()} cores: {wall:.0f} s wall (goal < 300 s); '
               f'the paper: about {PAPER_HOURS:.0f} hours on the robot ({PAPER_HOURS * 3600 / wall:,.0f}x)')
 

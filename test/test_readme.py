@@ -140,7 +140,9 @@ def _check_sign_of_work(command: str, output: str, workspace: Path, interrupted:
         if flag in words and words.index(flag) + 1 < len(words) and not words[words.index(flag) + 1].startswith('-'):
             target = workspace / words[words.index(flag) + 1]
             assert target.exists(), f'{command!r} did not write {target}:\n{output}'
-            if target.is_dir():
+            if target.is_dir() and words[0] == 'evolve':
+                assert (target / 'fitness.csv').is_file(), f'{target} has no fitness.csv:\n{output}'
+            elif target.is_dir():
                 assert (target / 'metadata.yaml').is_file(), f'{target} is not a closed bag:\n{output}'
             else:
                 assert target.stat().st_size > 0, f'{target} is empty'
