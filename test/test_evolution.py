@@ -49,6 +49,14 @@ def test_bad_options_are_one_line_and_exit_2(arguments, problem, tmp_path, capsy
     assert ended.value.code == 2 and problem in capsys.readouterr().err
 
 
+def test_an_output_folder_that_cannot_be_written_is_one_line_and_exit_2(tmp_path, capsys):
+    blocker = tmp_path / 'file'
+    blocker.write_text('')
+    with pytest.raises(SystemExit) as ended:
+        cli.main(['-o', str(blocker / 'out'), *TINY])
+    assert ended.value.code == 2 and f'-o {blocker / "out"}: cannot write there' in capsys.readouterr().err
+
+
 def test_the_controller_script_computes_the_network_of_the_evolution():
     genome = np.random.default_rng(1).uniform(-1, 1, GENES)
     source = controller_script(genome, 0, 0.5, 0)

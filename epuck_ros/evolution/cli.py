@@ -61,7 +61,12 @@ def parse_args(argv: list[str]) -> argparse.Namespace:
 
 def main(argv: list[str] | None = None) -> None:
     args = parse_args(sys.argv[1:] if argv is None else argv)
-    args.output.mkdir(parents=True, exist_ok=True)
+    try:
+        args.output.mkdir(parents=True, exist_ok=True)
+        (args.output / 'fitness.csv').touch()
+    except OSError as error:
+        print(f'evolve: -o {args.output}: cannot write there: {error.strerror}', file=sys.stderr)
+        raise SystemExit(EXIT_BAD_INPUT) from None
     began = time.monotonic()
     history: list[tuple[int, float, float]] = []
     best: dict = {'fitness': -np.inf}
