@@ -4,11 +4,12 @@ from __future__ import annotations
 import csv
 import json
 import re
+import subprocess
 from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import processes_in_this_domain
+from conftest import BIN_DIR, processes_in_this_domain
 
 from epuck_ros.evolution import cli
 from epuck_ros.evolution.controller import controller_script
@@ -33,8 +34,12 @@ def test_a_tiny_evolution_run_twice_gives_identical_files(tmp_path):
     assert all(0.0 <= float(row['mean']) <= float(row['best']) <= 1.0 for row in rows)
     best = json.loads((first / 'best_genome.json').read_text())
     assert len(best['genome']) == GENES and best['fitness'] == max(float(row['best']) for row in rows)
-    on_dask = run(tmp_path, 'c', '--workers', '2')   # the population split over two worker processes
+    on_dask = tmp_path / 'c'   # the executable, its population split over a local Dask cluster of two workers
+    result = subprocess.run([str(BIN_DIR / 'evolve'), '-o', str(on_dask), *TINY, '--workers', '2'],
+                            capture_output=True, text=True, timeout=300)
+    assert result.returncode == 0, result.stderr
     assert (on_dask / 'fitness.csv').read_bytes() == (first / 'fitness.csv').read_bytes()
+    assert processes_in_this_domain() == []
 
 
 @pytest.mark.parametrize('arguments, problem', [
