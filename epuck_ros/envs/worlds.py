@@ -27,7 +27,7 @@ from epuck_ros.world import CONTACT_TOLERANCE, ROBOT_GAP, RobotStart, World
 OBSERVATION_SIZE = 10
 """Eight IR activations and two wheel speeds."""
 MAX_WORLDS = 65536
-"""Most worlds one vector environment steps together (8,192 take about 100 MB; this bounds a typo's memory)."""
+"""Most worlds one vector environment steps together: a bound on what a typo in `num_envs` can allocate."""
 
 
 def fitness(wheels: np.ndarray, activation: np.ndarray) -> np.ndarray:
