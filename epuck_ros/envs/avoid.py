@@ -68,13 +68,13 @@ class AvoidEnv(gym.Env):
         return observation, {}
 
     def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict]:
-        actions = check_actions(action, (2,))[None]
-        observation, reward, truncated = self._worlds.step(actions)
-        if self.render_mode is not None:
-            self._trail.append(tuple(self._worlds.sim.true_pose[0, :2].tolist()))
+        left, right = check_actions(action, (2,)).tolist()
+        observation, reward, truncated = self._worlds.step_one(left, right)
         sim = self._worlds.sim
-        return observation[0], float(reward[0]), False, truncated, {'contacts': int(sim.collisions[0]),
-                                                                    'touching': bool(sim.in_contact[0])}
+        if self.render_mode is not None:
+            self._trail.append(tuple(sim.true_pose[0, :2].tolist()))
+        return observation, reward, False, truncated, {'contacts': int(sim.collisions[0]),
+                                                       'touching': bool(sim.in_contact[0])}
 
     def render(self) -> np.ndarray | None:
         if self.render_mode is None or self._worlds.sim is None:

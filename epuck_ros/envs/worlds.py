@@ -68,7 +68,7 @@ class Worlds:
         self.sim: Simulation | None = None
         self.rngs: list[np.random.Generator] = []
         self.steps = 0
-        self.last_activation = np.zeros((count, 8))
+        self._activation: np.ndarray | list[float] = np.zeros((count, 8))
         self._normals = np.empty((count, 8))
 
     # --- episodes -----------------------------------------------------------------------------------------
@@ -106,13 +106,6 @@ class Worlds:
         truncated: the same for every world, whose episodes all last `episode_steps`)."""
         sim = self.sim
         top = self.model.max_wheel_speed
-        if self.count == 1:
-            (left, right), = actions.tolist()
-            sim.command_wheels(0, left * top, right * top)
-            sim.step()
-            self.steps += 1
-            observation, reward = self._observe_one()
-            return observation, reward, self.steps >= self.episode_steps
         command = sim.command_wheels
         for i, (left, right) in enumerate((actions * top).tolist()):
             command(i, left, right)
@@ -123,20 +116,15 @@ class Worlds:
         reward = fitness(np.column_stack([left, right]) / top, self.last_activation)
         return observation, reward, self.steps >= self.episode_steps
 
-    def _observe(self) -> np.ndarray:
-        raw = self.sim.ir_raw
-        if self.noise:
-            normals = self._normals
-            for rng, row in zip(self.rngs, normals):
-                rng.standard_normal(out=row)
-            raw = raw * (1.0 + np.interp(raw, self._noise_raws, self._noise_sigmas) * normals)
-        self.last_activation = activations(raw, self.model)
-        return observations(self.last_activation, self.sim.wheel_speeds, self.model)
-
-    def _observe_one(self) -> tuple[np.ndarray, np.ndarray]:
-        """The one world's observation and reward on Python floats: `_observe` and `fitness`'s arithmetic,
-        operation for operation (the same bits: test_envs checks), without NumPy's per-call cost on eight values."""
-        raw = self.sim.ir_raw[0]
+    def step_one(self, left: float, right: float) -> tuple[np.ndarray, float, bool]:
+        """`step` of the one world (count 1) on Python floats: `step`'s arithmetic operation for operation (the same
+        bits: test_envs checks), without NumPy's per-call cost on eight values; (observation (10,), reward,
+        truncated)."""
+        sim, top = self.sim, self.model.max_wheel_speed
+        sim.command_wheels(0, left * top, right * top)
+        sim.step()
+        self.steps += 1
+        raw = sim.ir_raw[0]
         if self.noise:
             sigmas = np.interp(raw, self._noise_raws, self._noise_sigmas).tolist()
             raw = [value * (1.0 + sigma * normal)
@@ -145,14 +133,28 @@ class Worlds:
             raw = raw.tolist()
         far, near = self._far, self._near
         activation = [min(max((value - far) / (near - far), 0.0), 1.0) for value in raw]
-        self.last_activation = np.array([activation])
-        top = self.model.max_wheel_speed
-        (forward, turn), = self.sim.true_twist.tolist()
-        left, right = (speed / top for speed in wheels_from_twist(forward, turn, self.model))
-        speed = max(0.5 * (left + right), 0.0)
-        reward = speed * (1.0 - math.sqrt(0.5 * abs(left - right))) * (1.0 - max(activation))
-        wheels = [speed / top for speed in self.sim.wheel_speeds[0].tolist()]
-        return np.array([activation + wheels], dtype=np.float32), np.array([reward])
+        self._activation = activation
+        (forward, turn), = sim.true_twist.tolist()
+        true_left, true_right = (wheel / top for wheel in wheels_from_twist(forward, turn, self.model))
+        speed = max(0.5 * (true_left + true_right), 0.0)
+        reward = speed * (1.0 - math.sqrt(0.5 * abs(true_left - true_right))) * (1.0 - max(activation))
+        wheels = [wheel / top for wheel in sim.wheel_speeds[0].tolist()]
+        return np.array(activation + wheels, dtype=np.float32), reward, self.steps >= self.episode_steps
+
+    @property
+    def last_activation(self) -> np.ndarray:
+        """(count, 8) IR activations of the last observations."""
+        return np.asarray(self._activation, dtype=float).reshape(self.count, 8)
+
+    def _observe(self) -> np.ndarray:
+        raw = self.sim.ir_raw
+        if self.noise:
+            normals = self._normals
+            for rng, row in zip(self.rngs, normals):
+                rng.standard_normal(out=row)
+            raw = raw * (1.0 + np.interp(raw, self._noise_raws, self._noise_sigmas) * normals)
+        self._activation = activations(raw, self.model)
+        return observations(self._activation, self.sim.wheel_speeds, self.model)
 
 
 def activations(raw: np.ndarray, model: RobotModel) -> np.ndarray:
@@ -180,6 +182,8 @@ def check_actions(actions: object, shape: tuple[int, ...]) -> np.ndarray:
     if array.shape != shape:
         raise CommandError(f'action rejected: expected shape {shape} (left, right wheel speeds as fractions of the '
                            f'maximum), got shape {array.shape}')
+    if array.size == 2 and all(map(math.isfinite, array.tolist())):   # one world: plain floats, no NumPy call
+        return array
     if not np.isfinite(array).all():
         rows = array.reshape(-1, 2)
         bad = int(np.flatnonzero(~np.isfinite(rows).all(axis=1))[0])
