@@ -55,9 +55,10 @@ def test_reset_with_a_seed_replays_the_episode_to_the_bit():
     assert not np.array_equal(first[0], other[0])
 
 
-def test_each_vector_world_is_the_single_environment_with_seed_plus_its_index():
+@pytest.mark.parametrize('worlds', [1, 3])
+def test_each_vector_world_is_the_single_environment_with_seed_plus_its_index(worlds):
     """Across an automatic reset too: a world's next episode is the lone environment's reset() without a seed."""
-    worlds, steps, seed = 3, 70, 11
+    steps, seed = 70, 11
     duration = 1.0   # 32 steps: the episode ends, and the step after it is the autoreset
     vector = gymnasium.make_vec(AVOID, num_envs=worlds, vectorization_mode='vector_entry_point', duration=duration)
     actions = np.random.default_rng(0).uniform(-1, 1, size=(steps, worlds, 2)).astype(np.float32)

@@ -182,7 +182,7 @@ def check_actions(actions: object, shape: tuple[int, ...]) -> np.ndarray:
     if array.shape != shape:
         raise CommandError(f'action rejected: expected shape {shape} (left, right wheel speeds as fractions of the '
                            f'maximum), got shape {array.shape}')
-    if array.size == 2 and all(map(math.isfinite, array.tolist())):   # one world: plain floats, no NumPy call
+    if len(shape) == 1 and all(map(math.isfinite, array.tolist())):   # one action: plain floats, no NumPy call
         return array
     if not np.isfinite(array).all():
         rows = array.reshape(-1, 2)
