@@ -158,7 +158,7 @@ class Worlds:
 
 
 def activations(raw: np.ndarray, model: RobotModel) -> np.ndarray:
-    """IR activations (N, 8) in [0, 1] of raw values (N, 8): 0 when nothing is within range, 1 when touching."""
+    """Raw IR values (N, 8) as activations in [0, 1] (N, 8): 0 when nothing is within range, 1 when touching."""
     far, near = model.ir_table[-1, 1], model.ir_table[0, 1]
     return np.minimum(np.maximum((raw - far) / (near - far), 0.0), 1.0)
 
