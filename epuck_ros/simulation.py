@@ -103,6 +103,29 @@ class Simulation:
         left, right = wheels_from_twist(float(v), float(w), self.model)   # float overflow gives inf, no error
         self._set_command(robot, left, right)
 
+    def command_all_wheels(self, speeds: np.ndarray) -> None:
+        """Set every robot's wheel speeds (rad/s) at once, `speeds` (N, 2): `command_wheels` row by row, in one NumPy
+        operation (a vector environment commands thousands of robots a step). Nothing is set if a row is refused."""
+        state = self._state
+        try:
+            speeds = np.asarray(speeds, dtype=float)
+        except (TypeError, ValueError):
+            raise CommandError('command rejected: speeds must be numbers') from None
+        if speeds.shape != state.command.shape:
+            raise CommandError(f'command rejected: wheel speeds of shape {state.command.shape} expected, '
+                               f'got {speeds.shape}')
+        finite = np.isfinite(speeds).all(axis=1)
+        if not finite.all():
+            rows = np.flatnonzero(~finite)
+            raise CommandError(f'command rejected: speeds must be finite numbers, not in rows {rows[:10].tolist()}')
+        top = self.model.max_wheel_speed
+        state.command[:] = np.clip(speeds, -top, top)
+        state.command_twist[:, 0], state.command_twist[:, 1] = twist_from_wheels(
+            state.command[:, 0], state.command[:, 1], self.model)
+        self._last_command_time[:] = self.time
+        self._commanded[:] = True
+        self._earliest_command = min(self._earliest_command, self.time)
+
     def _set_command(self, robot: int, left: float, right: float) -> None:
         state = self._state
         if isinstance(robot, bool) or not isinstance(robot, (int, np.integer)) or not 0 <= robot < len(state.command):

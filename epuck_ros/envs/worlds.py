@@ -106,9 +106,7 @@ class Worlds:
         truncated: the same for every world, whose episodes all last `episode_steps`)."""
         sim = self.sim
         top = self.model.max_wheel_speed
-        command = sim.command_wheels
-        for i, (left, right) in enumerate((actions * top).tolist()):
-            command(i, left, right)
+        sim.command_all_wheels(actions * top)
         sim.step()
         self.steps += 1
         observation = self._observe()
