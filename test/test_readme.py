@@ -142,6 +142,8 @@ def _check_sign_of_work(command: str, output: str, workspace: Path, interrupted:
             assert target.exists(), f'{command!r} did not write {target}:\n{output}'
             if target.is_dir() and words[0] == 'sweep':
                 assert (target / 'trials.csv').is_file(), f'{target} has no trials.csv:\n{output}'
+            elif target.is_dir() and words[0] == 'evolve':
+                assert (target / 'fitness.csv').is_file(), f'{target} has no fitness.csv:\n{output}'
             elif target.is_dir():
                 assert (target / 'metadata.yaml').is_file(), f'{target} is not a closed bag:\n{output}'
             else:

@@ -116,6 +116,29 @@ def test_huge_finite_twists_clamp_like_wheel_commands(v, w, wheels):
     assert np.isfinite(sim.true_pose).all()
 
 
+def test_commanding_every_robot_at_once_is_commanding_each_row():
+    """`command_all_wheels` leaves the same bits as `command_wheels` row by row (clamped per wheel) and refuses a
+    NaN row or a wrong shape without changing anything."""
+    world = World(robots=tuple(RobotStart(f'r{i}', -0.3 + 0.15 * i, 0.0) for i in range(4)))
+    speeds = np.array([[1.0, 2.0], [9.0, -9.0], [-0.5, 6.28], [3.3, 3.3]])
+    one_by_one, at_once = Simulation(world, seed=2), Simulation(world, seed=2)
+    for _ in range(40):
+        for i, (left, right) in enumerate(speeds.tolist()):
+            one_by_one.command_wheels(i, left, right)
+        at_once.command_all_wheels(speeds)
+        one_by_one.step()
+        at_once.step()
+    assert np.array_equal(one_by_one.true_pose, at_once.true_pose)
+    assert np.array_equal(at_once.wheel_speeds[1], [MAX_WHEEL_SPEED, -MAX_WHEEL_SPEED])
+    before = at_once.wheel_speeds.copy()
+    with pytest.raises(CommandError, match=r'rows \[2\]'):
+        at_once.command_all_wheels(np.where(np.arange(8).reshape(4, 2) == 5, math.nan, 1.0))
+    with pytest.raises(CommandError, match='shape'):
+        at_once.command_all_wheels(np.ones((3, 2)))
+    at_once.step()
+    assert np.array_equal(at_once.wheel_speeds, before)
+
+
 def test_wheels_stop_when_commands_stop_arriving():
     sim = open_floor(cmd_timeout=0.5)
     sim.command_wheels(0, 2.0, 2.0)
