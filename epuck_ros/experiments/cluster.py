@@ -9,6 +9,7 @@ from __future__ import annotations
 import os
 import signal
 import socket
+import threading
 from collections.abc import Callable, Iterable, Iterator
 from contextlib import contextmanager
 from typing import Any, TypeVar
@@ -52,19 +53,30 @@ def open_client(workers: int | None, scheduler: str | None) -> Iterator[object |
             client.close()
         return
     # The worker processes start with Ctrl-C ignored (inherited): Ctrl-C in the terminal reaches the whole process
-    # group, and it is the sweep's to handle (it closes the cluster); each worker printed a KeyboardInterrupt.
-    handler = signal.signal(signal.SIGINT, signal.SIG_IGN)
-    try:
+    # group, and it is the caller's to handle (it closes the cluster); each worker printed a KeyboardInterrupt.
+    with _without_ctrl_c():
         cluster = LocalCluster(n_workers=workers or default_workers(), threads_per_worker=1, processes=True,
                                dashboard_address=':0', silence_logs=50)
-    finally:
-        signal.signal(signal.SIGINT, handler)
     client = Client(cluster)
     try:
         yield client
     finally:
-        client.close()
-        cluster.close()
+        with _without_ctrl_c():   # a close cut short by Ctrl-C left the worker processes running
+            client.close()
+            cluster.close()
+
+
+@contextmanager
+def _without_ctrl_c() -> Iterator[None]:
+    """SIGINT ignored meanwhile (only the main thread may change it; elsewhere nothing changes)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    handler = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, handler)
 
 
 def _probe(scheduler: str) -> None:
