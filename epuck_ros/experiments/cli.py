@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import argparse
 import csv
+import signal
 import statistics
 import sys
 import time
@@ -54,8 +55,8 @@ def main(argv: list[str] | None = None) -> None:
     args = parse_args(sys.argv[1:] if argv is None else argv)
     try:
         sweep(args)
-    except KeyboardInterrupt:   # after the trials (the table is replaced whole, never left half written)
-        print('\n[sweep] interrupted; the table holds every trial that finished', file=sys.stderr)
+    except KeyboardInterrupt:   # before the trials (the table, replaced whole, is never left half written)
+        print('\n[sweep] interrupted', file=sys.stderr)
 
 
 def sweep(args: argparse.Namespace) -> None:
@@ -90,11 +91,13 @@ def sweep(args: argparse.Namespace) -> None:
                 out.flush()
                 failures += any(row['error'] for row in rows)
                 progress.show(finished, len(todo), failures)
+        _finish_uninterrupted()
     except ClusterError as error:
         print(f'sweep: {error}', file=sys.stderr)
         raise SystemExit(EXIT_BAD_INPUT) from None
     except KeyboardInterrupt:   # Ctrl-C: the rows written so far are kept, --resume runs the rest
         interrupted = True
+        _finish_uninterrupted()
     rows = sorted(read_rows(table), key=lambda row: (int(row['trial']), row['robot']))
     write_rows(table, rows)
     print(summary_table(rows))
@@ -109,6 +112,12 @@ def sweep(args: argparse.Namespace) -> None:
           (f'; {len(failed)} trials failed (their rows say why)' if failed else ''), file=sys.stderr)
     if failed:
         raise SystemExit(EXIT_FAILED)
+
+
+def _finish_uninterrupted() -> None:
+    """From here on Ctrl-C is ignored: the table, the summary and the picture take a moment, and a Ctrl-C during the
+    interpreter's exit would end the process with SIGINT's status instead of the sweep's."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
 
 
 def _where(args: argparse.Namespace) -> str:
