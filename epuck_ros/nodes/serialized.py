@@ -38,8 +38,9 @@ _MARKERS = {'d': 1.234567890123e-271, 'f': 1.2345678e-31, 'i': 0x5A3C1E2F, 'I': 
 
 
 class Patch:
-    """`msg` serialised once; `fields` are attribute paths with a struct code, e.g. ('header.stamp.sec', 'i') or
-    ('position[1]', 'd'). `bytes(values)` returns the message with those fields set, in the order given."""
+    """`msg` serialised once; `fields` are attribute paths with a struct code, e.g. ('header.stamp.sec', 'i'),
+    ('position[1]', 'd') or ('transforms[1].header.stamp.sec', 'i'). `bytes(values)` returns the message with
+    those fields set, in the order given."""
 
     def __init__(self, msg: Any, fields: Sequence[tuple[str, str]]) -> None:
         offsets = []
@@ -123,8 +124,10 @@ def _set(msg: Any, path: str, value: Any) -> None:
 
 def _resolve(msg: Any, path: str) -> tuple[Any, str, int | None]:
     *parents, last = path.split('.')
-    for name in parents:
+    for part in parents:   # 'transforms[1]' steps into an element
+        name, bracket, rest = part.partition('[')
         msg = getattr(msg, name)
+        msg = msg[int(rest.rstrip(']'))] if bracket else msg
     name, bracket, rest = last.partition('[')
     return msg, name, int(rest.rstrip(']')) if bracket else None
 

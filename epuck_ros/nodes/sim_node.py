@@ -39,6 +39,7 @@ from epuck_ros.nodes.params import ParamSpec, Usage, command_line_value, declare
 from epuck_ros.nodes.robot_ports import JOINT_NAMES, WARN_PERIOD, WORLD_FRAME, RobotPorts, quiet_publisher
 from epuck_ros.nodes.serialized import Patch
 from epuck_ros.nodes.spinning import end_process, handle_shutdown_signals, shutdown_requested, spin_until_shutdown
+from epuck_ros.nodes.tf_ports import TfPorts
 from epuck_ros.simulation import CommandError, Simulation, StepEvents
 from epuck_ros.world import WorldError, default_world, load_world, place_robots
 
@@ -242,6 +243,7 @@ class SimNode(Node):
                 raise StartInterrupted()
             self.ports.append(RobotPorts(self, index, name, several, stream, latched, self._on_command,
                                          values['frame_prefix'], values['cmd_vel_stamped']))
+        self._tf = TfPorts(self, self.ports, self._sim, several, latched, values['frame_prefix'] + WORLD_FRAME)
         quiet_publisher(self, String, 'world', latched).publish(
             String(data=yaml.safe_dump(world.to_dict(), sort_keys=False)))
         quiet_publisher(self, MarkerArray, 'world_markers', latched).publish(
@@ -480,6 +482,7 @@ class SimNode(Node):
         stamp = _stamp(self._sim.time)
         for ports in self.ports:
             ports.publish(self._sim, stamp)
+        self._tf.publish(self._sim, stamp)
         self._clock_pub.publish(self._clock_message.bytes(stamp))
 
     def _after_step(self, events: StepEvents, now_sim: float) -> None:
