@@ -14,7 +14,7 @@ import tempfile
 import threading
 import time
 from pathlib import Path
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from typing import IO, Any
 
 from epuck_ros.testing.domains import claim_free_domain
@@ -29,7 +29,10 @@ class SimulatorUnderTest:
     """`sim` in lockstep, paused, on a private domain; `env` is the environment for the test's own processes."""
 
     def __init__(self, world: str | os.PathLike | None = None, robots: int = 0, seed: int = 0,
-                 log_dir: Path | None = None, start_timeout: float = 30.0, **parameters: object) -> None:
+                 log_dir: Path | None = None, start_timeout: float = 30.0, env: Mapping[str, str] | None = None,
+                 **parameters: object) -> None:
+        """`parameters` go to `sim` (`-p name:=value`); `env` adds to the environment of the simulator and of
+        `self.env` (e.g. another ROS_AUTOMATIC_DISCOVERY_RANGE; LOCALHOST by default)."""
         from epuck_ros.world import default_world, load_world, place_robots
         layout = load_world(str(world)) if world else default_world()
         if robots > 0:
@@ -38,7 +41,8 @@ class SimulatorUnderTest:
         """The robots' names, in the simulator's order."""
         self.start_poses = {robot.name: robot.pose for robot in layout.robots}
         self.domain, self._domain_lock = claim_free_domain()
-        self.env = dict(os.environ, ROS_DOMAIN_ID=str(self.domain), ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST')
+        self.env = {**os.environ, 'ROS_DOMAIN_ID': str(self.domain), 'ROS_AUTOMATIC_DISCOVERY_RANGE': 'LOCALHOST',
+                    **(env or {})}
         """The environment for the test's own processes: the simulator's domain, discovery on this machine."""
         self._lock = threading.Lock()
         self._clock = 0.0
