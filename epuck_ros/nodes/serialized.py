@@ -44,8 +44,10 @@ class Patch:
 
     def __init__(self, msg: Any, fields: Sequence[tuple[str, str]]) -> None:
         offsets = []
-        for index, (path, code) in enumerate(fields):
-            marker = _MARKERS[code] * (index + 1) if code in 'df' else _MARKERS[code] + index
+        self._paths = [path for path, _ in fields]
+        self._markers = [_MARKERS[code] * (index + 1) if code in 'df' else _MARKERS[code] + index
+                         for index, (_, code) in enumerate(fields)]
+        for (path, code), marker in zip(fields, self._markers):
             saved = _get(msg, path)
             _set(msg, path, marker)
             data = exact_cdr(msg)
@@ -64,6 +66,23 @@ class Patch:
             size = struct.calcsize('<' + code)
             self._slices.append((offset, offset + size, position, position + size))
             position += size
+
+    def like(self, msg: Any) -> Patch:
+        """The same fields in `msg`, a message of the same type laid out alike (another robot's, its frame ids as
+        long): two serialisations instead of one per field. ValueError if its fields lie elsewhere."""
+        saved = [_get(msg, path) for path in self._paths]
+        for path, marker in zip(self._paths, self._markers):
+            _set(msg, path, marker)
+        marked = exact_cdr(msg)
+        for path, value in zip(self._paths, saved):
+            _set(msg, path, value)
+        patch = object.__new__(Patch)
+        patch._paths, patch._markers, patch._struct, patch._slices = self._paths, self._markers, self._struct, \
+            self._slices
+        patch._template = exact_cdr(msg)
+        if len(patch._template) != len(self._template) or patch.bytes(self._markers) != marked:
+            raise ValueError(f'{type(msg).__name__} is not laid out as the patch\'s message')
+        return patch
 
     def bytes(self, values: Sequence[float | int]) -> bytes:
         packed = self._struct.pack(*values)

@@ -66,11 +66,15 @@ class TfPorts:
         quiet_publisher(node, TFMessage, '/tf_static', TF_STATIC_QOS).publish(TFMessage(transforms=static))
         self._tf_pub = quiet_publisher(node, TFMessage, '/tf', TF_QOS)
         self._steps = []
+        alike: dict[int, Patch] = {}   # frame ids as long, fields at the same offsets: one Patch built per length
         for robot in ports:
             transforms = [_transform(robot.odom_frame, robot.base_frame, (0.0, 0.0, 0.0), _yaw(0.0))]
             transforms += [_transform(robot.base_frame, _prefix(robot) + link, offset, (0.0, 0.0, 0.0, 1.0))
                            for link, offset in zip(WHEEL_LINKS, wheel_offsets(model))]
-            self._steps.append(Patch(TFMessage(transforms=transforms), _STEP_FIELDS))
+            msg, length = TFMessage(transforms=transforms), len(_prefix(robot))
+            if length not in alike:
+                alike[length] = Patch(msg, _STEP_FIELDS)
+            self._steps.append(alike[length].like(msg))
 
     def publish(self, sim: Simulation, stamp: tuple[int, int]) -> None:
         """Each robot's odometry and wheel angles of this step, on /tf (nothing if nobody listens)."""
