@@ -13,7 +13,7 @@ import pytest
 
 from epuck_ros.bringup.processes import executable, interrupt
 from epuck_ros.description import sensor_frames, urdf
-from epuck_ros.model import SENSOR_HEIGHT, SENSOR_POSES
+from epuck_ros.model import SENSOR_HEIGHT, SENSOR_POSES, RobotModel
 
 tf2_msgs = pytest.importorskip('tf2_msgs.msg', reason='tf2_msgs is not installed: run scripts/gen_tf2_msgs.sh')
 
@@ -71,6 +71,7 @@ def compose(a: tuple[float, float, float], b: tuple[float, float, float]) -> tup
 
 
 def test_base_link_in_world_is_the_ground_truth_and_sensors_are_the_models(epuck_sim):
+    """Also the fixture's ground truth and contact count, before and after the robot meets a wall."""
     sim = epuck_sim(robots=1, seed=1)   # one robot placed at a start pose off the origin, turned
     listener = Listener(sim.domain, ['/robot_description'])
     controller = subprocess.Popen([executable('forward'), '--ros-args', '-p', 'use_sim_time:=true'], env=sim.env,
@@ -82,6 +83,9 @@ def test_base_link_in_world_is_the_ground_truth_and_sensors_are_the_models(epuck
         now = sim.run_until(2.0)
         listener.spin_until(lambda: 'base_link' in listener.dynamic and _stamp(listener.dynamic['base_link']) >= now
                             - 1e-9, f'/tf of t={now}')
+        truth, contacts = sim.ground_truth(), sim.contacts()
+        sim.run_until(15.0)   # on into the wall at x = -0.5 (its path misses the boxes): the fixture counts it
+        truth_later, contacts_later = sim.ground_truth(), sim.contacts()
     finally:
         interrupt(controller, 10.0)
         listener.close()
@@ -89,14 +93,14 @@ def test_base_link_in_world_is_the_ground_truth_and_sensors_are_the_models(epuck
     assert (world_odom.header.frame_id, odom_base.header.frame_id) == ('world', 'odom')
     assert planar(world_odom) == pytest.approx(sim.start_poses[sim.names[0]], abs=1e-12)
     in_world = compose(planar(world_odom), planar(odom_base))
-    truth = sim.ground_truth()
-    assert math.dist(sim.start_poses[sim.names[0]][:2], truth[:2]) > 0.1 and sim.contacts() == 0, 'it drove freely'
+    assert math.dist(sim.start_poses[sim.names[0]][:2], truth[:2]) > 0.1 and contacts == 0, 'it drove freely'
     # odometry reads quantised encoders: within a few ticks (2π/1000 rad · 0.02 m each) of the ground truth
     assert in_world == pytest.approx(truth, abs=5e-4)
     ps3 = listener.static['ps3']
     assert ps3.header.frame_id == 'base_link'
     assert (*planar(ps3), ps3.transform.translation.z) == pytest.approx((*SENSOR_POSES[3], SENSOR_HEIGHT), abs=1e-12)
     assert listener.descriptions['/robot_description'] == urdf()
+    assert contacts_later == 1 and truth_later[0] == pytest.approx(-0.5 + RobotModel().body_radius, abs=1e-3)
 
 
 def test_a_swarm_prefixes_frames_and_descriptions_by_robot(epuck_sim):

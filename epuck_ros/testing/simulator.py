@@ -47,7 +47,6 @@ class SimulatorUnderTest:
         self._lock = threading.Lock()
         self._clock = 0.0
         self._truth: dict[str, tuple[float, float, float, float]] = {}
-        self._contacts: dict[str, int] = {}
         self._context = None
         self._thread: threading.Thread | None = None
         self.process: subprocess.Popen | None = None
@@ -101,10 +100,20 @@ class SimulatorUnderTest:
             stamped = self._truth.get(name)
         return self.start_poses[name] if stamped is None else stamped[1:]
 
-    def contacts(self, robot: str | int | None = None) -> int:
-        """How many contacts (with obstacles or robots) the robot has had so far (None: the first robot)."""
-        with self._lock:
-            return self._contacts.get(self._name(robot), 0)
+    def contacts(self, robot: str | int | None = None, timeout: float = 30.0) -> int:
+        """How many contacts (with obstacles or robots) the robot has had so far (None: the first robot).
+
+        Read from a new subscription to its latched `collisions`: the simulator publishes a count after the step's
+        `/clock`, so a subscription kept from the start could still have it on its way."""
+        from std_msgs.msg import UInt32
+        received: list[int] = []
+        subscription = self._node.create_subscription(UInt32, self._topic(self._name(robot), 'collisions'),
+                                                      lambda msg: received.append(msg.data), self._latched)
+        try:
+            self._wait(lambda: bool(received), timeout, f'no collision count of {self._name(robot)}')
+        finally:
+            self._node.destroy_subscription(subscription)
+        return received[-1]
 
     def output(self) -> str:
         """What the simulator printed so far."""
@@ -152,20 +161,17 @@ class SimulatorUnderTest:
         from rclpy.parameter_client import AsyncParameterClient
         from rclpy.qos import DurabilityPolicy, QoSProfile
         from rosgraph_msgs.msg import Clock
-        from std_msgs.msg import UInt32
 
         self._context = Context()
         rclpy.init(context=self._context, domain_id=self.domain)
         self._node = Node(f'epuck_sim_fixture_{os.getpid()}', context=self._context)
         self._executor = SingleThreadedExecutor(context=self._context)
         self._executor.add_node(self._node)
-        latched = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+        self._latched = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
         self._node.create_subscription(Clock, '/clock', self._on_clock, 10)
         for name in self.names:
             self._node.create_subscription(Odometry, self._topic(name, 'ground_truth'),
                                            lambda msg, name=name: self._on_truth(name, msg), 10)
-            self._node.create_subscription(UInt32, self._topic(name, 'collisions'),
-                                           lambda msg, name=name: self._on_contacts(name, msg), latched)
         self._parameters = AsyncParameterClient(self._node, 'sim')
         self._thread = threading.Thread(target=self._spin, name='epuck_sim_fixture', daemon=True)
         self._thread.start()
@@ -191,10 +197,6 @@ class SimulatorUnderTest:
         stamp = msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
         with self._lock:
             self._truth[name] = (stamp, msg.pose.pose.position.x, msg.pose.pose.position.y, yaw)
-
-    def _on_contacts(self, name: str, msg: Any) -> None:
-        with self._lock:
-            self._contacts[name] = msg.data
 
     def _paused(self) -> bool:
         result = self._call(self._parameters.get_parameters(['paused']), STOP_TIMEOUT)
