@@ -243,7 +243,7 @@ class SimNode(Node):
                 raise StartInterrupted()
             self.ports.append(RobotPorts(self, index, name, several, stream, latched, self._on_command,
                                          values['frame_prefix'], values['cmd_vel_stamped']))
-        self._tf = TfPorts(self, self.ports, self._sim, several, latched, values['frame_prefix'] + WORLD_FRAME)
+        self._tf = TfPorts(self, self.ports, self._sim, several, stream, latched, values['frame_prefix'] + WORLD_FRAME)
         quiet_publisher(self, String, 'world', latched).publish(
             String(data=yaml.safe_dump(world.to_dict(), sort_keys=False)))
         quiet_publisher(self, MarkerArray, 'world_markers', latched).publish(
@@ -334,7 +334,8 @@ class SimNode(Node):
                                       'anything else mixes up simulated time')
 
     def _stream_publishers(self) -> list:
-        return [self._clock_pub] + [pub for ports in self.ports for pub in ports.stream_publishers]
+        return [self._clock_pub] + [pub for ports in self.ports for pub in ports.stream_publishers] + \
+            self._tf.stream_publishers
 
     def _kept_all(self, topic: str) -> bool:
         """Some reader of `topic` keeps all its samples (KEEP_ALL history: a recorder)."""

@@ -28,8 +28,6 @@ try:
 except ImportError:   # a pip install without scripts/gen_tf2_msgs.sh
     TFMessage = None
 
-TF_QOS = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
-"""tf2_ros's DynamicBroadcasterQoS."""
 TF_STATIC_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
 """tf2_ros's StaticBroadcasterQoS: late joiners get the tree."""
 _CHANGING = (('translation.x', 'translation.y', 'rotation.z', 'rotation.w'), ('rotation.y', 'rotation.w'),
@@ -48,12 +46,16 @@ def tf_available() -> bool:
 class TfPorts:
     """Publishes every robot's description once and, if tf2_msgs imports, the static tree and each step's TF."""
 
-    def __init__(self, node: Node, ports: list[RobotPorts], sim: Simulation, several: bool, latched_qos: QoSProfile,
-                 world_frame: str, model: RobotModel = RobotModel()) -> None:
+    def __init__(self, node: Node, ports: list[RobotPorts], sim: Simulation, several: bool, stream_qos: QoSProfile,
+                 latched_qos: QoSProfile, world_frame: str, model: RobotModel = RobotModel()) -> None:
+        """`stream_qos`: that of the robots' step topics; /tf, one message per robot and step, keeps as many steps
+        (reliable, as tf2_ros broadcasts), so that the simulator's acknowledgement window covers it too."""
         for robot in ports:
             quiet_publisher(node, String, topic_prefix(robot.name, several) + 'robot_description', latched_qos).publish(
                 String(data=urdf(model, _prefix(robot))))
         self._tf_pub = None
+        self.stream_publishers = []
+        """The publishers of every step, for the simulator's acknowledgement window (`ack_window`)."""
         if TFMessage is None:
             node.get_logger().info('tf2_msgs is not installed: no /tf and /tf_static (run scripts/gen_tf2_msgs.sh)')
             return
@@ -64,7 +66,9 @@ class TfPorts:
             static += [_transform(robot.base_frame, _prefix(robot) + frame.name, frame.xyz, frame.quaternion())
                        for frame in sensor_frames(model)]
         quiet_publisher(node, TFMessage, '/tf_static', TF_STATIC_QOS).publish(TFMessage(transforms=static))
-        self._tf_pub = quiet_publisher(node, TFMessage, '/tf', TF_QOS)
+        tf_qos = QoSProfile(depth=stream_qos.depth * len(ports), reliability=ReliabilityPolicy.RELIABLE)
+        self._tf_pub = quiet_publisher(node, TFMessage, '/tf', tf_qos)
+        self.stream_publishers = [self._tf_pub]
         self._steps = []
         alike: dict[int, Patch] = {}   # frame ids as long, fields at the same offsets: one Patch built per length
         for robot in ports:
