@@ -14,6 +14,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from xml.sax.saxutils import quoteattr
 
+from epuck_ros.conversions import quaternion_from_yaw
 from epuck_ros.model import (BODY_CENTRE_HEIGHT, BODY_HEIGHT, CAMERA_POSE, LIGHT_SENSOR_HEIGHT, SENSOR_HEIGHT,
                              SENSOR_NAMES, WHEEL_WIDTH, RobotModel)
 
@@ -35,7 +36,7 @@ class FixedFrame:
 
     def quaternion(self) -> tuple[float, float, float, float]:
         """(x, y, z, w) of the yaw."""
-        return 0.0, 0.0, math.sin(self.yaw / 2.0), math.cos(self.yaw / 2.0)
+        return 0.0, 0.0, *quaternion_from_yaw(self.yaw)
 
 
 def sensor_frames(model: RobotModel = RobotModel()) -> list[FixedFrame]:

@@ -10,13 +10,12 @@ are still published, and the simulator says once that there is no TF.
 """
 from __future__ import annotations
 
-import math
-
 from geometry_msgs.msg import TransformStamped
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from std_msgs.msg import String
 
+from epuck_ros.conversions import quaternion_from_yaw
 from epuck_ros.description import WHEEL_LINKS, sensor_frames, urdf, wheel_offsets
 from epuck_ros.model import RobotModel
 from epuck_ros.nodes.robot_ports import RobotPorts, quiet_publisher, topic_prefix
@@ -85,9 +84,9 @@ class TfPorts:
         if self._tf_pub is None or not self._tf_pub.get_subscription_count():
             return
         for patch, (x, y, yaw), (left, right) in zip(self._steps, sim.odom_pose.tolist(), sim.wheel_angles.tolist()):
-            self._tf_pub.publish(patch.bytes((*stamp, x, y, math.sin(yaw / 2.0), math.cos(yaw / 2.0),
-                                              *stamp, math.sin(left / 2.0), math.cos(left / 2.0),
-                                              *stamp, math.sin(right / 2.0), math.cos(right / 2.0))))
+            # a wheel turns about y: its quaternion (0, sin, 0, cos) has the numbers of a yaw's (0, 0, sin, cos)
+            self._tf_pub.publish(patch.bytes((*stamp, x, y, *quaternion_from_yaw(yaw), *stamp,
+                                              *quaternion_from_yaw(left), *stamp, *quaternion_from_yaw(right))))
 
 
 def _prefix(robot: RobotPorts) -> str:
@@ -96,7 +95,7 @@ def _prefix(robot: RobotPorts) -> str:
 
 
 def _yaw(yaw: float) -> tuple[float, float, float, float]:
-    return 0.0, 0.0, math.sin(yaw / 2.0), math.cos(yaw / 2.0)
+    return 0.0, 0.0, *quaternion_from_yaw(yaw)
 
 
 def _transform(parent: str, child: str, xyz: tuple[float, float, float],

@@ -6,7 +6,6 @@ rclpy context, spun in a background thread, so the test's code stays plain and b
 """
 from __future__ import annotations
 
-import math
 import os
 import subprocess
 import sys
@@ -17,6 +16,7 @@ from pathlib import Path
 from collections.abc import Callable, Mapping
 from typing import IO, Any
 
+from epuck_ros.conversions import seconds_from_stamp, yaw_from_quaternion
 from epuck_ros.testing.domains import claim_free_domain
 
 POLL = 0.05
@@ -189,12 +189,12 @@ class SimulatorUnderTest:
 
     def _on_clock(self, msg: Any) -> None:
         with self._lock:
-            self._clock = msg.clock.sec + msg.clock.nanosec * 1e-9
+            self._clock = seconds_from_stamp(msg.clock.sec, msg.clock.nanosec)
 
     def _on_truth(self, name: str, msg: Any) -> None:
         q = msg.pose.pose.orientation
-        yaw = math.atan2(2.0 * (q.w * q.z + q.x * q.y), 1.0 - 2.0 * (q.y * q.y + q.z * q.z))
-        stamp = msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
+        yaw = yaw_from_quaternion(q.x, q.y, q.z, q.w)
+        stamp = seconds_from_stamp(msg.header.stamp.sec, msg.header.stamp.nanosec)
         with self._lock:
             self._truth[name] = (stamp, msg.pose.pose.position.x, msg.pose.pose.position.y, yaw)
 
