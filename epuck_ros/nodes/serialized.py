@@ -68,8 +68,8 @@ class Patch:
             position += size
 
     def like(self, msg: Any) -> Patch:
-        """The same fields in `msg`, a message of the same type laid out alike (another robot's, its frame ids as
-        long): two serialisations instead of one per field. ValueError if its fields lie elsewhere."""
+        """The same fields in `msg`, a message of the same type with the same layout: another robot's, its frame ids
+        as long. Two serialisations instead of one per field; ValueError if its fields lie elsewhere."""
         saved = [_get(msg, path) for path in self._paths]
         for path, marker in zip(self._paths, self._markers):
             _set(msg, path, marker)

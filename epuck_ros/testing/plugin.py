@@ -23,8 +23,8 @@ from epuck_ros.testing.simulator import SimulatorUnderTest
 
 @pytest.fixture
 def epuck_sim(tmp_path: Path) -> Iterator[Callable[..., SimulatorUnderTest]]:
-    """A factory: `epuck_sim(world=None, robots=0, seed=0, **parameters)` starts a simulator (more parameters of
-    `sim`, e.g. `noise=False`, go to it as `-p name:=value`); its output is in `sim.log_path`."""
+    """A factory of simulators: called with world=None, robots=0, seed=0 and more parameters of `sim` (e.g.
+    `noise=False`, passed as `-p name:=value`), it starts one; its output is in `sim.log_path`."""
     started: list[SimulatorUnderTest] = []
 
     def start(world: str | Path | None = None, robots: int = 0, seed: int = 0,

@@ -101,7 +101,7 @@ class SimulatorUnderTest:
         return self.start_poses[name] if stamped is None else stamped[1:]
 
     def contacts(self, robot: str | int | None = None, timeout: float = 30.0) -> int:
-        """How many contacts (with obstacles or robots) the robot has had so far (None: the first robot).
+        """The number of the robot's contacts with obstacles or robots so far (None: the first robot).
 
         Read from a new subscription to its latched `collisions`: the simulator publishes a count after the step's
         `/clock`, so a subscription kept from the start could still have it on its way."""
