@@ -40,6 +40,7 @@ from epuck_ros.nodes.qos import LATCHED
 from epuck_ros.nodes.robot_ports import JOINT_NAMES, WARN_PERIOD, WORLD_FRAME, RobotPorts, quiet_publisher
 from epuck_ros.nodes.serialized import Patch
 from epuck_ros.nodes.spinning import end_process, handle_shutdown_signals, shutdown_requested, spin_until_shutdown
+from epuck_ros.nodes.tf_ports import TfPorts
 from epuck_ros.simulation import CommandError, Simulation, StepEvents
 from epuck_ros.world import WorldError, default_world, load_world, place_robots
 
@@ -242,6 +243,7 @@ class SimNode(Node):
                 raise StartInterrupted()
             self.ports.append(RobotPorts(self, index, name, several, stream, LATCHED, self._on_command,
                                          values['frame_prefix'], values['cmd_vel_stamped']))
+        self._tf = TfPorts(self, self.ports, self._sim, several, stream, LATCHED, values['frame_prefix'] + WORLD_FRAME)
         quiet_publisher(self, String, 'world', LATCHED).publish(
             String(data=yaml.safe_dump(world.to_dict(), sort_keys=False)))
         quiet_publisher(self, MarkerArray, 'world_markers', LATCHED).publish(
@@ -332,7 +334,8 @@ class SimNode(Node):
                                       'anything else mixes up simulated time')
 
     def _stream_publishers(self) -> list:
-        return [self._clock_pub] + [pub for ports in self.ports for pub in ports.stream_publishers]
+        return [self._clock_pub] + [pub for ports in self.ports for pub in ports.stream_publishers] + \
+            self._tf.stream_publishers
 
     def _kept_all(self, topic: str) -> bool:
         """Some reader of `topic` keeps all its samples (KEEP_ALL history: a recorder)."""
@@ -481,6 +484,7 @@ class SimNode(Node):
         stamp = stamp_from_seconds(self._sim.time)
         for ports in self.ports:
             ports.publish(self._sim, stamp)
+        self._tf.publish(self._sim, stamp)
         self._clock_pub.publish(self._clock_message.bytes(stamp))
 
     def _after_step(self, events: StepEvents, now_sim: float) -> None:
