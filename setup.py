@@ -9,7 +9,8 @@ setup(
     name=package_name,
     version='0.1.0',
     packages=find_packages(exclude=['test']),
-    package_data={package_name: ['worlds/*.yaml', 'view/static/*', 'webots/examples/*.py', 'nodes/*.xml', 'urdf/*.urdf']},
+    package_data={
+        package_name: ['worlds/*.yaml', 'view/static/*', 'webots/examples/*.py', 'nodes/*.xml', 'urdf/*.urdf']},
     data_files=[
         ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
         ('share/' + package_name, ['package.xml']),
@@ -41,6 +42,6 @@ setup(
             'sweep = epuck_ros.experiments.cli:main',
             'evolve = epuck_ros.evolution.cli:main',
         ],
-        'pytest11': ['epuck_ros = epuck_ros.testing.plugin'],
+        'pytest11': ['epuck_ros = epuck_ros.testing.plugin'],   # a plugin, not an executable
     },
 )
