@@ -129,9 +129,9 @@ class Lockstep:
         with self._changed:
             self._answered[robot] = True
             self._awaited.discard(robot)
-            if self._awaited:
-                return
-            if not (self._parked and not self._closed and self._lend()):
+            if self._awaited or not self._parked:
+                return   # more answers to come, or nobody waits for them yet
+            if self._closed or not self._lend():
                 self._changed.notify()
                 return
             self._take_answers()
