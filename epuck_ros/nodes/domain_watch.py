@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import os
 import time
+from collections.abc import Callable
 
 from rclpy.node import Node
 from std_msgs.msg import String
@@ -52,7 +53,7 @@ class DomainWatch:
         node.create_subscription(String, SIMULATORS_TOPIC, self._on_simulator, ANNOUNCEMENT_QOS)
         node.create_timer(WATCH_PERIOD, self._watch_for_newcomers)
 
-    def alone(self, keep_looking: object) -> bool:
+    def alone(self, keep_looking: Callable[[], bool]) -> bool:
         """Before the first step: look for another simulator until the discovery window ends; refuse if there is.
 
         Another `/clock` publisher in the graph may be a simulator that started after this one (under load this

@@ -1,10 +1,11 @@
 """`sim`: the e-puck simulator node — a thin ROS 2 shell around `epuck_ros.simulation.Simulation`.
 
 Threads: the loop thread steps the simulation, paced by `real_time_factor` against the wall clock (0 = as fast as
-the machine can go), and is the source of `/clock`; the executor thread (one: the node is spun by a single-threaded
-executor) receives commands, service calls and parameters. Who steps: the loop thread, which holds the claim of the
-node's `Lockstep` (epuck_ros/lockstep.py); in lockstep at `real_time_factor` 0, while it waits for a step's answers,
-it lends the claim to the executor thread that receives the last answer, which takes the next step itself. Every
+the machine can go), and is the source of `/clock`; the executor thread receives commands, service calls and
+parameters (the node is spun by rclpy's single-threaded EventsExecutor; its callbacks share the default, mutually
+exclusive callback group, so under any executor they never run two at a time). Who steps: the loop thread, which
+holds the claim of the node's `Lockstep` (epuck_ros/lockstep.py); in lockstep at `real_time_factor` 0, while it waits
+for a step's answers, it lends the claim to the thread that receives the last answer, which takes the next step. Every
 message of a step carries that step's simulated time, and `/clock` goes out last. Each robot's topics belong to its
 `RobotPorts`.
 """
