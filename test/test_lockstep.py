@@ -186,3 +186,46 @@ def test_a_headless_loop_steps_once_per_round_of_answers(robots):
         assert step.await_answers()
         step.step()
     assert [count for count, _, _ in sim.steps] == list(range(1, 7))
+
+
+def test_answers_from_several_threads_step_each_step_once():
+    """Each robot's answers from its own thread (as from a multi-threaded executor): every step is taken once, by
+    the thread of its last answer, after every robot answered the one before."""
+    robots, rounds = 4, 50
+    published = threading.Condition()
+    sim = Sim()
+
+    def take(resend: bool) -> None:
+        with published:
+            sim(resend)
+            published.notify_all()
+
+    step = Lockstep(robots, take, LONG, lend=lambda: True)
+    ending = threading.Event()
+
+    def loop() -> None:   # as the sim's loop thread: step, wait for the answers (lending the claim), again
+        step.claim()
+        step.step()
+        while True:
+            step.await_answers()
+            if ending.is_set():
+                return
+            step.step()
+
+    def answer_each_step(robot: int) -> None:
+        for number in range(1, rounds + 1):
+            with published:
+                assert published.wait_for(lambda: sim.count >= number, timeout=LONG)
+            step.answer(robot)
+
+    holder = in_thread(loop, 'holder')
+    answerers = [in_thread(lambda robot=robot: answer_each_step(robot), f'robot{robot}') for robot in range(robots)]
+    for thread in answerers:
+        thread.join()
+    with published:
+        assert published.wait_for(lambda: sim.count == rounds + 1, timeout=LONG)
+    ending.set()
+    step.close()
+    holder.join()
+    assert [count for count, _, _ in sim.steps] == list(range(1, rounds + 2))
+    assert {thread for _, _, thread in sim.steps[1:]} <= {'holder'} | {f'robot{robot}' for robot in range(robots)}
