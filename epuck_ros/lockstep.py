@@ -21,7 +21,7 @@ LOCKSTEP_START_RESENDS = 3
 OWN_RATE_AFTER = 2
 """Steps in a row a controller that has answered before may leave unanswered until the timeout before lockstep
 takes it for one that answers at its own rate (a timer), not every step: waiting a `timeout` for each
-step it skips made a 10 Hz controller run at 3 % of real time."""
+step it skips made a 10 Hz controller run at a few per cent of real time."""
 OWN_RATE_WAIT = 0.01
 """Wall seconds a step waits at most for controllers that answer at their own rate: long enough for one that
 answers this step's /clock tick (a round trip is well under a millisecond), short enough that the steps it skips
@@ -48,8 +48,10 @@ class Lockstep:
                  driven: Callable[[], Sequence[int]] | None = None, lend: Callable[[], bool] = lambda: False,
                  on_own_rate: Callable[[int], None] = lambda robot: None,
                  on_resend: Callable[[], None] = lambda: None) -> None:
-        """`driven()`: the robots that have a controller now (default: all); `on_own_rate(robot)`: that robot's
-        controller was found to answer at its own rate; `on_resend()`: the first step is about to be sent again."""
+        """`driven()`: the robots that have a controller now (default: all); `lend()`: whether the thread of a step's
+        last answer takes the next step (asked under the condition while the holder waits, so nothing the holder
+        writes changes meanwhile); `on_own_rate(robot)`: that robot's controller was found to answer at its own rate;
+        `on_resend()`: the first step is about to be sent again."""
         self._robots = robots
         self._step = step
         self._timeout = timeout

@@ -52,8 +52,6 @@ IDLE_POLL = 0.05
 """Wall seconds between two looks at the parameters while paused."""
 SUMMARY_PERIOD = 30.0
 """Wall seconds between two summaries of a repeated condition (command time-outs)."""
-RUN_TIME_PARAMETERS = {'real_time_factor', 'paused', 'pause_at', 'cmd_timeout'}
-"""The parameters that may change while the simulation runs (the rest are read-only)."""
 
 SIM_PARAMETERS = [
     ParamSpec('time_step', 0.032, 'simulated seconds per step (Webots basicTimeStep is 32 ms)', (0.001, 1.0),
