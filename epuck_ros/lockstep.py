@@ -88,7 +88,7 @@ class Lockstep:
             self._holder = threading.get_ident()
 
     def step(self, resend: bool = False) -> None:
-        """One step (or the last one again), by the claim's holder; its answers are awaited from now on."""
+        """Take one step, or send the last one again, by the claim's holder; its answers are awaited from now on."""
         if self._holder != threading.get_ident():
             raise StepClaimError(f'thread {threading.current_thread().name} stepped without the claim')
         with self._changed:

@@ -38,7 +38,7 @@ RECURSIVE = 'scripts/test.sh'
 
 
 def readme_commands(text: str) -> list[str]:
-    """The command lines of the ```bash blocks (comments and blank lines dropped; `\\` continuations joined)."""
+    r"""The command lines of the ```bash blocks (comments and blank lines dropped; `\` continuations joined)."""
     commands: list[str] = []
     for block in re.findall(r'^```bash\n(.*?)^```', text, flags=re.S | re.M):
         for line in block.replace('\\\n', ' ').splitlines():

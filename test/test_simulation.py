@@ -4,6 +4,7 @@ import math
 import numpy as np
 import pytest
 
+from epuck_ros.bag.shapes import fit_circle
 from epuck_ros.ir_sensor import raw_from_distance
 from epuck_ros.model import IR_LOOKUP_TABLE, MAX_WHEEL_SPEED, SENSOR_POSES, RobotModel
 from epuck_ros.simulation import CommandError, Simulation
@@ -60,9 +61,7 @@ def test_circle_has_the_course_radius():
     sim = open_floor()
     sim.command_wheels(0, 0.3 * MAX_WHEEL_SPEED, 0.6 * MAX_WHEEL_SPEED)
     xy = np.array(run(sim, 10.0))[:, :2]
-    # algebraic circle fit: x^2 + y^2 = 2 a x + 2 b y + c
-    a, b, c = np.linalg.lstsq(np.column_stack([2 * xy, np.ones(len(xy))]), (xy ** 2).sum(axis=1), rcond=None)[0]
-    radius = math.sqrt(c + a * a + b * b)
+    radius, (a, b), _ = fit_circle(xy[:, 0], xy[:, 1])
     assert radius == pytest.approx(0.078, abs=1e-9)
     assert (a, b) == pytest.approx((0.0, 0.078), abs=1e-9)
 

@@ -25,21 +25,23 @@ from rclpy.exceptions import ParameterException
 from rclpy.experimental import EventsExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
-from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.signals import SignalHandlerOptions
 from rosgraph_msgs.msg import Clock
 from std_msgs.msg import String
 from std_srvs.srv import Empty, Trigger
 from visualization_msgs.msg import MarkerArray
 
+from epuck_ros.conversions import stamp_from_seconds
 from epuck_ros.lockstep import OWN_RATE_AFTER, OWN_RATE_WAIT, Lockstep
 from epuck_ros.markers import world_markers
-from epuck_ros.model import RobotModel
+from epuck_ros.model import TIME_STEP, RobotModel
 from epuck_ros.nodes.ack_window import AckWindow, history_steps, window_steps
 from epuck_ros.nodes.dds_profile import use_package_profile, warn_if_not_fast_dds
 from epuck_ros.nodes.domain_watch import DISCOVERY_WINDOW, DomainWatch
 from epuck_ros.nodes.pacing import Controls, Pacer, Settings
 from epuck_ros.nodes.params import ParamSpec, Usage, command_line_value, declare_parameters, prepare_arguments
+from epuck_ros.nodes.qos import LATCHED
 from epuck_ros.nodes.robot_ports import JOINT_NAMES, WARN_PERIOD, WORLD_FRAME, RobotPorts, quiet_publisher
 from epuck_ros.nodes.serialized import Patch
 from epuck_ros.nodes.spinning import end_process, handle_shutdown_signals, shutdown_requested, spin_until_shutdown
@@ -54,7 +56,7 @@ SUMMARY_PERIOD = 30.0
 """Wall seconds between two summaries of a repeated condition (command time-outs)."""
 
 SIM_PARAMETERS = [
-    ParamSpec('time_step', 0.032, 'simulated seconds per step (Webots basicTimeStep is 32 ms)', (0.001, 1.0),
+    ParamSpec('time_step', TIME_STEP, 'simulated seconds per step (Webots basicTimeStep is 32 ms)', (0.001, 1.0),
               read_only=True),
     ParamSpec('real_time_factor', 1.0, 'simulated seconds per wall second; 0 = as fast as possible', (0.0, 1e4)),
     ParamSpec('paused', False, 'while true, simulated time stands still (nothing is stepped or published); '
@@ -333,7 +335,7 @@ class SimNode(Node):
     def _publish(self) -> None:
         """One step's messages, robot by robot; `/clock` goes last, so a node whose timer fires on that tick has
         its data."""
-        stamp = _stamp(self._sim.time)
+        stamp = stamp_from_seconds(self._sim.time)
         for ports in self.ports:
             ports.publish(self._sim, stamp)
         self._clock_pub.publish(self._clock_message.bytes(stamp))
@@ -373,10 +375,6 @@ class SimNode(Node):
             f'(on each /clock tick or ir_raw message).')
 
 
-LATCHED = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
-"""The world, world_markers and each robot's collisions: the last message, for every reader that comes later."""
-
-
 def _world(values: dict) -> World:
     """The world the parameters name, with its robots placed if `robots` asks for a number of them."""
     world = load_world(values['world']) if values['world'] else default_world()
@@ -394,11 +392,6 @@ def publication_mode(argv: list[str]) -> str:
     (median of 5 alternating runs). Only `-p lockstep:=...` on the command line (what `bringup` passes) is looked
     at; lockstep from a parameter file runs the same, asynchronously."""
     return 'SYNCHRONOUS' if command_line_value(argv, 'lockstep') is True else 'ASYNCHRONOUS'
-
-
-def _stamp(seconds: float) -> tuple[int, int]:
-    """(sec, nanosec) of a simulated time."""
-    return divmod(round(seconds * 1e9), 1_000_000_000)
 
 
 class StartInterrupted(Exception):

@@ -23,6 +23,7 @@ from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray
 
+from epuck_ros.conversions import nanoseconds_from_stamp
 from epuck_ros.nodes.ack_window import COMMAND_QOS
 from epuck_ros.nodes.robot_ports import JOINT_NAMES
 
@@ -52,10 +53,6 @@ class StepData:
     ir_raw: tuple[float, ...]
 
 
-def _nanoseconds(stamp: object) -> int:
-    return stamp.sec * 1_000_000_000 + stamp.nanosec
-
-
 class SimLink:
     """Publishes `[left, right]` on `<robot>/wheel_cmd`; reads `/clock`, `<robot>/joint_states`, `<robot>/ir_raw`."""
 
@@ -83,7 +80,7 @@ class SimLink:
     # --- callbacks --------------------------------------------------------------------------------------------
 
     def _on_clock(self, msg: Clock) -> None:
-        self._clock_ns = _nanoseconds(msg.clock)
+        self._clock_ns = nanoseconds_from_stamp(msg.clock.sec, msg.clock.nanosec)
         self._clocks_since_answer += 1
 
     def _on_joints(self, msg: JointState) -> None:
@@ -210,9 +207,10 @@ class SimLink:
         That also holds when the simulator went on without waiting (its lockstep_timeout): the readings then are
         those of its newest step, all three. Three publications without the counts meeting (a re-sent first step
         straddling the answer) and the newest ir_raw is taken as it is."""
-        clock, clocks = self._clock_ns, self._clocks_since_answer
-        return clock is not None and clock > self._consumed_ns and self._joints is not None and \
-            _nanoseconds(self._joints.header.stamp) == clock and self._ir_since_answer > 0 and \
+        clock, clocks, joints = self._clock_ns, self._clocks_since_answer, self._joints
+        return clock is not None and clock > self._consumed_ns and joints is not None and \
+            nanoseconds_from_stamp(joints.header.stamp.sec, joints.header.stamp.nanosec) == clock and \
+            self._ir_since_answer > 0 and \
             (self._ir_since_answer == clocks or clocks >= MISMATCH_GIVE_UP)
 
     def _next_step(self) -> StepData | None:
