@@ -4,7 +4,7 @@ Every figure comes from the Webots E-puck.proto (R2022b, ENU frame) and
 E-puckDistanceSensor.proto, as collected in ``shared/reference/epuck-model-sources.md``:
 wheel radius 0.02 m and axle 0.052 m (§1), maxVelocity 6.28 rad/s, encoder resolution
 2π/1000 rad, body collision cylinder radius 0.037 m, sensor poses (§1.1, yaw computed from
-the PROTO rotations) and the IR lookup table (distance m, raw value, relative noise).
+the PROTO rotations), the camera's translation, and the IR lookup table (distance m, raw value, relative noise).
 """
 from __future__ import annotations
 
@@ -34,6 +34,18 @@ SENSOR_POSES = np.array([
     [0.022, 0.025, 0.7992],
     [0.030, 0.010, 0.2992],
 ])
+
+SENSOR_HEIGHT = 0.033
+"""m above the floor of ps0..ps7 (the z of their translations); their rays are simulated level."""
+LIGHT_SENSOR_HEIGHT = 0.0329
+"""m above the floor of ls0..ls7, which share the x, y and yaw of ps0..ps7."""
+CAMERA_POSE = (0.030, 0.0, 0.028)
+"""x, y, z (m) of the camera in base_link, looking along +x."""
+BODY_HEIGHT = 0.045
+BODY_CENTRE_HEIGHT = 0.025
+"""m; the body's collision cylinder (radius `RobotModel.body_radius`) and the height of its centre."""
+WHEEL_WIDTH = 0.005
+"""m; the wheel's bounding cylinder (its hinge sits at the wheel radius above the floor)."""
 
 # Webots E-puckDistanceSensor lookupTable: distance (m), raw value, relative noise (std).
 IR_LOOKUP_TABLE = np.array([
