@@ -36,9 +36,11 @@ class Camera:
         self._column_cos = np.cos(self.column_angles)
         self._elevation = (self.height / 2.0 - (np.arange(self.height) + 0.5)) / self.focal   # tan, per row
         self._below = np.flatnonzero(self._elevation < 0.0)
-        self._sky = np.array(SKY_COLOR) * 255.0
-        self._colors = scene.colors * 255.0
-        self._floor = scene.floor.flat * 255.0
+        # One palette for every pixel: the objects' colours, the sky, then every floor texel; a pixel is an index.
+        objects = len(scene.colors)
+        self._sky = objects
+        self._floor_offset = objects + 1
+        self._palette = np.round(np.concatenate([scene.colors, [SKY_COLOR], scene.floor.flat]) * 255.0).astype(np.uint8)
         self._mount_x, self._mount_y, self._mount_z = CAMERA_POSE
 
     @property
@@ -57,8 +59,8 @@ class Camera:
         angles = yaw + self.column_angles
         dx, dy = np.cos(angles), np.sin(angles)
         hits = self.scene.hits(ox, oy, dx, dy)
-        nearest = hits.argmin(axis=0)                                   # (R, C)
-        distance = np.take_along_axis(hits, nearest[None], axis=0)[0]
+        nearest = hits.argmin(axis=0)                                      # (R, C)
+        distance = hits.min(axis=0)
         if robots_xy is not None and len(robots_xy) > 1:
             robots = self.scene.robot_hits(ox, oy, dx, dy, np.asarray(robots_xy, dtype=float),
                                            np.arange(len(poses)) if own is None else np.asarray(own))
@@ -69,17 +71,14 @@ class Camera:
         rise = depth[:, None, :] * self._elevation[None, :, None]          # (R, V, C): height above the camera
         covered = (rise >= -self._mount_z) & (rise <= (self.scene.heights[nearest] - self._mount_z)[:, None, :])
         covered &= (depth >= CAMERA_NEAR)[:, None, :]
-        image = np.empty((len(poses), self.height, self.width, 3))
-        image[:] = self._sky
+        pixels = np.full(covered.shape, self._sky)
         below = self._below
         if len(below):
             reach = self._mount_z / -self._elevation[below, None] / self._column_cos[None, :]   # (V', C) along the ray
             fx = ox[:, :, None] + dx[:, None, :] * reach[None]
             fy = oy[:, :, None] + dy[:, None, :] * reach[None]
-            image[:, below] = self._floor[self.scene.floor.index(fx, fy)]
-        object_colors = self._colors[nearest]                             # (R, C, 3)
-        image = np.where(covered[..., None], object_colors[:, None, :, :], image)
-        return image.astype(np.uint8)
+            pixels[:, below] = self._floor_offset + self.scene.floor.index(fx, fy)
+        return self._palette[np.where(covered, nearest[:, None, :], pixels)]
 
     def camera_info_k(self) -> list[float]:
         """The intrinsic matrix K (row-major 3 x 3) in ROS's convention (pixel centres at whole numbers)."""

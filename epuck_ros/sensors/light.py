@@ -65,7 +65,8 @@ class LightSensors:
         if robots_xy is not None and len(robots_xy) > 1:
             t_robot = self.scene.robot_hits(sx, sy, dx, dy, np.asarray(robots_xy, dtype=float),
                                             np.arange(count) if own is None else np.asarray(own))
-            blocked |= (t_robot < flat) & (BODY_HEIGHT > LIGHT_SENSOR_HEIGHT + (lz - LIGHT_SENSOR_HEIGHT) * t_robot / flat)
+            line = LIGHT_SENSOR_HEIGHT + (lz - LIGHT_SENSOR_HEIGHT) * t_robot / flat
+            blocked |= (t_robot < flat) & (BODY_HEIGHT > line)
         return blocked
 
     def read(self, poses: np.ndarray, rng: np.random.Generator | None, robots_xy: np.ndarray | None = None,

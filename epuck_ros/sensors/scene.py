@@ -71,8 +71,8 @@ class Scene:
 
     def robot_hits(self, ox: np.ndarray, oy: np.ndarray, dx: np.ndarray, dy: np.ndarray,
                    robots_xy: np.ndarray, own: np.ndarray) -> np.ndarray:
-        """Distance (R, K) along each viewer's rays (origins (R, 1) or (R, K), directions (R, K)) to the nearest other robot
-        body within ROBOT_VIEW_RANGE; `own` (R,) is each viewer's own row in `robots_xy` (N, 2)."""
+        """Distance (R, K) along each viewer's rays (origins (R, 1) or (R, K), directions (R, K)) to the nearest
+        other robot body within ROBOT_VIEW_RANGE; `own` (R,) is each viewer's own row in `robots_xy` (N, 2)."""
         nearest = np.full(dx.shape, np.inf)
         if len(robots_xy) < 2:
             return nearest
@@ -109,8 +109,8 @@ def _circle_hits(fx: np.ndarray, fy: np.ndarray, r2: np.ndarray | float, dx: np.
 def _box_corners(x: float, y: float, size_x: float, size_y: float, yaw: float) -> list[tuple[float, float]]:
     cos, sin = math.cos(yaw), math.sin(yaw)
     hx, hy = size_x / 2.0, size_y / 2.0
-    return [(x + cos * lx - sin * ly, y + sin * lx + cos * ly) for lx, ly in ((hx, hy), (-hx, hy), (-hx, -hy),
-                                                                            (hx, -hy))]
+    corners = ((hx, hy), (-hx, hy), (-hx, -hy), (hx, -hy))
+    return [(x + cos * lx - sin * ly, y + sin * lx + cos * ly) for lx, ly in corners]
 
 
 class FloorTexture:
