@@ -19,7 +19,7 @@ def close_pairs(xy: np.ndarray, reach: float) -> tuple[np.ndarray, np.ndarray]:
     """Index arrays (i, j), i < j, of every pair of points (N, 2) closer than `reach`, sorted by (i, j).
 
     The order depends only on which pairs are close, not on how they were found: a caller that keeps a wider
-    list for a while (the simulator, see Simulation._cover_pairs) and filters it by distance gets exactly what a
+    list for a while (the simulator, see SwarmStepper._cover_pairs) and filters it by distance gets exactly what a
     fresh search would give, so a simulation repeats to the bit however often it searched.
     """
     count = len(xy)

@@ -8,6 +8,7 @@ import pytest
 from epuck_ros.ir_sensor import raw_from_distance
 from epuck_ros.model import IR_LOOKUP_TABLE, MAX_WHEEL_SPEED, SENSOR_POSES, RobotModel
 from epuck_ros.simulation import CommandError, Simulation
+from epuck_ros.stepping.swarm import SwarmStepper
 from epuck_ros.spatial import close_pairs
 from epuck_ros.world import Box, Cylinder, RobotStart, World, WorldError, default_world, place_robots, world_from_dict
 
@@ -246,8 +247,8 @@ def test_searching_the_robot_pairs_only_when_needed_changes_nothing(count, size,
         assert sim.robot_collisions.sum() > 0
         return np.array(states)
     lazy = run()
-    cover = Simulation._cover_pairs
-    monkeypatch.setattr(Simulation, '_cover_pairs', lambda sim, xy, refresh=False: cover(sim, xy, refresh=True))
+    cover = SwarmStepper._cover_pairs
+    monkeypatch.setattr(SwarmStepper, '_cover_pairs', lambda stepper, xy, refresh=False: cover(stepper, xy, True))
     np.testing.assert_array_equal(lazy, run())
 
 
