@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from epuck_ros.appearance import BOX_COLOR, FLOOR_COLOR, SKY_COLOR, WALL_COLOR, Appearance, read_appearance
+from epuck_ros.world.appearance import BOX_COLOR, FLOOR_COLOR, SKY_COLOR, WALL_COLOR, Appearance, read_appearance
 from epuck_ros.model import (
     CAMERA_FOV, CAMERA_POSE, GROUND_LOOKUP_TABLE, GROUND_SENSOR_POSES, GYRO_LOOKUP_TABLE, RobotModel)
 from epuck_ros.sensors import imu
@@ -18,7 +18,8 @@ from epuck_ros.sensors.ground import GroundSensors
 from epuck_ros.sensors.light import LightSensors
 from epuck_ros.sensors.lookup import sensor_rng
 from epuck_ros.sensors.scene import Scene
-from epuck_ros.world import Box, World, WorldError, _FieldReader
+from epuck_ros.world import Box, World, WorldError, load_world, world_from_dict
+from epuck_ros.world.loading import _FieldReader
 
 WORLDS = Path(__file__).resolve().parents[1] / 'epuck_ros' / 'worlds'
 RED = (1.0, 0.0, 0.0)
@@ -222,3 +223,44 @@ def test_floor_texture_paints_in_order() -> None:
     at = lambda x, y: floor.flat[floor.index(np.array(x), np.array(y))].tolist()  # noqa: E731
     assert at(0.0, 0.0) == [0.0, 1.0, 0.0] and at(0.08, 0.0) == [1.0, 0.0, 0.0] and at(0.3, 0.3) == [1.0, 1.0, 1.0]
     assert RobotModel() == RobotModel()   # the model's new constants left the dataclass as it was
+
+
+def test_simulation_reads_a_sense_only_while_wanted_and_ir_stays_the_same() -> None:
+    from epuck_ros.simulation import Simulation
+    world = load_world(WORLDS / 'default.yaml')
+
+    def run(kinds: tuple[str, ...]) -> tuple[Simulation, list[np.ndarray]]:
+        sim = Simulation(world, seed=3)
+        for kind in kinds:
+            sim.senses.want(kind, [0])
+        ir = []
+        for step in range(40):
+            sim.command_wheels(0, 3.0, 2.0)
+            sim.step()
+            ir.append(sim.ir_raw.copy())
+        return sim, ir
+    plain, plain_ir = run(())
+    assert not plain.senses.active and np.isnan(plain.senses.ground_raw).all() and plain.senses.images is None
+    every, every_ir = run(('camera', 'ground', 'light', 'imu'))
+    assert all((a == b).all() for a, b in zip(plain_ir, every_ir))
+    assert (plain.true_pose == every.true_pose).all()
+    ground_only, _ = run(('ground',))
+    assert (ground_only.senses.ground_raw == every.senses.ground_raw).all()   # its own noise stream
+    assert every.senses.images[0].any() and np.isfinite(every.senses.light_raw).all()
+    assert every.senses.accelerometer[0, 2] == pytest.approx(9.81, rel=0.02)
+
+
+def test_world_files_with_appearance_round_trip_and_old_worlds_are_unchanged() -> None:
+    for path in sorted(WORLDS.glob('*.yaml')):
+        world = load_world(path)
+        text = path.read_text()
+        if not any(key in text for key in ('color', 'floor', 'lights', 'height')):
+            assert world.appearance == Appearance()
+            assert set(world.to_dict()) <= {'arena', 'boxes', 'cylinders', 'robot', 'robots'}
+        assert world_from_dict(world.to_dict()) == world
+    data = {'arena': {'size': [1, 1], 'color': [0, 0, 1]}, 'boxes': [{'position': [0.2, 0], 'size': [0.1, 0.1],
+                                                                     'color': [1, 0, 0], 'height': 0.05}],
+            'floor': {'paint': [{'disc': [0, 0.3], 'radius': 0.05, 'color': [0, 1, 0]}]},
+            'lights': [{'position': [0, 0, 0.5], 'intensity': 2.0}]}
+    world = world_from_dict(data)
+    assert world.appearance.box_color(0) == RED and world_from_dict(world.to_dict()) == world

@@ -16,7 +16,7 @@ import math
 
 import numpy as np
 
-from epuck_ros.appearance import SKY_COLOR
+from epuck_ros.world.appearance import SKY_COLOR
 from epuck_ros.model import CAMERA_FOV, CAMERA_HEIGHT, CAMERA_NEAR, CAMERA_POSE, CAMERA_WIDTH
 from epuck_ros.sensors.scene import Scene
 

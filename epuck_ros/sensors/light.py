@@ -3,7 +3,7 @@
 Webots' LightSensor (reference manual, lightsensor.md): each light adds intensity x attenuation x max(0, N.L),
 N the sensor's axis, L the unit vector to the light, unless an obstacle hides the light (the `occlusion` option,
 on here); lights are white and ambientIntensity 0, so E is that sum. Attenuation is 1 / d^2 (see
-epuck_ros.appearance). An obstacle hides a light when the sight line passes below its top where it crosses it;
+epuck_ros.world.appearance). An obstacle hides a light when the sight line passes below its top where it crosses it;
 robots' bodies hide light too. The table maps E = 1 W/m^2 and less to 4095 and E = 2 and more to 0.
 """
 from __future__ import annotations

@@ -12,7 +12,7 @@ import math
 
 import numpy as np
 
-from epuck_ros.appearance import ROBOT_COLOR, Appearance, Paint
+from epuck_ros.world.appearance import ROBOT_COLOR, Appearance, Paint
 from epuck_ros.model import BODY_HEIGHT, RobotModel
 from epuck_ros.spatial import close_pairs
 from epuck_ros.world import World

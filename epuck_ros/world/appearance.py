@@ -114,16 +114,24 @@ def read_appearance(fields: Fields, top: Mapping[str, Any]) -> Appearance:
     return Appearance(
         wall_color=_color(fields, arena.get('color'), 'arena.color', WALL_COLOR),
         wall_height=_height(fields, arena.get('height'), 'arena.height'),
-        box_colors=tuple(_color(fields, box.get('color'), f'boxes[{i}].color', BOX_COLOR)
-                         for i, box in enumerate(boxes)),
-        box_heights=tuple(_height(fields, box.get('height'), f'boxes[{i}].height') for i, box in enumerate(boxes)),
-        cylinder_colors=tuple(_color(fields, c.get('color'), f'cylinders[{i}].color', CYLINDER_COLOR)
-                              for i, c in enumerate(cylinders)),
-        cylinder_heights=tuple(_height(fields, c.get('height'), f'cylinders[{i}].height')
-                               for i, c in enumerate(cylinders)),
+        box_colors=_trim([_color(fields, box.get('color'), f'boxes[{i}].color', BOX_COLOR)
+                          for i, box in enumerate(boxes)], BOX_COLOR),
+        box_heights=_trim([_height(fields, box.get('height'), f'boxes[{i}].height')
+                           for i, box in enumerate(boxes)], DEFAULT_HEIGHT),
+        cylinder_colors=_trim([_color(fields, c.get('color'), f'cylinders[{i}].color', CYLINDER_COLOR)
+                               for i, c in enumerate(cylinders)], CYLINDER_COLOR),
+        cylinder_heights=_trim([_height(fields, c.get('height'), f'cylinders[{i}].height')
+                                for i, c in enumerate(cylinders)], DEFAULT_HEIGHT),
         floor_color=_color(fields, floor.get('color'), 'floor.color', FLOOR_COLOR),
         paint=_paint(fields, floor.get('paint')),
         lights=_lights(fields, top.get('lights')))
+
+
+def _trim(values: list[Any], default: Any) -> tuple[Any, ...]:
+    """Without the trailing defaults: a world that sets none equals one built without an appearance."""
+    while values and values[-1] == default:
+        values.pop()
+    return tuple(values)
 
 
 def _items(top: Mapping[str, Any], name: str) -> list[Mapping[str, Any]]:
@@ -207,3 +215,37 @@ def _lights(fields: Fields, value: Any) -> tuple[Light, ...]:
             raise fields.fail(f'{path}.intensity', f'must not be negative, got {intensity}')
         lights.append(Light(x, y, z, intensity))
     return tuple(lights)
+
+
+def appearance_dict(appearance: Appearance, data: dict[str, Any]) -> dict[str, Any]:
+    """`data` (a world in the file format) with the appearance keys that differ from the defaults added, so a
+    world without them writes exactly what it wrote before."""
+    if appearance.wall_color != WALL_COLOR:
+        data['arena']['color'] = list(appearance.wall_color)
+    if appearance.wall_height != DEFAULT_HEIGHT:
+        data['arena']['height'] = appearance.wall_height
+    for name, colors, heights, default in (('boxes', appearance.box_colors, appearance.box_heights, BOX_COLOR),
+                                           ('cylinders', appearance.cylinder_colors, appearance.cylinder_heights,
+                                            CYLINDER_COLOR)):
+        for item, color, height in zip(data[name], colors, heights):
+            if color != default:
+                item['color'] = list(color)
+            if height != DEFAULT_HEIGHT:
+                item['height'] = height
+    if appearance.floor_color != FLOOR_COLOR or appearance.paint:
+        data['floor'] = {'color': list(appearance.floor_color), 'paint': [_paint_dict(p) for p in appearance.paint]}
+    if appearance.lights:
+        data['lights'] = [{'position': [light.x, light.y, light.z], 'intensity': light.intensity}
+                          for light in appearance.lights]
+    return data
+
+
+def _paint_dict(paint: Paint) -> dict[str, Any]:
+    shape: dict[str, Any]
+    if paint.kind == 'disc':
+        shape = {'disc': list(paint.points[0]), 'radius': paint.radius}
+    elif paint.kind == 'polyline':
+        shape = {'polyline': [list(p) for p in paint.points], 'width': paint.width}
+    else:
+        shape = {'polygon': [list(p) for p in paint.points]}
+    return shape | {'color': list(paint.color)}
