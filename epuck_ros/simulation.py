@@ -48,9 +48,8 @@ class Simulation:
 
     Robot i is `world.robots[i]` (`names[i]`); every state array has one row per robot. `seed` seeds the IR
     noise (and, each from its own stream, the other senses' noise); `noise=False` gives the exact table
-    values. The arrays the properties return
-    are the simulator's own state, updated in place by `step()`: read them, copy what you keep, do not write to
-    them.
+    values. The arrays the properties return are the simulator's own state, updated in place by `step()`: read
+    them, copy what you keep, do not write to them.
     """
 
     def __init__(self, world: World, model: RobotModel = RobotModel(), time_step: float = 0.032,
@@ -67,7 +66,7 @@ class Simulation:
         self._stepper: OneRobotStepper | SwarmStepper = (
             OneRobotStepper(world, model, self.time_step, self._ir) if n == 1
             else SwarmStepper(world, model, self.time_step, self._ir, self._start))
-        self.senses = Senses(world, n, self.time_step, seed, noise)
+        self.senses = Senses(world, self._state, self.time_step, seed, noise)
         """Camera, ground, light sensors and IMU: read after each step for the robots that want them (`want`)."""
         self._steps = 0
         self._last_command_time = np.zeros(n)

@@ -37,6 +37,7 @@ from epuck_ros.nodes.announcements import ANNOUNCEMENT_QOS, SIMULATORS_TOPIC, an
 from epuck_ros.nodes.dds_profile import use_package_profile, warn_if_not_fast_dds
 from epuck_ros.nodes.params import ParamSpec, Usage, command_line_value, declare_parameters, prepare_arguments
 from epuck_ros.nodes.robot_ports import JOINT_NAMES, WARN_PERIOD, WORLD_FRAME, RobotPorts, quiet_publisher
+from epuck_ros.nodes.sense_ports import SENSE_POLL, SENSE_TOPICS, SensePorts
 from epuck_ros.nodes.serialized import Patch
 from epuck_ros.nodes.spinning import end_process, handle_shutdown_signals, shutdown_requested, spin_until_shutdown
 from epuck_ros.simulation import CommandError, Simulation, StepEvents
@@ -105,13 +106,20 @@ SIM_PARAMETERS = [
               read_only=True),
     ParamSpec('frame_prefix', '', 'prefix of every frame_id (e.g. "sim1/"); with several robots each robot\'s '
                                   'frames are <prefix><name>/odom, ...', read_only=True),
+    ParamSpec('senses', '', 'comma-separated senses every robot computes whether or not their topics have '
+                            'subscribers: camera, ground, light, imu (a sense is computed anyway while its topic has '
+                            'a subscriber)', read_only=True),
+    ParamSpec('camera_width', 52, 'camera image width in pixels (the field of view stays 0.84 rad)', (1, 1024),
+              read_only=True),
+    ParamSpec('camera_height', 39, 'camera image height in pixels', (1, 1024), read_only=True),
 ]
 """The simulator's parameters; `bringup` routes `-p` assignments with this table."""
 
 USAGE = Usage(
     'sim',
     'The e-puck simulator: steps the robots of a world and publishes, per robot, odom, ground_truth, proximity '
-    '(8 Range), ir_raw (the 8 raw IR values), joint_states and collisions, plus the latched world and '
+    '(8 Range), ir_raw (the 8 raw IR values), joint_states and collisions, and while they have subscribers '
+    'camera/image_raw, camera/camera_info, ground_raw, light_raw and imu, plus the latched world and '
     'world_markers and /clock; takes cmd_vel (Twist) or wheel_cmd ([left, right] rad/s) per robot; services '
     'reset (Empty) and step (Trigger, one step while paused). With several robots, robot NAME\'s topics are '
     'NAME/odom, NAME/cmd_vel, ...',
@@ -199,6 +207,11 @@ class SimNode(Node):
         self._discovery_window = values['discovery_window']
         self._sim = Simulation(world, RobotModel(), time_step=self._time_step, seed=values['seed'],
                                noise=values['noise'], cmd_timeout=values['cmd_timeout'])
+        self._forced_senses = _senses(values['senses'])
+        if (values['camera_width'], values['camera_height']) != self._sim.senses.camera_size:
+            self._sim.senses.set_camera_size(values['camera_width'], values['camera_height'])
+        for kind in self._forced_senses:
+            self._sim.senses.want(kind, range(len(world.robots)))
         self._lock = threading.Lock()
         """Guards the simulation: the loop thread steps it (in lockstep the executor thread may too), the executor
         thread commands and resets it."""
@@ -242,6 +255,11 @@ class SimNode(Node):
                 raise StartInterrupted()
             self.ports.append(RobotPorts(self, index, name, several, stream, latched, self._on_command,
                                          values['frame_prefix'], values['cmd_vel_stamped']))
+        self.sense_ports = [SensePorts(self, index, name, several, stream, self._sim, values['frame_prefix'])
+                            for index, name in enumerate(self._sim.names)]
+        self._sensing: list[SensePorts] = []
+        """The robots with a subscriber on some sense topic: their sense messages are published after each step."""
+        self.create_timer(SENSE_POLL, self._update_sense_wants)
         quiet_publisher(self, String, 'world', latched).publish(
             String(data=yaml.safe_dump(world.to_dict(), sort_keys=False)))
         quiet_publisher(self, MarkerArray, 'world_markers', latched).publish(
@@ -480,7 +498,17 @@ class SimNode(Node):
         stamp = _stamp(self._sim.time)
         for ports in self.ports:
             ports.publish(self._sim, stamp)
+        for senses in self._sensing:
+            senses.publish(self._sim, stamp)
         self._clock_pub.publish(self._clock_message.bytes(stamp))
+
+    def _update_sense_wants(self) -> None:
+        """Senses follow their topics' subscribers (see sense_ports)."""
+        with self._lock:
+            for ports in self.sense_ports:
+                ports.update_wants(lambda kind, robot, wanted: self._sim.senses.want(kind, [robot], wanted),
+                                   self._forced_senses)
+            self._sensing = [ports for ports in self.sense_ports if ports.publishing]
 
     def _after_step(self, events: StepEvents, now_sim: float) -> None:
         names = self._sim.names
@@ -595,6 +623,16 @@ def publication_mode(argv: list[str]) -> str:
     (median of 5 alternating runs). Only `-p lockstep:=...` on the command line (what `bringup` passes) is looked
     at; lockstep from a parameter file runs the same, asynchronously."""
     return 'SYNCHRONOUS' if command_line_value(argv, 'lockstep') is True else 'ASYNCHRONOUS'
+
+
+def _senses(value: str) -> frozenset[str]:
+    """The `senses` parameter's words; an unknown one is a ParameterException naming it."""
+    words = frozenset(word.strip() for word in value.split(',') if word.strip())
+    unknown = sorted(words - set(SENSE_TOPICS))
+    if unknown:
+        raise ParameterException(f'senses: unknown sense {unknown[0]!r} (senses: {", ".join(SENSE_TOPICS)})',
+                                 ['senses'])
+    return words
 
 
 def _stamp(seconds: float) -> tuple[int, int]:

@@ -80,7 +80,9 @@ class Camera:
             pixels[:, below] = self._floor_offset + self.scene.floor.index(fx, fy)
         return self._palette[np.where(covered, nearest[:, None, :], pixels)]
 
-    def camera_info_k(self) -> list[float]:
-        """The intrinsic matrix K (row-major 3 x 3) in ROS's convention (pixel centres at whole numbers)."""
-        cx, cy = self.width / 2.0 - 0.5, self.height / 2.0 - 0.5
-        return [self.focal, 0.0, cx, 0.0, self.focal, cy, 0.0, 0.0, 1.0]
+
+def camera_matrix(width: int, height: int, fov: float) -> list[float]:
+    """The intrinsic matrix K (row-major 3 x 3) of this camera model in ROS's convention (pixel centres at whole
+    numbers): the focal length in pixels, the principal point in the image's middle."""
+    focal = (width / 2.0) / math.tan(fov / 2.0)
+    return [focal, 0.0, width / 2.0 - 0.5, 0.0, focal, height / 2.0 - 0.5, 0.0, 0.0, 1.0]

@@ -31,9 +31,11 @@ class Senses:
     Readings are (N, ...) arrays, NaN (zero for images) in the rows of robots that do not want the sense.
     """
 
-    def __init__(self, world: World, count: int, time_step: float, seed: int, noise: bool,
+    def __init__(self, world: World, state: RobotArrays, time_step: float, seed: int, noise: bool,
                  camera_size: tuple[int, int] = (CAMERA_WIDTH, CAMERA_HEIGHT)) -> None:
+        count = len(state.true)
         self.world, self.count, self.time_step, self.noise = world, count, time_step, noise
+        self._state = state
         self._seed = seed
         self._camera_size = camera_size
         self._scene: Scene | None = None
@@ -65,10 +67,15 @@ class Senses:
             self._camera = Camera(self.scene, *self._camera_size)
         return self._camera
 
+    @property
+    def camera_size(self) -> tuple[int, int]:
+        """(width, height) of the images."""
+        return self._camera_size
+
     def set_camera_size(self, width: int, height: int) -> None:
         """Another image size (the field of view stays): for those who want more pixels."""
         self._camera_size = (int(width), int(height))
-        self._camera = Camera(self.scene, *self._camera_size)
+        self._camera = None
         if self.images is not None:
             self.images = np.zeros((self.count, height, width, 3), dtype=np.uint8)
 
@@ -77,12 +84,15 @@ class Senses:
         if kind not in KINDS:
             raise ValueError(f'unknown sense {kind!r} (senses: {", ".join(KINDS)})')
         rows = np.fromiter(robots, dtype=np.int64)
+        new = rows[~self.wanted[kind][rows]] if wanted else rows[:0]
         self.wanted[kind][rows] = wanted
         self._rows[kind] = np.flatnonzero(self.wanted[kind])
         if kind == 'camera' and self.images is None and self._rows[kind].size:
             width, height = self._camera_size
             self.images = np.zeros((self.count, height, width, 3), dtype=np.uint8)
         self.active = any(rows.size for rows in self._rows.values())
+        if new.size:   # readable at once, not only after the next step
+            self._read(kind, new, self._state)
 
     def _rng(self, kind: str) -> np.random.Generator | None:
         if not self.noise:
@@ -93,28 +103,29 @@ class Senses:
 
     def sense(self, state: RobotArrays) -> None:
         """Read every wanted sense from the state after a step."""
+        for kind in KINDS:
+            if self._rows[kind].size:
+                self._read(kind, self._rows[kind], state)
+        if not self._rows['imu'].size:
+            self._previous_twist = None
+
+    def _read(self, kind: str, rows: np.ndarray, state: RobotArrays) -> None:
         true = state.true
-        rows = self._rows
-        if rows['ground'].size:
+        others = true[:, :2] if self.count > 1 else None
+        if kind == 'ground':
             if self._ground is None:
                 self._ground = GroundSensors(self.scene)
-            self.ground_raw[rows['ground']] = self._ground.read(true[rows['ground']], self._rng('ground'))
-        many = self.count > 1
-        if rows['light'].size:
+            self.ground_raw[rows] = self._ground.read(true[rows], self._rng('ground'))
+        elif kind == 'light':
             if self._light is None:
                 self._light = LightSensors(self.scene)
-            self.light_raw[rows['light']] = self._light.read(
-                true[rows['light']], self._rng('light'), true[:, :2] if many else None, rows['light'])
-        if rows['imu'].size:
+            self.light_raw[rows] = self._light.read(true[rows], self._rng('light'), others, rows)
+        elif kind == 'imu':
             twist = state.true_twist
             previous = twist if self._previous_twist is None else self._previous_twist
-            wanted = rows['imu']
-            self.accelerometer[wanted] = imu.accelerometer_values(
-                imu.acceleration(twist[wanted], previous[wanted], self.time_step), self._rng('accelerometer'))
-            self.gyro[wanted] = imu.gyro_values(imu.angular_velocity(twist[wanted]), self._rng('gyro'))
+            self.accelerometer[rows] = imu.accelerometer_values(
+                imu.acceleration(twist[rows], previous[rows], self.time_step), self._rng('accelerometer'))
+            self.gyro[rows] = imu.gyro_values(imu.angular_velocity(twist[rows]), self._rng('gyro'))
             self._previous_twist = twist.copy()
         else:
-            self._previous_twist = None
-        if rows['camera'].size:
-            self.images[rows['camera']] = self.camera.render(true[rows['camera']], true[:, :2] if many else None,
-                                                             rows['camera'])
+            self.images[rows] = self.camera.render(true[rows], others, rows)
