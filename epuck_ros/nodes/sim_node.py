@@ -258,6 +258,7 @@ class SimNode(Node):
         self.sense_ports = [SensePorts(self, index, name, several, stream, self._sim, values['frame_prefix'])
                             for index, name in enumerate(self._sim.names)]
         self._sensing: list[SensePorts] = []
+        self._sense_turn = 0
         """The robots with a subscriber on some sense topic: their sense messages are published after each step."""
         self.create_timer(SENSE_POLL, self._update_sense_wants)
         quiet_publisher(self, String, 'world', latched).publish(
@@ -501,13 +502,25 @@ class SimNode(Node):
         for senses in self._sensing:
             senses.publish(self._sim, stamp)
         self._clock_pub.publish(self._clock_message.bytes(stamp))
+        self._poll_sense_wants()
 
     def _update_sense_wants(self) -> None:
-        """Senses follow their topics' subscribers (see sense_ports)."""
+        """Senses follow their topics' subscribers (see sense_ports): every robot every SENSE_POLL wall seconds."""
         with self._lock:
             for ports in self.sense_ports:
-                ports.update_wants(lambda kind, robot, wanted: self._sim.senses.want(kind, [robot], wanted),
-                                   self._forced_senses)
+                self._update_wants_of(ports)
+
+    def _poll_sense_wants(self) -> None:
+        """One robot a step too (under the lock), in turn: at real_time_factor 0 the wall-clock poll alone would
+        leave a controller that just enabled a sense without readings for hundreds of steps."""
+        self._sense_turn = (self._sense_turn + 1) % len(self.sense_ports)
+        self._update_wants_of(self.sense_ports[self._sense_turn])
+
+    def _update_wants_of(self, ports: SensePorts) -> None:
+        was = ports.publishing
+        ports.update_wants(lambda kind, robot, wanted: self._sim.senses.want(kind, [robot], wanted),
+                           self._forced_senses)
+        if ports.publishing != was:
             self._sensing = [ports for ports in self.sense_ports if ports.publishing]
 
     def _after_step(self, events: StepEvents, now_sim: float) -> None:
