@@ -35,13 +35,21 @@ class Camera:
         self.column_angles = np.arctan(tangents)
         self._column_cos = np.cos(self.column_angles)
         self._elevation = (self.height / 2.0 - (np.arange(self.height) + 0.5)) / self.focal   # tan, per row
-        self._below = np.flatnonzero(self._elevation < 0.0)
+        below = np.flatnonzero(self._elevation < 0.0)
+        self._below = slice(int(below[0]), self.height) if len(below) else slice(self.height, self.height)
+        self._rows = np.arange(self.height, dtype=float)[:, None]                       # (V, 1)
+        self._middle = self.height / 2.0 - 0.5
+        # How far along each floor-looking pixel's ray the floor is (fixed by the mounting): (V', C).
+        self._reach = CAMERA_POSE[2] / -self._elevation[self._below, None] / self._column_cos[None, :]
         # One palette for every pixel: the objects' colours, the sky, then every floor texel; a pixel is an index.
         objects = len(scene.colors)
-        self._sky = objects
         self._floor_offset = objects + 1
         self._palette = np.round(np.concatenate([scene.colors, [SKY_COLOR], scene.floor.flat]) * 255.0).astype(np.uint8)
+        self._background = np.full((self.height, self.width), objects, dtype=np.int32)   # the sky ...
+        self._background[self._below] = self._floor_offset                              # ... and a plain floor
         self._mount_x, self._mount_y, self._mount_z = CAMERA_POSE
+        self._top = (scene.heights - self._mount_z) * self.focal     # per object: f (h - cam_z)
+        self._bottom = self._mount_z * self.focal
 
     @property
     def vertical_fov(self) -> float:
@@ -63,22 +71,24 @@ class Camera:
         distance = hits.min(axis=0)
         if robots_xy is not None and len(robots_xy) > 1:
             robots = self.scene.robot_hits(ox, oy, dx, dy, np.asarray(robots_xy, dtype=float),
-                                           np.arange(len(poses)) if own is None else np.asarray(own))
+                                           np.arange(len(poses)) if own is None else np.asarray(own),
+                                           (poses[:, 2], self.fov / 2.0))
             closer = robots < distance
             nearest[closer] = self.scene.robot_index
             distance = np.where(closer, robots, distance)
         depth = distance * self._column_cos                               # (R, C), along the optical axis
-        rise = depth[:, None, :] * self._elevation[None, :, None]          # (R, V, C): height above the camera
-        covered = (rise >= -self._mount_z) & (rise <= (self.scene.heights[nearest] - self._mount_z)[:, None, :])
-        covered &= (depth >= CAMERA_NEAR)[:, None, :]
-        pixels = np.full(covered.shape, self._sky)
-        below = self._below
-        if len(below):
-            reach = self._mount_z / -self._elevation[below, None] / self._column_cos[None, :]   # (V', C) along the ray
-            fx = ox[:, :, None] + dx[:, None, :] * reach[None]
-            fy = oy[:, :, None] + dy[:, None, :] * reach[None]
-            pixels[:, below] = self._floor_offset + self.scene.floor.index(fx, fy)
-        return self._palette[np.where(covered, nearest[:, None, :], pixels)]
+        # Rows covered by the nearest object: those whose elevation lies between its foot and its top.
+        first_row = (self._middle - self._top[nearest] / depth)[:, None, :]
+        last_row = np.where(depth >= CAMERA_NEAR, self._middle + self._bottom / depth, -1.0)[:, None, :]
+        covered = (self._rows >= first_row) & (self._rows <= last_row)          # (R, V, C)
+        if self.scene.floor.plain:
+            pixels = self._background
+        else:
+            pixels = np.broadcast_to(self._background, covered.shape).copy()
+            reach = self._reach[None]
+            pixels[:, self._below] += self.scene.floor.texel(ox[:, :, None] + dx[:, None, :] * reach,
+                                                             oy[:, :, None] + dy[:, None, :] * reach)
+        return self._palette[np.where(covered, nearest[:, None, :].astype(np.int32), pixels)]
 
 
 def camera_matrix(width: int, height: int, fov: float) -> list[float]:

@@ -70,9 +70,10 @@ class Scene:
         return np.concatenate([segments, circles])
 
     def robot_hits(self, ox: np.ndarray, oy: np.ndarray, dx: np.ndarray, dy: np.ndarray,
-                   robots_xy: np.ndarray, own: np.ndarray) -> np.ndarray:
+                   robots_xy: np.ndarray, own: np.ndarray, view: tuple[np.ndarray, float] | None = None) -> np.ndarray:
         """Distance (R, K) along each viewer's rays (origins (R, 1) or (R, K), directions (R, K)) to the nearest
-        other robot body within ROBOT_VIEW_RANGE; `own` (R,) is each viewer's own row in `robots_xy` (N, 2)."""
+        other robot body within ROBOT_VIEW_RANGE; `own` (R,) is each viewer's own row in `robots_xy` (N, 2).
+        `view` (a camera's headings and half field of view, origins (R, 1)) leaves out the bodies it cannot see."""
         nearest = np.full(dx.shape, np.inf)
         if len(robots_xy) < 2:
             return nearest
@@ -83,6 +84,14 @@ class Scene:
         targets = np.concatenate([second, first])
         keep = viewers >= 0
         viewers, targets = viewers[keep], targets[keep]
+        if view is not None:   # a camera: only the bodies within its field of view (headings (R,), half-angle)
+            heading, half_angle = view
+            rx, ry = robots_xy[targets, 0] - ox[viewers, 0], robots_xy[targets, 1] - oy[viewers, 0]
+            cos, sin = np.cos(heading[viewers]), np.sin(heading[viewers])
+            ahead, aside = rx * cos + ry * sin, ry * cos - rx * sin
+            radius = self.model.body_radius
+            seen = (ahead > -radius) & (np.abs(aside) - radius / math.cos(half_angle) < ahead * math.tan(half_angle))
+            viewers, targets = viewers[seen], targets[seen]
         if not len(viewers):
             return nearest
         order = np.argsort(viewers, kind='stable')
@@ -137,6 +146,14 @@ class FloorTexture:
         i = np.clip(((x + self.half_x) / self.step).astype(np.int64), 0, self.columns - 1)
         j = np.clip(((y + self.half_y) / self.step).astype(np.int64), 0, self.rows - 1)
         return j * self.columns + i
+
+    def texel(self, x: np.ndarray, y: np.ndarray) -> np.ndarray:
+        """Flat texel index of points on the floor (any shape), as `index` for points within it; points off the
+        floor get some valid index (the camera asks only for floor its walls hide there)."""
+        i = ((x + self.half_x) * (1.0 / self.step)).astype(np.int32)
+        j = ((y + self.half_y) * (1.0 / self.step)).astype(np.int32)
+        flat = j * self.columns + i
+        return np.clip(flat, 0, self.columns * self.rows - 1, out=flat)
 
     def _grid(self, x0: float, y0: float, x1: float, y1: float) -> tuple[slice, slice, np.ndarray, np.ndarray] | None:
         """Texel rows and columns whose centres may lie within the box, and those centres' coordinates."""

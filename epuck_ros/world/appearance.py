@@ -224,14 +224,14 @@ def appearance_dict(appearance: Appearance, data: dict[str, Any]) -> dict[str, A
         data['arena']['color'] = list(appearance.wall_color)
     if appearance.wall_height != DEFAULT_HEIGHT:
         data['arena']['height'] = appearance.wall_height
-    for name, colors, heights, default in (('boxes', appearance.box_colors, appearance.box_heights, BOX_COLOR),
-                                           ('cylinders', appearance.cylinder_colors, appearance.cylinder_heights,
-                                            CYLINDER_COLOR)):
-        for item, color, height in zip(data[name], colors, heights):
-            if color != default:
-                item['color'] = list(color)
-            if height != DEFAULT_HEIGHT:
-                item['height'] = height
+    for name, color_of, height_of, default in (
+            ('boxes', appearance.box_color, appearance.box_height, BOX_COLOR),
+            ('cylinders', appearance.cylinder_color, appearance.cylinder_height, CYLINDER_COLOR)):
+        for index, item in enumerate(data[name]):
+            if color_of(index) != default:
+                item['color'] = list(color_of(index))
+            if height_of(index) != DEFAULT_HEIGHT:
+                item['height'] = height_of(index)
     if appearance.floor_color != FLOOR_COLOR or appearance.paint:
         data['floor'] = {'color': list(appearance.floor_color), 'paint': [_paint_dict(p) for p in appearance.paint]}
     if appearance.lights:
