@@ -143,9 +143,9 @@ class FloorTexture:
 
     def index(self, x: np.ndarray, y: np.ndarray) -> np.ndarray:
         """Flat texel index of each point (any shape)."""
-        i = np.clip(((x + self.half_x) / self.step).astype(np.int64), 0, self.columns - 1)
-        j = np.clip(((y + self.half_y) / self.step).astype(np.int64), 0, self.rows - 1)
-        return j * self.columns + i
+        i = np.minimum(np.maximum(((x + self.half_x) / self.step).astype(np.int64), 0), self.columns - 1)
+        j = np.minimum(np.maximum(((y + self.half_y) / self.step).astype(np.int64), 0), self.rows - 1)
+        return j * self.columns + i   # (np.clip costs more on a few points: it looks up the type's limits)
 
     def texel(self, x: np.ndarray, y: np.ndarray) -> np.ndarray:
         """Flat texel index of points on the floor (any shape), as `index` for points within it; points off the
@@ -153,7 +153,7 @@ class FloorTexture:
         i = ((x + self.half_x) * (1.0 / self.step)).astype(np.int32)
         j = ((y + self.half_y) * (1.0 / self.step)).astype(np.int32)
         flat = j * self.columns + i
-        return np.clip(flat, 0, self.columns * self.rows - 1, out=flat)
+        return np.minimum(np.maximum(flat, 0, out=flat), self.columns * self.rows - 1, out=flat)
 
     def _grid(self, x0: float, y0: float, x1: float, y1: float) -> tuple[slice, slice, np.ndarray, np.ndarray] | None:
         """Texel rows and columns whose centres may lie within the box, and those centres' coordinates."""
