@@ -128,3 +128,50 @@ def test_sense_topics_carry_the_cores_readings(launch: object, test_node: object
     focal = 26 / math.tan(CAMERA_FOV / 2)
     assert list(infos[-1].k) == pytest.approx([focal, 0, 25.5, 0, focal, 19, 0, 0, 1])
     assert infos[-1].header.frame_id == image.header.frame_id == 'camera'
+
+
+def test_view_shows_the_selected_robots_camera_and_the_leds(launch: object, test_node: object,
+                                                            tmp_path: Path) -> None:
+    """A page looking at the robot: the view subscribes its camera (the sim renders it) and serves it as a PNG;
+    the LED values a controller publishes reach the page's state."""
+    import http.client
+    import json
+
+    import matplotlib.image
+    from rclpy.qos import DurabilityPolicy, QoSProfile
+    from std_msgs.msg import Int32MultiArray
+
+    from epuck_ros.simulation import Simulation
+    from epuck_ros.world import load_world
+    from test_view_node import _url
+
+    world = WORLDS / 'coloured_objects.yaml'
+    launch('sim', *ros_args({'world': str(world), 'noise': False, 'real_time_factor': 5.0}))
+    address = _url(launch('view', '--ros-args', '-p', 'port:=0'))
+    leds = test_node.node.create_publisher(Int32MultiArray, 'leds', QoSProfile(
+        depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL))
+    leds.publish(Int32MultiArray(data=[1, 0, 0, 0, 0, 0, 0, 0, 1, 0]))
+
+    def get(path: str) -> tuple[int, bytes]:
+        connection = http.client.HTTPConnection(*address, timeout=30)
+        connection.request('GET', path)
+        response = connection.getresponse()
+        result = response.status, response.read()
+        connection.close()
+        return result
+
+    def state() -> dict:
+        status, body = get('/state?robot=epuck')
+        return json.loads(body)['robots'].get('epuck', {}) if status == 200 else {}
+    test_node.spin_until(lambda: state().get('camera') is not None and state().get('leds') is not None,
+                         what='the camera image and the LEDs in the view', timeout=60)
+    assert state()['leds'] == [1, 0, 0, 0, 0, 0, 0, 0, 1, 0]
+    status, png = get('/camera?robot=epuck')
+    assert status == 200 and png[:8] == b'\x89PNG\r\n\x1a\n'
+    path = tmp_path / 'view_camera.png'
+    path.write_bytes(png)
+    pixels = np.round(matplotlib.image.imread(path)[..., :3] * 255).astype(np.uint8)
+    core = Simulation(load_world(world), noise=False)
+    core.senses.want('camera', [0])
+    assert (pixels == core.senses.images[0]).all()   # no command: the robot stands at its start
+    assert get('/camera?robot=nobody')[0] == 404

@@ -13,13 +13,13 @@ and lists what is supported, instead of Python's bare AttributeError.
 from __future__ import annotations
 
 import math
-import struct
 import sys
-import zlib
 from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
+
+from epuck_ros.sensors.png import png_bytes
 
 NANOSECONDS_PER_MS = 1_000_000
 MOTOR_CONTROL_P = 10.0
@@ -411,16 +411,3 @@ class Camera(SampledSensor):
         except OSError:
             return -1
         return 0
-
-
-def png_bytes(rgb: np.ndarray) -> bytes:
-    """An 8-bit RGB PNG of `rgb` (H, W, 3) (the PNG specification's signature, IHDR, one IDAT, IEND)."""
-    height, width = rgb.shape[:2]
-    rows = np.concatenate([np.zeros((height, 1), dtype=np.uint8), rgb.reshape(height, -1)], axis=1)   # filter 0
-
-    def chunk(kind: bytes, data: bytes) -> bytes:
-        return struct.pack('>I', len(data)) + kind + data + struct.pack('>I', zlib.crc32(kind + data))
-
-    header = struct.pack('>IIBBBBB', width, height, 8, 2, 0, 0, 0)
-    return (b'\x89PNG\r\n\x1a\n' + chunk(b'IHDR', header) + chunk(b'IDAT', zlib.compress(rows.tobytes()))
-            + chunk(b'IEND', b''))
