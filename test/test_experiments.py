@@ -90,6 +90,21 @@ def free_port() -> int:
         return probe.getsockname()[1]
 
 
+def wait_for_workers(address: str, count: int) -> None:
+    """Until the scheduler at `address` answers and `count` workers have joined it (a loaded machine may take
+    longer to start them than the sweep gives a scheduler to answer)."""
+    from dask.distributed import Client
+    deadline = time.monotonic() + 120
+    while True:
+        try:
+            with Client(address, timeout=5) as client:
+                client.wait_for_workers(count, timeout=max(1.0, deadline - time.monotonic()))
+                return
+        except (OSError, TimeoutError):
+            if time.monotonic() > deadline:
+                raise
+
+
 def test_a_real_cluster_with_a_worker_killed_mid_sweep_runs_every_trial_once(tmp_path):
     """`dask scheduler` and two `dask worker` processes on loopback; one worker is SIGKILLed once a third of the
     trials are written: Dask re-runs its trials elsewhere and the rows equal an in-process run's."""
@@ -106,6 +121,7 @@ def test_a_real_cluster_with_a_worker_killed_mid_sweep_runs_every_trial_once(tmp
             started.append(subprocess.Popen([dask, 'worker', address, '--nthreads', '1', '--no-dashboard',
                                              '--host', '127.0.0.1'], env=env, stdout=subprocess.DEVNULL,
                                             stderr=subprocess.DEVNULL, start_new_session=True))
+        wait_for_workers(address, 2)
         out = tmp_path / 'cluster'
         run_sweep = subprocess.Popen([SWEEP, str(spec), '-o', str(out), '--scheduler', address],
                                      stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
