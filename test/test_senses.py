@@ -248,6 +248,10 @@ def test_simulation_reads_a_sense_only_while_wanted_and_ir_stays_the_same() -> N
     assert (ground_only.senses.ground_raw == every.senses.ground_raw).all()   # its own noise stream
     assert every.senses.images[0].any() and np.isfinite(every.senses.light_raw).all()
     assert every.senses.accelerometer[0, 2] == pytest.approx(9.81, rel=0.02)
+    readings = every.senses.readings_of(0)   # what a headless Webots controller's step is handed
+    assert sorted(readings) == ['camera', 'ground', 'imu', 'light'] and readings['camera'].shape == (39, 52, 3)
+    assert readings['imu'][1] == tuple(every.senses.gyro[0].tolist()) and ground_only.senses.readings_of(0).keys() \
+        == {'ground'}
 
 
 def test_world_files_with_appearance_round_trip_and_old_worlds_are_unchanged() -> None:

@@ -9,6 +9,7 @@ changes another's readings.
 from __future__ import annotations
 
 from collections.abc import Iterable
+from typing import Any
 
 import numpy as np
 
@@ -93,6 +94,20 @@ class Senses:
         self.active = any(rows.size for rows in self._rows.values())
         if new.size:   # readable at once, not only after the next step
             self._read(kind, new, self._state)
+
+    def readings_of(self, robot: int) -> dict[str, Any]:
+        """The wanted senses of one robot as a Webots controller's step takes them (`webots.link.StepData.senses`):
+        'camera' (H, W, 3) uint8, 'ground' (3 values), 'light' (8), 'imu' (accelerometer (3), gyro values (3))."""
+        readings: dict[str, Any] = {}
+        if self.wanted['camera'][robot]:
+            readings['camera'] = self.images[robot].copy()
+        if self.wanted['ground'][robot]:
+            readings['ground'] = tuple(self.ground_raw[robot].tolist())
+        if self.wanted['light'][robot]:
+            readings['light'] = tuple(self.light_raw[robot].tolist())
+        if self.wanted['imu'][robot]:
+            readings['imu'] = (tuple(self.accelerometer[robot].tolist()), tuple(self.gyro[robot].tolist()))
+        return readings
 
     def _rng(self, kind: str) -> np.random.Generator | None:
         if not self.noise:
