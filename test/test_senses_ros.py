@@ -175,3 +175,21 @@ def test_view_shows_the_selected_robots_camera_and_the_leds(launch: object, test
     core.senses.want('camera', [0])
     assert (pixels == core.senses.images[0]).all()   # no command: the robot stands at its start
     assert get('/camera?robot=nobody')[0] == 404
+
+
+def test_senses_parameter_and_camera_size(launch: object, test_node: object) -> None:
+    """`senses` computes a sense with no subscriber; camera_width/height give bigger images with their K; an
+    unknown sense is one line and exit code 2."""
+    images = test_node.collect(Image, 'camera/image_raw', 10)
+    infos = test_node.collect(CameraInfo, 'camera/camera_info', 10)
+    sim = launch('sim', *ros_args({'real_time_factor': 0.0, 'senses': 'ground', 'camera_width': 104,
+                                   'camera_height': 78}))
+    sim.wait_for_output('sim ready')
+    test_node.spin_until(lambda: images and infos, what='a 104 x 78 image', timeout=30.0)
+    assert (images[-1].width, images[-1].height, len(images[-1].data)) == (104, 78, 104 * 78 * 3)
+    focal = 52 / math.tan(CAMERA_FOV / 2)
+    assert list(infos[-1].k) == pytest.approx([focal, 0, 51.5, 0, focal, 38.5, 0, 0, 1])
+    wrong = launch('sim', *ros_args({'senses': 'camera,smell'}))
+    assert wrong.proc.wait(timeout=30) == 2
+    assert wrong.output().strip().splitlines()[-1] == \
+        "sim: cannot start: senses: unknown sense 'smell' (senses: camera, ground, light, imu)"

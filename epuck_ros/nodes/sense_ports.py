@@ -23,6 +23,11 @@ from epuck_ros.sensors.camera import camera_matrix
 from epuck_ros.sensors.imu import rates_from_gyro_values
 from epuck_ros.simulation import Simulation
 
+
+class SenseError(ValueError):
+    """A sense the simulator does not have (the `senses` parameter); the message names it."""
+
+
 SENSE_POLL = 0.5
 """Wall seconds between two looks at which sense topics have subscribers."""
 SENSE_TOPICS = {'camera': 'camera/image_raw', 'ground': 'ground_raw', 'light': 'light_raw', 'imu': 'imu'}

@@ -37,7 +37,7 @@ from epuck_ros.nodes.announcements import ANNOUNCEMENT_QOS, SIMULATORS_TOPIC, an
 from epuck_ros.nodes.dds_profile import use_package_profile, warn_if_not_fast_dds
 from epuck_ros.nodes.params import ParamSpec, Usage, command_line_value, declare_parameters, prepare_arguments
 from epuck_ros.nodes.robot_ports import JOINT_NAMES, WARN_PERIOD, WORLD_FRAME, RobotPorts, quiet_publisher
-from epuck_ros.nodes.sense_ports import SENSE_POLL, SENSE_TOPICS, SensePorts
+from epuck_ros.nodes.sense_ports import SENSE_POLL, SENSE_TOPICS, SenseError, SensePorts
 from epuck_ros.nodes.serialized import Patch
 from epuck_ros.nodes.spinning import end_process, handle_shutdown_signals, shutdown_requested, spin_until_shutdown
 from epuck_ros.simulation import CommandError, Simulation, StepEvents
@@ -639,12 +639,11 @@ def publication_mode(argv: list[str]) -> str:
 
 
 def _senses(value: str) -> frozenset[str]:
-    """The `senses` parameter's words; an unknown one is a ParameterException naming it."""
+    """The `senses` parameter's words; an unknown one is a SenseError naming it."""
     words = frozenset(word.strip() for word in value.split(',') if word.strip())
     unknown = sorted(words - set(SENSE_TOPICS))
     if unknown:
-        raise ParameterException(f'senses: unknown sense {unknown[0]!r} (senses: {", ".join(SENSE_TOPICS)})',
-                                 ['senses'])
+        raise SenseError(f'senses: unknown sense {unknown[0]!r} (senses: {", ".join(SENSE_TOPICS)})')
     return words
 
 
@@ -681,7 +680,7 @@ def main(args: list[str] | None = None) -> None:
         if node.refusal:
             print(f'sim: cannot start: {node.refusal}', file=sys.stderr)
             code = 2
-    except (WorldError, ParameterException) as error:
+    except (WorldError, ParameterException, SenseError) as error:
         print(f'sim: cannot start: {error}', file=sys.stderr)
         code = 2
     except StartInterrupted:
