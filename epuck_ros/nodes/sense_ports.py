@@ -71,6 +71,17 @@ class SensePorts:
         self._imu_pub = quiet_publisher(node, Imu, topics + SENSE_TOPICS['imu'], stream_qos)
         self._publishers = {'camera': self._image_pub, 'ground': self._ground_pub, 'light': self._light_pub,
                             'imu': self._imu_pub}
+        self._frames, self._size = frames, (width, height)
+        self._made = False
+        self.subscribed = {kind: False for kind in SENSE_TOPICS}
+        self._info_subscribed = False
+        self.publishing = False
+        """Some sense topic of this robot has a subscriber: the node calls `publish` after each step."""
+
+    def _make_messages(self) -> None:
+        """The messages, serialised once, when a sense of this robot is first wanted (a swarm's robots mostly never
+        are: making them for all would slow its start)."""
+        frames, (width, height) = self._frames, self._size
         image = Image(height=height, width=width, encoding='rgb8', is_bigendian=0, step=3 * width)
         image.header.frame_id = frames + 'camera'
         image.data = bytes(3 * width * height)
@@ -89,10 +100,7 @@ class SensePorts:
         imu.header.frame_id = frames + 'base_link'
         imu.orientation_covariance[0] = -1.0   # REP 145: no orientation estimate
         self._imu = Patch(imu, IMU_FIELDS)
-        self.subscribed = {kind: False for kind in SENSE_TOPICS}
-        self._info_subscribed = False
-        self.publishing = False
-        """Some sense topic of this robot has a subscriber: the node calls `publish` after each step."""
+        self._made = True
 
     def update_wants(self, want: Callable[[str, int, bool], None], forced: frozenset[str]) -> None:
         """Tell the simulation which of this robot's senses are wanted now (`forced`: by the parameter)."""
@@ -103,6 +111,8 @@ class SensePorts:
                 want(kind, self.index, subscribed or kind in forced)
         self._info_subscribed = self._info_pub.get_subscription_count() > 0
         self.publishing = self._info_subscribed or any(self.subscribed.values())
+        if self.publishing and not self._made:
+            self._make_messages()
 
     def publish(self, sim: Simulation, stamp: tuple[int, int]) -> None:
         """This robot's sense messages for the senses with subscribers (their readings are those of this step)."""
