@@ -169,6 +169,7 @@ class Simulation:
         self._commanded.fill(False)
         self._earliest_command = math.inf
         self._stepper.reset(self._state)
+        self.senses.reset()
 
     # --- state --------------------------------------------------------------------------------------------
 

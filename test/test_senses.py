@@ -268,3 +268,18 @@ def test_world_files_with_appearance_round_trip_and_old_worlds_are_unchanged() -
             'lights': [{'position': [0, 0, 0.5], 'intensity': 2.0}]}
     world = world_from_dict(data)
     assert world.appearance.box_color(0) == RED and world_from_dict(world.to_dict()) == world
+
+
+def test_reset_reads_the_senses_at_the_start_again() -> None:
+    from epuck_ros.simulation import Simulation
+    sim = Simulation(load_world(WORLDS / 'line_track.yaml'), noise=False)
+    sim.senses.want('ground', [0])
+    sim.senses.want('imu', [0])
+    at_start = sim.senses.ground_raw.copy()
+    for _ in range(30):
+        sim.command_wheels(0, 6.0, 6.0)
+        sim.step()
+    assert (sim.senses.ground_raw != at_start).any()
+    sim.reset()
+    assert (sim.senses.ground_raw == at_start).all()
+    assert sim.senses.accelerometer[0].tolist() == pytest.approx([0.0, 0.0, 9.81], abs=1e-12)   # from rest

@@ -116,6 +116,12 @@ class Senses:
             self._rngs[kind] = sensor_rng(self._seed, kind)
         return self._rngs[kind]
 
+    def reset(self) -> None:
+        """The robots are back at their starts: the wanted senses read there (the IMU from rest)."""
+        self._previous_twist = None
+        if self.active:
+            self.sense(self._state)
+
     def sense(self, state: RobotArrays) -> None:
         """Read every wanted sense from the state after a step."""
         for kind in KINDS:
