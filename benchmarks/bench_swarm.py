@@ -50,7 +50,7 @@ PEER_SCENARIOS = {1: 'lidar1', 10: 'lidar10', 50: 'lidar50'}
 
 
 def lane_counts(n: int) -> list[int]:
-    """n robots over the lanes in proportion to lane length (the peer script's rule)."""
+    """Share n robots over the lanes in proportion to lane length (the peer script's rule)."""
     shares = [n * r / sum(LANES) for r in LANES]
     counts = [math.floor(s) for s in shares]
     for k in sorted(range(len(LANES)), key=lambda k: shares[k] - counts[k], reverse=True)[:n - sum(counts)]:

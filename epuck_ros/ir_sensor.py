@@ -71,10 +71,10 @@ class LookupTable:
     """A table prepared once for the simulator: its inverse for `range_from_raw`, and the table as Python floats for
     `read_one`, one robot's eight readings.
 
-    NumPy's per-call cost dominates on eight values: `noisy_raw` and `range_from_raw` take 12 us per step (21 us
-    when a ray hits something), `read_one` 2.5 us (5 us) (measured). It computes each value with the arithmetic
-    np.interp and `distance_from_raw` use, operation for operation (slope * (x - x_j) + y_j, the exact row value
-    at a table distance), so the one-robot path reads exactly what the array path reads (test_ir_sensor checks).
+    NumPy's per-call cost dominates on eight values, so `read_one` works on floats. It computes each value with
+    the arithmetic np.interp and `distance_from_raw` use, operation for operation (slope * (x - x_j) + y_j, the
+    exact row value at a table distance), so the one-robot path reads exactly what the array path reads
+    (test_ir_sensor checks).
     """
 
     def __init__(self, table: np.ndarray) -> None:
@@ -124,5 +124,5 @@ class LookupTable:
 
     def ranges_of(self, raws: Sequence[float], seen_above: float) -> list[float]:
         """`range_from_raw` of raw values that hit something when above `seen_above` (inf for the others), in plain
-        floats: a controller reads eight values per step (11 us with NumPy, 4 us here, measured)."""
+        floats: a controller reads eight values per step, too few for NumPy to pay its per-call cost."""
         return [self.range_of(raw) if raw > seen_above else math.inf for raw in raws]

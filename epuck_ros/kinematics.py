@@ -32,8 +32,8 @@ def wheels_from_twist(v: ArrayLike, w: ArrayLike, model: RobotModel) -> tuple[Ar
 def clamp_wheels(left: ArrayLike, right: ArrayLike, max_speed: float) -> tuple[ArrayLike, ArrayLike]:
     """Clamp each wheel to +-max_speed on its own, as Webots' motors do (so saturation changes the curvature).
 
-    Two floats (a command) are clamped with min/max: np.clip costs ~3 us a call on a Python float, and a command
-    arrives with every lockstep step."""
+    Two floats (a command) are clamped with min/max: np.clip costs more than the rest of a command on a Python
+    float, and a command arrives with every lockstep step."""
     if isinstance(left, float) and isinstance(right, float):
         return min(max(left, -max_speed), max_speed), min(max(right, -max_speed), max_speed)
     return np.clip(left, -max_speed, max_speed), np.clip(right, -max_speed, max_speed)
@@ -50,7 +50,7 @@ def integrate_arc(x: ArrayLike, y: ArrayLike, yaw: ArrayLike, v: ArrayLike, w: A
     half_turn = 0.5 * w * dt
     if (isinstance(half_turn, float) and isinstance(x, _SCALAR) and isinstance(y, _SCALAR)
             and isinstance(yaw, _SCALAR) and isinstance(v, _SCALAR)):
-        # one robot: math on floats is ~10x cheaper than NumPy calls on scalars
+        # one robot: math on floats is much cheaper than NumPy calls on scalars
         shrink = math.sin(half_turn) / half_turn if half_turn else 1.0
         cos, sin = math.cos, math.sin
     else:   # any array (pose or speeds) broadcasts against the rest

@@ -9,11 +9,11 @@ order, so a re-published world replaces the same markers.
 """
 from __future__ import annotations
 
-import math
 
 from std_msgs.msg import ColorRGBA
 from visualization_msgs.msg import Marker, MarkerArray
 
+from epuck_ros.conversions import quaternion_from_yaw
 from epuck_ros.world import World
 
 WORLD_FRAME = 'world'
@@ -60,8 +60,7 @@ def _marker(frame_id: str, namespace: str, marker_id: int, shape: int, position:
     marker = Marker(ns=namespace, id=marker_id, type=shape, action=Marker.ADD)
     marker.header.frame_id = frame_id
     marker.pose.position.x, marker.pose.position.y, marker.pose.position.z = (float(v) for v in position)
-    marker.pose.orientation.z = math.sin(yaw / 2.0)
-    marker.pose.orientation.w = math.cos(yaw / 2.0)
+    marker.pose.orientation.z, marker.pose.orientation.w = quaternion_from_yaw(yaw)
     marker.scale.x, marker.scale.y, marker.scale.z = (float(v) for v in scale)
     marker.color = ColorRGBA(r=colour[0], g=colour[1], b=colour[2], a=colour[3])
     return marker

@@ -19,6 +19,9 @@ import numpy as np
 MAX_WHEEL_SPEED = 6.28
 """rad/s; the course's MAX_SPEED and Webots' motor maxVelocity (v1)."""
 
+TIME_STEP = 0.032
+"""s; Webots' basicTimeStep for the e-puck worlds: one simulator step, and one step of the course's controllers."""
+
 SENSOR_NAMES: tuple[str, ...] = tuple(f'ps{i}' for i in range(8))
 FRONT_SENSORS: tuple[int, ...] = (0, 1, 6, 7)
 """The sensors the course's obstacle avoidance treats as "in front"."""

@@ -20,7 +20,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from epuck_ros.kinematics import clamp_wheels, twist_from_wheels, wheels_from_twist
-from epuck_ros.model import RobotModel
+from epuck_ros.model import TIME_STEP, RobotModel
 from epuck_ros.stepping.ir_ring import IrRing
 from epuck_ros.stepping.senses import Senses
 from epuck_ros.stepping.one_robot import OneRobotStepper
@@ -47,13 +47,14 @@ class Simulation:
     """The robots of a World, stepped by `time_step`; read the public properties after each `step()`.
 
     Robot i is `world.robots[i]` (`names[i]`); every state array has one row per robot. `seed` seeds the IR
-    noise (and, each from its own stream, the other senses' noise); `noise=False` gives the exact table
-    values. The arrays the properties return are the simulator's own state, updated in place by `step()`: read
-    them, copy what you keep, do not write to them.
+    noise (and, each from its own stream, the other senses' noise); `noise=False` gives the exact table values.
+    `isolated=True` puts each robot alone in its own copy of the world: robots neither touch nor see each other
+    (independent worlds stepped together, as a vector environment needs). The arrays the properties return are
+    the simulator's own state, updated in place by `step()`: read them, copy what you keep, do not write to them.
     """
 
-    def __init__(self, world: World, model: RobotModel = RobotModel(), time_step: float = 0.032,
-                 seed: int = 0, noise: bool = True, cmd_timeout: float = 0.5) -> None:
+    def __init__(self, world: World, model: RobotModel = RobotModel(), time_step: float = TIME_STEP,
+                 seed: int = 0, noise: bool = True, cmd_timeout: float = 0.5, isolated: bool = False) -> None:
         if not (math.isfinite(time_step) and time_step > 0.0):
             raise ValueError(f'time_step must be a positive number of seconds, got {time_step}')
         self.world, self.model, self.time_step = world, model, float(time_step)
@@ -65,8 +66,8 @@ class Simulation:
         self._ir = IrRing(world, model, n, np.random.default_rng(seed), noise)
         self._stepper: OneRobotStepper | SwarmStepper = (
             OneRobotStepper(world, model, self.time_step, self._ir) if n == 1
-            else SwarmStepper(world, model, self.time_step, self._ir, self._start))
-        self.senses = Senses(world, self._state, self.time_step, seed, noise)
+            else SwarmStepper(world, model, self.time_step, self._ir, self._start, isolated))
+        self.senses = Senses(world, self._state, self.time_step, seed, noise, isolated=isolated)
         """Camera, ground, light sensors and IMU: read after each step for the robots that want them (`want`)."""
         self._steps = 0
         self._last_command_time = np.zeros(n)
@@ -105,6 +106,29 @@ class Simulation:
         _require_finite(v=v, w=w)
         left, right = wheels_from_twist(float(v), float(w), self.model)   # float overflow gives inf, no error
         self._set_command(robot, left, right)
+
+    def command_all_wheels(self, speeds: np.ndarray) -> None:
+        """Set every robot's wheel speeds (rad/s) at once, `speeds` (N, 2): `command_wheels` row by row, in one NumPy
+        operation (a vector environment commands thousands of robots a step). Nothing is set if a row is refused."""
+        state = self._state
+        try:
+            speeds = np.asarray(speeds, dtype=float)
+        except (TypeError, ValueError):
+            raise CommandError('command rejected: speeds must be numbers') from None
+        if speeds.shape != state.command.shape:
+            raise CommandError(f'command rejected: wheel speeds of shape {state.command.shape} expected, '
+                               f'got {speeds.shape}')
+        finite = np.isfinite(speeds).all(axis=1)
+        if not finite.all():
+            rows = np.flatnonzero(~finite)
+            raise CommandError(f'command rejected: speeds must be finite numbers, not in rows {rows[:10].tolist()}')
+        top = self.model.max_wheel_speed
+        state.command[:] = np.clip(speeds, -top, top)
+        state.command_twist[:, 0], state.command_twist[:, 1] = twist_from_wheels(
+            state.command[:, 0], state.command[:, 1], self.model)
+        self._last_command_time[:] = self.time
+        self._commanded[:] = True
+        self._earliest_command = min(self._earliest_command, self.time)
 
     def _set_command(self, robot: int, left: float, right: float) -> None:
         state = self._state
@@ -239,7 +263,7 @@ class Simulation:
 
 
 def _require_finite(**values: float) -> None:
-    """CommandError unless every value is a finite float (math.isfinite: a NumPy call costs ~8 us per command)."""
+    """Raise CommandError unless every value is a finite float (math.isfinite: NumPy would cost more per command)."""
     try:
         bad = {name: value for name, value in values.items() if not _is_finite_float(value)}
     except TypeError:

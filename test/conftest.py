@@ -5,7 +5,6 @@ then SIGKILL) when the test ends, so no process outlives its test.
 """
 from __future__ import annotations
 
-import fcntl
 import os
 import subprocess
 import sys
@@ -13,41 +12,29 @@ import time
 from collections.abc import Callable, Iterator
 from pathlib import Path
 
+import domain_coordinator
 import pytest
 
 from epuck_ros.bringup.processes import interrupt
 
 os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
 
-_DOMAIN_LOCK_DIR = Path('/tmp/epuck_ros_test_domains')
-
-
-def _lock_domain(domain: int) -> bool:
-    """Hold the lock of `domain` for as long as this process lives; False if another test run holds it."""
-    handle = open(_DOMAIN_LOCK_DIR / f'{domain}.lock', 'w')
-    try:
-        fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
-    except OSError:
-        handle.close()
-        return False
-    _lock_domain.handle = handle  # type: ignore[attr-defined]  # keep the lock alive
-    return True
-
 
 def _claim_domain_id() -> tuple[int, str]:
-    """The ROS_DOMAIN_ID of this test run and how it was chosen: the user's own if set and no other test run holds
-    it, else one between 10 and 99 that no other test run on this machine holds."""
-    _DOMAIN_LOCK_DIR.mkdir(exist_ok=True)
+    """The ROS_DOMAIN_ID of this test run and how it was chosen, claimed with `domain_coordinator` (as ROS 2's own
+    tests claim theirs) for as long as this process lives: the user's own if set and no other test run holds it,
+    else one between 1 and 100 that no other test run on this machine holds."""
     wanted = os.environ.get('ROS_DOMAIN_ID', '')
-    if wanted.isdigit() and _lock_domain(int(wanted)):
-        return int(wanted), 'set by you'
-    start = os.getpid() % 90
-    for offset in range(90):
-        domain = 10 + (start + offset) % 90
-        if _lock_domain(domain):
-            how = f'your ROS_DOMAIN_ID={wanted} is in use by another test run' if wanted else 'ROS_DOMAIN_ID unset'
-            return domain, f'{how}: a free one was claimed'
-    raise RuntimeError('no free ROS_DOMAIN_ID between 10 and 99 for this test run')
+    first = os.getpid() % 100   # test runs started together try different domains first
+    candidates = [int(wanted)] if wanted.isdigit() else []
+    candidates += [1 + (first + offset) % 100 for offset in range(100)]
+    claim = domain_coordinator.domain_id(iter(candidates).__next__)
+    domain = claim.__enter__()   # released when this process exits
+    _claim_domain_id.claim = claim  # type: ignore[attr-defined]  # keep the claim alive
+    if wanted.isdigit() and domain == int(wanted):
+        return domain, 'set by you'
+    how = f'your ROS_DOMAIN_ID={wanted} is in use by another test run' if wanted else 'ROS_DOMAIN_ID unset'
+    return domain, f'{how}: a free one was claimed'
 
 
 _DOMAIN, _DOMAIN_CHOICE = _claim_domain_id()
@@ -66,13 +53,19 @@ BIN_DIR = Path(sys.executable).parent
 class NodeProcess:
     """One executable of the package running in its own process, its output kept in a log file."""
 
-    def __init__(self, name: str, args: list[str], log_path: Path) -> None:
+    def __init__(self, name: str, args: list[str], log_path: Path, stdin: int | None = None) -> None:
+        """`stdin=subprocess.PIPE` gives the test a pipe to `type` into (teleop's keys)."""
         self.name = name
         self.log_path = log_path
         self._log = open(log_path, 'w')
         self.proc = subprocess.Popen(
-            [str(BIN_DIR / name), *args], stdout=self._log, stderr=subprocess.STDOUT,
+            [str(BIN_DIR / name), *args], stdin=stdin, stdout=self._log, stderr=subprocess.STDOUT,
             env=dict(os.environ, PYTHONUNBUFFERED='1'), start_new_session=True)
+
+    def type(self, keys: bytes) -> None:
+        """Write `keys` to the process's stdin pipe."""
+        self.proc.stdin.write(keys)
+        self.proc.stdin.flush()
 
     def output(self) -> str:
         self._log.flush()
@@ -98,11 +91,11 @@ class NodeProcess:
 
 @pytest.fixture
 def launch(tmp_path: Path) -> Iterator[Callable[..., NodeProcess]]:
-    """Start a package executable: `launch('sim', '--ros-args', '-p', 'seed:=3')`; stopped after the test."""
+    """Start a package executable (`'sim', '--ros-args', '-p', 'seed:=3'`); stopped after the test."""
     started: list[NodeProcess] = []
 
-    def start(name: str, *args: str) -> NodeProcess:
-        process = NodeProcess(name, list(args), tmp_path / f'{name}-{len(started)}.log')
+    def start(name: str, *args: str, stdin: int | None = None) -> NodeProcess:
+        process = NodeProcess(name, list(args), tmp_path / f'{name}-{len(started)}.log', stdin)
         started.append(process)
         return process
 
@@ -151,6 +144,31 @@ class RosTestNode:
                 return
             self.executor.spin_once(timeout_sec=0.05)
         raise AssertionError(f'timed out after {timeout} s waiting for {what}')
+
+    def wait_for_simulator(self, namespace: str = '', timeout: float = 30.0) -> None:
+        """Wait until a simulator is up, from the graph: its `step` service is there, made after every robot's
+        topics and the latched world (what the simulator logs as 'sim ready' comes just after)."""
+        from std_srvs.srv import Trigger
+        client = self.node.create_client(Trigger, f'{namespace}/step')
+        try:
+            if not client.wait_for_service(timeout_sec=timeout):
+                raise AssertionError(f'timed out after {timeout} s waiting for the simulator ({namespace}/step)')
+        finally:
+            self.node.destroy_client(client)
+
+    def watch_log(self) -> list[str]:
+        """The messages every node logs from now on, as /rosout carries them (for a warning that is the product)."""
+        from rcl_interfaces.msg import Log
+        from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+        messages: list[str] = []
+        rosout = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE,
+                            durability=DurabilityPolicy.TRANSIENT_LOCAL)   # rclpy's own /rosout profile
+        self.node.create_subscription(Log, '/rosout', lambda msg: messages.append(msg.msg), rosout)
+        return messages
+
+    def wait_for_log(self, messages: list[str], text: str, timeout: float = 20.0) -> None:
+        """Spin until one of `messages` (from `watch_log`) contains `text`."""
+        self.spin_until(lambda: any(text in message for message in messages), timeout, f'a log message with {text!r}')
 
     def spin_for(self, seconds: float) -> None:
         deadline = time.monotonic() + seconds

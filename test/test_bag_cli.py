@@ -398,7 +398,7 @@ def test_summary_reports_each_robot_and_contacts_between_robots(tmp_path):
 
 
 def test_the_tally_fed_live_agrees_with_the_bag_summary(tmp_path):
-    """bringup feeds RunTally the ground truth as it arrives; the figures must be the bag summary's."""
+    """The `bringup` command feeds RunTally the ground truth as it arrives; the figures must be the bag summary's."""
     path = write_swarm(tmp_path / 'swarm')
     with Bag(path) as bag:
         runs = load_runs(bag)

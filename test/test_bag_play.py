@@ -74,7 +74,7 @@ def test_bad_arguments_are_one_line_and_exit_2(tmp_path):
 # --- over DDS -------------------------------------------------------------------------------------------
 
 def read_back(path: Path) -> dict[str, list[tuple[bytes, object]]]:
-    """topic -> [(CDR bytes, decoded message)] in log order, with mcap's reader and mcap_ros2's decoder."""
+    """Map topic -> [(CDR bytes, decoded message)] in log order, with mcap's reader and mcap_ros2's decoder."""
     topics: dict[str, list] = {}
     files = sorted(path.glob('*.mcap'))
     assert files, f'no mcap file in {path}'

@@ -26,6 +26,7 @@ from epuck_ros.bag.cdr import odometry_fields
 from epuck_ros.bag.info import format_info
 from epuck_ros.bag.reader import Bag
 from epuck_ros.bag.writer import BagWriter
+from epuck_ros.conversions import nanoseconds_from_stamp
 
 LATCHED = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
 STEP_NS = 32_000_000
@@ -127,18 +128,20 @@ def test_an_existing_bag_is_refused(tmp_path):
 def test_a_sim_run_is_recorded_without_losing_a_message(launch, test_node, tmp_path):
     """The sim at 10x real time, paused at t=3.2 s (100 steps of 12 messages), recorded from a separate process."""
     steps = 100
-    sim = launch('sim', *ros_args({'real_time_factor': 10.0, 'paused': True, 'pause_at': steps * 0.032}))
-    sim.wait_for_output('sim ready')
+    launch('sim', *ros_args({'real_time_factor': 10.0, 'paused': True, 'pause_at': steps * 0.032}))
+    test_node.wait_for_simulator()
     recorder = start_recorder(launch, tmp_path / 'bag', sim_time=True)
-    for topic in ('/clock', '/odom', '/ground_truth', '/proximity', '/joint_states', '/world'):
-        recorder.wait_for_output(f'subscribed to {topic} ')
-    test_node.spin_until(lambda: test_node.node.count_subscribers('/proximity') >= 1, what='graph')
+    topics = ('/clock', '/odom', '/ground_truth', '/proximity', '/joint_states', '/world')
+    test_node.spin_until(lambda: all(test_node.node.count_subscribers(topic) >= 1 for topic in topics),
+                         what='the recorder subscribed to the sim topics (graph)')
     test_node.spin_for(1.0)  # let DDS match the recorder's readers with the sim's writers
     client = AsyncParameterClient(test_node.node, 'sim')
     test_node.spin_until(lambda: client.services_are_ready(), what='sim parameter services')
+    clocks = test_node.collect(Clock, '/clock', steps + 10)
     resumed = client.set_parameters([Parameter('paused', value=False)])
     test_node.spin_until(resumed.done, what='sim to resume')
-    sim.wait_for_output('paused at t=', timeout=30)
+    test_node.spin_until(lambda: clocks and nanoseconds_from_stamp(clocks[-1].clock.sec, clocks[-1].clock.nanosec)
+                         >= steps * STEP_NS, 30, 'the sim to pause at its pause_at (/clock)')
     test_node.spin_for(1.0)
     assert recorder.stop() == 0
 
@@ -161,7 +164,7 @@ def test_a_sim_run_is_recorded_without_losing_a_message(launch, test_node, tmp_p
 # --- robustness: memory, losses, a full disk, the wrong domain ---------------------------------------------
 
 def test_spinning_the_recorder_keeps_no_object_per_message(test_node, tmp_path):
-    """rclpy 7.1 adds a callback to the future spin_until_future_complete waits on, at every spin: a recorder
+    """The rclpy 7.1 spin adds a callback to the future spin_until_future_complete waits on, at every spin: a recorder
     spinning on a future that never completes grew by ~280 bytes per message. The recorder's own spin loop,
     in this process, must keep no Python object per message."""
     from epuck_ros.nodes.record_node import Recorder, spin_until_finished

@@ -7,6 +7,7 @@ import math
 import numpy as np
 import pytest
 
+from epuck_ros.bag.shapes import fit_circle
 from epuck_ros.behaviours import BEHAVIOURS, STOP, Avoid, AvoidConfig, Behaviour, ConfigError, Forward, \
     ForwardConfig, Observation, Rectangle, RectangleConfig, WheelCommand
 from epuck_ros.behaviours.avoid import COURSE_THRESHOLD, braitenberg
@@ -25,7 +26,7 @@ def fractions(command: WheelCommand) -> tuple[float, float]:
 
 
 def ranges(**close: float) -> tuple[float, ...]:
-    """Eight ranges, inf except the named sensors: ranges(ps0=0.03)."""
+    """Eight ranges, inf except the named sensors (ps0=0.03 and so on)."""
     return tuple(close.get(f'ps{i}', math.inf) for i in range(8))
 
 
@@ -303,10 +304,9 @@ def test_closed_loop_spin_turns_in_place_at_2_415_rad_s() -> None:
 
 
 def fitted_circle(xy: np.ndarray) -> tuple[float, float, float]:
-    """Least-squares circle (Kasa): x^2 + y^2 = 2 a x + 2 b y + c; centre (a, b), radius sqrt(c + a^2 + b^2)."""
-    design = np.column_stack([2.0 * xy[:, 0], 2.0 * xy[:, 1], np.ones(len(xy))])
-    (a, b, c), *_ = np.linalg.lstsq(design, (xy ** 2).sum(axis=1), rcond=None)
-    return a, b, math.sqrt(c + a * a + b * b)
+    """Centre x, y and radius of the least-squares circle through the points (N, 2): `bag summary`'s fit."""
+    radius, (x, y), _ = fit_circle(xy[:, 0], xy[:, 1])
+    return x, y, radius
 
 
 def test_closed_loop_circle_has_the_course_radius() -> None:

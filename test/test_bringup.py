@@ -154,9 +154,16 @@ def test_a_run_with_duration_ends_by_itself_and_leaves_no_process(launch, test_n
     assert processes_in_this_domain() == []
 
 
+def wait_until_running(test_node) -> None:
+    """Wait until the run is under way, from its messages: the simulator was resumed and ticks `/clock`."""
+    from rosgraph_msgs.msg import Clock
+    clocks = test_node.collect(Clock, '/clock')
+    test_node.spin_until(lambda: bool(clocks), 90, 'the run to start (/clock)')
+
+
 def test_sigterm_stops_every_child_cleanly_and_the_sim_does_not_listen_to_its_own_clock(launch, test_node):
     run = launch('bringup', 'spin', '--real-time-factor', '4')
-    run.wait_for_output('[bringup] running spin', timeout=90)
+    wait_until_running(test_node)
     node = test_node.node
     test_node.spin_until(lambda: node.get_subscriptions_info_by_topic('/clock'), 30, 'a /clock subscriber')
     assert [info.node_name for info in node.get_subscriptions_info_by_topic('/clock')
@@ -169,9 +176,9 @@ def test_sigterm_stops_every_child_cleanly_and_the_sim_does_not_listen_to_its_ow
     assert processes_in_this_domain() == []
 
 
-def test_sigkill_of_bringup_ends_every_child(launch, tmp_path):
+def test_sigkill_of_bringup_ends_every_child(launch, test_node, tmp_path):
     run = launch('bringup', 'avoid', '--real-time-factor', '2', '--record', str(tmp_path / 'killed'))
-    run.wait_for_output('[bringup] running avoid', timeout=90)
+    wait_until_running(test_node)
     children = child_pids()
     assert len(children) == 3, processes_in_this_domain()  # sim, recorder, avoid
     os.kill(run.proc.pid, signal.SIGKILL)
@@ -179,9 +186,9 @@ def test_sigkill_of_bringup_ends_every_child(launch, tmp_path):
     assert wait_until_gone(children, timeout=60) == [], processes_in_this_domain()
 
 
-def test_a_dying_behaviour_stops_the_rest_and_fails_the_run(launch):
+def test_a_dying_behaviour_stops_the_rest_and_fails_the_run(launch, test_node):
     run = launch('bringup', 'circle', '--real-time-factor', '4')
-    run.wait_for_output('[bringup] running circle', timeout=90)
+    wait_until_running(test_node)
     (pid,) = [pid for pid, cmd in processes_in_this_domain() if re.search(r'/circle\b', cmd)]
     os.kill(pid, signal.SIGKILL)
     assert run.proc.wait(timeout=60) == 1
@@ -271,8 +278,9 @@ def test_the_summary_is_the_bag_summary_and_lockstep_runs_are_identical(launch, 
 
 
 def test_the_summary_prints_the_shape_figures_of_bag_summary(launch, tmp_path):
-    """bringup said it printed `bag summary`'s figures but left out the shape's: the corners of a timed rectangle
-    (31 steps of 32 ms per turn: 82.4 degrees) and the circle fit, from the same code, recorded or not."""
+    """The `bringup` summary said it printed `bag summary`'s figures but left out the shape's: the corners
+    of a timed rectangle (31 steps of 32 ms per turn: 82.4 degrees) and the circle fit, from the same code,
+    recorded or not."""
     rectangle = launch('bringup', 'rectangle', '--duration', '30', '--real-time-factor', '0', '-p', 'turn_mode:=timed',
                        '--record', str(tmp_path / 'rect'))
     assert rectangle.proc.wait(timeout=120) == 0, rectangle.output()
@@ -343,7 +351,7 @@ def test_a_controller_at_its_own_rate_is_not_held_to_lockstep(launch, tmp_path):
 
 
 def test_a_child_printing_a_huge_line_keeps_bringup_small(launch, tmp_path):
-    """A child printing 200 MB without a newline took bringup to 800 MB; a `\\r` progress line grew without bound.
+    r"""A child printing 200 MB without a newline took bringup to 800 MB; a `\r` progress line grew without bound.
     Forwarding reads in chunks and cuts a line at 64 KiB: bringup's peak memory (VmHWM) stays far below 200 MB."""
     script = tmp_path / 'chatty.py'
     script.write_text(textwrap.dedent('''

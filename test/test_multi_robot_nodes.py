@@ -132,7 +132,7 @@ def start_lockstep_sim(launch, test_node, world: str, **params):
     """A paused lockstep sim; `run` resumes it once the clients are connected, so every step is seen."""
     sim = launch('sim', *ros_args({'world': world, 'lockstep': True, 'lockstep_timeout': 10.0, 'paused': True,
                                    'real_time_factor': 0, 'noise': False, **params}))
-    sim.wait_for_output('sim ready', timeout=30)
+    test_node.wait_for_simulator()
     return sim
 
 
@@ -232,8 +232,8 @@ def test_ir_raw_is_the_lookup_table_at_a_known_distance(launch, test_node, tmp_p
     gap = 0.02
     x = 0.5 - PS0[0] - gap
     world = write_world(tmp_path, [('epuck0', -0.2, 0.0, 0.0), ('epuck1', x, 0.0, 0.0)])
-    sim = launch('sim', *ros_args({'world': world, 'noise': False, 'real_time_factor': 0}))
-    sim.wait_for_output('sim ready', timeout=30)
+    launch('sim', *ros_args({'world': world, 'noise': False, 'real_time_factor': 0}))
+    test_node.wait_for_simulator()
     raw = test_node.collect(Float64MultiArray, '/epuck1/ir_raw', 10)
     test_node.spin_until(lambda: raw, what='epuck1/ir_raw')
     distance = gap / math.cos(PS0[2])  # along the ps0 ray, from the sensor to the wall
@@ -244,8 +244,8 @@ def test_ir_raw_is_the_lookup_table_at_a_known_distance(launch, test_node, tmp_p
 
 
 def test_robots_parameter_places_robots_and_the_step_service_steps_once(launch, test_node):
-    sim = launch('sim', *ros_args({'robots': 5, 'seed': 7, 'paused': True, 'noise': False}))
-    sim.wait_for_output('sim ready', timeout=30)
+    launch('sim', *ros_args({'robots': 5, 'seed': 7, 'paused': True, 'noise': False}))
+    test_node.wait_for_simulator()
     worlds = test_node.collect(String, '/world', LATCHED)
     clocks, clock_sub = subscribe(test_node, Clock, '/clock')
     truth, truth_subs = {}, []
@@ -284,7 +284,7 @@ def test_robots_parameter_places_robots_and_the_step_service_steps_once(launch, 
 
 def test_real_time_factor_changes_take_effect_at_once_whatever_the_value(launch, test_node):
     sim = launch('sim', *ros_args({'real_time_factor': 1.0}))
-    sim.wait_for_output('sim ready', timeout=30)
+    test_node.wait_for_simulator()
     clocks = test_node.collect(Clock, '/clock', EVERY_STEP)
     test_node.spin_until(lambda: len(clocks) > 2, what='the clock')
     factor = ParameterValue(type=ParameterType.PARAMETER_DOUBLE, double_value=1e-6)
@@ -304,9 +304,9 @@ def test_a_slow_reliable_reader_gets_every_step_at_full_speed(launch, test_node,
     though the run is longer than its publishers' history (`ack_window.history_steps`: 300 steps each with ten
     robots, 3,000 for a lone robot, whose run reads odom alone to stay short)."""
     assert history_steps(robots) < steps
-    sim = launch('sim', *ros_args({'real_time_factor': 0, 'paused': True, 'pause_at': steps * STEP,
-                                   'robots': robots}))
-    sim.wait_for_output('sim ready', timeout=30)
+    launch('sim', *ros_args({'real_time_factor': 0, 'paused': True, 'pause_at': steps * STEP,
+                             'robots': robots}))
+    test_node.wait_for_simulator()
     prefix = 'epuck3/' if robots > 1 else ''
     keep_all = QoSProfile(history=HistoryPolicy.KEEP_ALL, depth=1, reliability=ReliabilityPolicy.RELIABLE)
     odom, ranges = [], []
@@ -343,6 +343,6 @@ def test_a_swarm_simulator_stops_at_once_while_starting_and_when_running(launch,
     assert sim.proc.wait(timeout=60) == 0, sim.output()
     assert 'sim: stopped while starting' in sim.output() and 'sim ready' not in sim.output()
     running = launch('sim', *ros_args({'world': str(world), 'robots': 60, 'paused': True}))
-    running.wait_for_output('sim ready', timeout=120)
+    test_node.wait_for_simulator(timeout=120)
     running.proc.send_signal(signal.SIGTERM)
     assert running.proc.wait(timeout=60) == 0, running.output()

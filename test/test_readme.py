@@ -38,7 +38,7 @@ RECURSIVE = 'scripts/test.sh'
 
 
 def readme_commands(text: str) -> list[str]:
-    """The command lines of the ```bash blocks (comments and blank lines dropped; `\\` continuations joined)."""
+    r"""The command lines of the ```bash blocks (comments and blank lines dropped; `\` continuations joined)."""
     commands: list[str] = []
     for block in re.findall(r'^```bash\n(.*?)^```', text, flags=re.S | re.M):
         for line in block.replace('\\\n', ' ').splitlines():
@@ -140,7 +140,9 @@ def _check_sign_of_work(command: str, output: str, workspace: Path, interrupted:
         if flag in words and words.index(flag) + 1 < len(words) and not words[words.index(flag) + 1].startswith('-'):
             target = workspace / words[words.index(flag) + 1]
             assert target.exists(), f'{command!r} did not write {target}:\n{output}'
-            if target.is_dir():
+            if target.is_dir() and words[0] == 'evolve':
+                assert (target / 'fitness.csv').is_file(), f'{target} has no fitness.csv:\n{output}'
+            elif target.is_dir():
                 assert (target / 'metadata.yaml').is_file(), f'{target} is not a closed bag:\n{output}'
             else:
                 assert target.stat().st_size > 0, f'{target} is empty'

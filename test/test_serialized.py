@@ -28,7 +28,7 @@ def test_a_patched_message_is_the_exact_cdr_of_the_message_with_those_values():
 
 
 def test_exact_cdr_is_what_an_independent_encoder_writes_and_not_longer_than_the_cdr():
-    """rclpy's serialize_message gave 132 bytes for this JointState; its CDR is 128 (mcap_ros2's encoder agrees)."""
+    """The serialize_message of rclpy gave 132 bytes for this JointState; its CDR is 128 (as mcap_ros2 encodes)."""
     joints = JointState(name=['left_wheel_joint', 'right_wheel_joint'], position=[0.5, -1.0], velocity=[1.0, 0.0])
     joints.header.frame_id = 'base_link'
     for msg in (joints, Range(radiation_type=Range.INFRARED, range=0.25), Odometry(), Clock(),

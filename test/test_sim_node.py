@@ -30,9 +30,9 @@ def stamp_seconds(msg: object) -> float:
     return msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
 
 
-def start_sim(launch, **params):
+def start_sim(launch, test_node, **params):
     sim = launch('sim', *ros_args({'noise': False, 'real_time_factor': 5.0, **params}))
-    sim.wait_for_output('sim ready')
+    test_node.wait_for_simulator()
     return sim
 
 
@@ -41,7 +41,7 @@ def wheel_cmd(left: float, right: float) -> Float64MultiArray:
 
 
 def test_one_command_moves_the_robot_until_the_timeout(launch, test_node):
-    start_sim(launch, cmd_timeout=1.0)
+    start_sim(launch, test_node, cmd_timeout=1.0)
     truth = test_node.collect(Odometry, 'ground_truth')
     odom = test_node.collect(Odometry, 'odom')
     pub = test_node.node.create_publisher(Float64MultiArray, 'wheel_cmd', 10)
@@ -61,7 +61,7 @@ def test_one_command_moves_the_robot_until_the_timeout(launch, test_node):
 
 
 def test_proximity_is_eight_ranges_per_cycle_in_index_order(launch, test_node):
-    start_sim(launch)
+    start_sim(launch, test_node)
     ranges = test_node.collect(Range, 'proximity', 1000)
     test_node.spin_until(lambda: len(ranges) >= 8 * 20, what='20 sensing cycles')
     first = next(i for i, m in enumerate(ranges) if m.header.frame_id == 'ps0')
@@ -79,7 +79,7 @@ def test_proximity_is_eight_ranges_per_cycle_in_index_order(launch, test_node):
 
 
 def test_clock_advances_one_time_step_per_step(launch, test_node):
-    start_sim(launch, real_time_factor=0.0)
+    start_sim(launch, test_node, real_time_factor=0.0)
     clocks = test_node.collect(Clock, '/clock', 100)
     test_node.spin_until(lambda: len(clocks) >= 200, what='200 /clock messages')
     times = [c.clock.sec + c.clock.nanosec * 1e-9 for c in clocks]
@@ -88,7 +88,7 @@ def test_clock_advances_one_time_step_per_step(launch, test_node):
 
 
 def test_reset_puts_the_robot_back_and_zeroes_odometry(launch, test_node):
-    start_sim(launch, real_time_factor=10.0)
+    start_sim(launch, test_node, real_time_factor=10.0)
     truth = test_node.collect(Odometry, 'ground_truth')
     odom = test_node.collect(Odometry, 'odom')
     joints = test_node.collect(JointState, 'joint_states')
@@ -114,15 +114,16 @@ def test_reset_puts_the_robot_back_and_zeroes_odometry(launch, test_node):
 
 
 def test_bad_commands_are_refused_and_the_simulation_goes_on(launch, test_node):
-    sim = start_sim(launch)
+    log = test_node.watch_log()
+    sim = start_sim(launch, test_node)
     clocks = test_node.collect(Clock, '/clock', 100)
     truth = test_node.collect(Odometry, 'ground_truth')
     pub = test_node.node.create_publisher(Float64MultiArray, 'wheel_cmd', 10)
     test_node.spin_until(lambda: clocks and pub.get_subscription_count() > 0, what='sim topics')
     pub.publish(wheel_cmd(math.nan, 1.0))
-    sim.wait_for_output('wheel_cmd refused')
+    test_node.wait_for_log(log, 'wheel_cmd refused')
     pub.publish(Float64MultiArray(data=[1.0, 2.0, 3.0]))
-    sim.wait_for_output('got 3 values')
+    test_node.wait_for_log(log, 'got 3 values')
     count = len(clocks)
     test_node.spin_until(lambda: len(clocks) > count + 20, what='the clock to go on')
     assert all(m.twist.twist.linear.x == 0.0 for m in truth)
@@ -130,7 +131,7 @@ def test_bad_commands_are_refused_and_the_simulation_goes_on(launch, test_node):
 
 
 def test_world_and_collision_count_are_latched(launch, test_node):
-    start_sim(launch)
+    start_sim(launch, test_node)
     worlds = test_node.collect(String, 'world', LATCHED)
     collisions = test_node.collect(UInt32, 'collisions', LATCHED)
     test_node.spin_until(lambda: worlds and collisions, what='latched world and collisions')
@@ -158,7 +159,7 @@ def test_malformed_world_file_names_the_field(launch, tmp_path: Path):
 
 
 def test_lockstep_advances_one_step_per_command(launch, test_node):
-    start_sim(launch, lockstep=True, lockstep_timeout=30.0, real_time_factor=0.0)
+    start_sim(launch, test_node, lockstep=True, lockstep_timeout=30.0, real_time_factor=0.0)
     clocks = test_node.collect(Clock, '/clock', 100)
     pub = test_node.node.create_publisher(Float64MultiArray, 'wheel_cmd', 10)
     test_node.spin_until(lambda: pub.get_subscription_count() > 0 and test_node.node.count_publishers('/clock'),
@@ -200,9 +201,10 @@ def test_unknown_or_invalid_parameters_are_named_and_refused(launch, param, expe
 
 
 def test_integers_are_accepted_for_float_parameters_and_use_sim_time_is_ignored(launch, test_node):
-    sim = launch('sim', '--ros-args', '-p', 'real_time_factor:=0', '-p', 'cmd_timeout:=2', '-p', 'use_sim_time:=true')
-    sim.wait_for_output('sim ready')
-    assert 'real-time factor max' in sim.output() and 'use_sim_time ignored' in sim.output()
+    log = test_node.watch_log()
+    launch('sim', '--ros-args', '-p', 'real_time_factor:=0', '-p', 'cmd_timeout:=2', '-p', 'use_sim_time:=true')
+    test_node.wait_for_log(log, 'use_sim_time ignored')
+    test_node.wait_for_log(log, 'real-time factor max')
     client = test_node.node.create_client(GetParameters, '/sim/get_parameters')
     assert client.wait_for_service(timeout_sec=20.0)
     future = client.call_async(GetParameters.Request(names=['real_time_factor', 'cmd_timeout', 'use_sim_time']))
@@ -217,7 +219,7 @@ def test_integers_are_accepted_for_float_parameters_and_use_sim_time_is_ignored(
 
 
 def test_a_second_simulator_on_the_domain_is_refused(launch, test_node):
-    first = start_sim(launch)
+    first = start_sim(launch, test_node)
     clocks = test_node.collect(Clock, '/clock', 100)
     test_node.spin_until(lambda: clocks, what='the first simulator')
     second = launch('sim', *ros_args({'noise': False}))
@@ -230,12 +232,13 @@ def test_a_second_simulator_on_the_domain_is_refused(launch, test_node):
 
 
 def test_cmd_vel_nan_is_refused_and_huge_speeds_clamp(launch, test_node):
-    sim = start_sim(launch, real_time_factor=10.0)
+    log = test_node.watch_log()
+    sim = start_sim(launch, test_node, real_time_factor=10.0)
     joints = test_node.collect(JointState, 'joint_states', 1000)
     pub = test_node.node.create_publisher(Twist, 'cmd_vel', 10)
     test_node.spin_until(lambda: joints and pub.get_subscription_count() > 0, what='sim topics')
     pub.publish(Twist(linear=Vector3(x=math.nan)))
-    sim.wait_for_output('cmd_vel refused')
+    test_node.wait_for_log(log, 'cmd_vel refused')
     pub.publish(Twist(linear=Vector3(x=1e308)))
     test_node.spin_until(lambda: joints[-1].velocity[0] > 0, what='the robot to drive')
     assert list(joints[-1].velocity) == [MAX_WHEEL_SPEED, MAX_WHEEL_SPEED]
@@ -243,7 +246,7 @@ def test_cmd_vel_nan_is_refused_and_huge_speeds_clamp(launch, test_node):
 
 
 def test_repeated_timeouts_are_logged_once_then_counted(launch, test_node):
-    sim = start_sim(launch, real_time_factor=10.0, cmd_timeout=0.1)
+    sim = start_sim(launch, test_node, real_time_factor=10.0, cmd_timeout=0.1)
     truth = test_node.collect(Odometry, 'ground_truth', 1000)
     pub = test_node.node.create_publisher(Float64MultiArray, 'wheel_cmd', 10)
     test_node.spin_until(lambda: truth and pub.get_subscription_count() > 0, what='sim topics')
@@ -258,7 +261,7 @@ def test_repeated_timeouts_are_logged_once_then_counted(launch, test_node):
 
 
 def test_one_robot_keeps_its_names_with_a_frame_prefix_and_the_markers_are_latched(launch, test_node):
-    start_sim(launch, frame_prefix='r1/')
+    start_sim(launch, test_node, frame_prefix='r1/')
     odom = test_node.collect(Odometry, 'odom')
     truth = test_node.collect(Odometry, 'ground_truth')
     ranges = test_node.collect(Range, 'proximity', 1000)

@@ -4,6 +4,7 @@ import math
 import numpy as np
 import pytest
 
+from epuck_ros.bag.shapes import fit_circle
 from epuck_ros.ir_sensor import raw_from_distance
 from epuck_ros.model import IR_LOOKUP_TABLE, MAX_WHEEL_SPEED, SENSOR_POSES, RobotModel
 from epuck_ros.simulation import CommandError, Simulation
@@ -60,9 +61,7 @@ def test_circle_has_the_course_radius():
     sim = open_floor()
     sim.command_wheels(0, 0.3 * MAX_WHEEL_SPEED, 0.6 * MAX_WHEEL_SPEED)
     xy = np.array(run(sim, 10.0))[:, :2]
-    # algebraic circle fit: x^2 + y^2 = 2 a x + 2 b y + c
-    a, b, c = np.linalg.lstsq(np.column_stack([2 * xy, np.ones(len(xy))]), (xy ** 2).sum(axis=1), rcond=None)[0]
-    radius = math.sqrt(c + a * a + b * b)
+    radius, (a, b), _ = fit_circle(xy[:, 0], xy[:, 1])
     assert radius == pytest.approx(0.078, abs=1e-9)
     assert (a, b) == pytest.approx((0.0, 0.078), abs=1e-9)
 
@@ -115,6 +114,29 @@ def test_huge_finite_twists_clamp_like_wheel_commands(v, w, wheels):
     sim.step()
     assert sim.wheel_speeds[0].tolist() == wheels
     assert np.isfinite(sim.true_pose).all()
+
+
+def test_commanding_every_robot_at_once_is_commanding_each_row():
+    """`command_all_wheels` leaves the same bits as `command_wheels` row by row (clamped per wheel) and refuses a
+    NaN row or a wrong shape without changing anything."""
+    world = World(robots=tuple(RobotStart(f'r{i}', -0.3 + 0.15 * i, 0.0) for i in range(4)))
+    speeds = np.array([[1.0, 2.0], [9.0, -9.0], [-0.5, 6.28], [3.3, 3.3]])
+    one_by_one, at_once = Simulation(world, seed=2), Simulation(world, seed=2)
+    for _ in range(40):
+        for i, (left, right) in enumerate(speeds.tolist()):
+            one_by_one.command_wheels(i, left, right)
+        at_once.command_all_wheels(speeds)
+        one_by_one.step()
+        at_once.step()
+    assert np.array_equal(one_by_one.true_pose, at_once.true_pose)
+    assert np.array_equal(at_once.wheel_speeds[1], [MAX_WHEEL_SPEED, -MAX_WHEEL_SPEED])
+    before = at_once.wheel_speeds.copy()
+    with pytest.raises(CommandError, match=r'rows \[2\]'):
+        at_once.command_all_wheels(np.where(np.arange(8).reshape(4, 2) == 5, math.nan, 1.0))
+    with pytest.raises(CommandError, match='shape'):
+        at_once.command_all_wheels(np.ones((3, 2)))
+    at_once.step()
+    assert np.array_equal(at_once.wheel_speeds, before)
 
 
 def test_wheels_stop_when_commands_stop_arriving():

@@ -1,51 +1,23 @@
 """teleop as a real process: keys from a pipe become Twists on the chosen robot's cmd_vel; leaving stops the robot."""
 from __future__ import annotations
 
+import functools
 import os
 import signal
 import subprocess
-from collections.abc import Iterator
-from pathlib import Path
+from collections.abc import Callable
 
 import pytest
 from geometry_msgs.msg import Twist
 
-from conftest import BIN_DIR
+from conftest import BIN_DIR, NodeProcess
 from epuck_ros.nodes.teleop_node import MAX_SPEED, MAX_TURN, SPEED_STEP, Teleop, read_keys
 
 
-class TeleopProcess:
-    """`teleop` with its stdin a pipe the test types into; stopped (by pid) when the test ends."""
-
-    def __init__(self, tmp_path: Path, *args: str) -> None:
-        self.log_path = tmp_path / 'teleop.log'
-        with open(self.log_path, 'w') as log:
-            self.proc = subprocess.Popen([str(BIN_DIR / 'teleop'), *args], stdin=subprocess.PIPE, stdout=log,
-                                         stderr=subprocess.STDOUT, env=dict(os.environ, PYTHONUNBUFFERED='1'))
-
-    def type(self, keys: bytes) -> None:
-        self.proc.stdin.write(keys)
-        self.proc.stdin.flush()
-
-    def output(self) -> str:
-        return self.log_path.read_text()
-
-    def stop(self) -> None:
-        if self.proc.poll() is None:
-            self.proc.kill()
-            self.proc.wait()
-
-
 @pytest.fixture
-def teleop(tmp_path: Path) -> Iterator[callable]:
-    started: list[TeleopProcess] = []
-
-    def start(*args: str) -> TeleopProcess:
-        started.append(TeleopProcess(tmp_path, *args))
-        return started[-1]
-    yield start
-    for process in started:
-        process.stop()
+def teleop(launch) -> Callable[..., NodeProcess]:
+    """Start `teleop` with its stdin a pipe the test types into (stopped, by pid, when the test ends)."""
+    return functools.partial(launch, 'teleop', stdin=subprocess.PIPE)
 
 
 def _last(received: list[Twist]) -> tuple[float, float] | None:
@@ -103,7 +75,7 @@ def test_interrupt_stops_the_robot(test_node, teleop) -> None:
 
 
 def test_q_stops_at_the_robots_limits_and_the_stop_is_always_zero() -> None:
-    """q raised the speed to 0.133 m/s, above the e-puck's 0.126; 8,000 of them overflowed it to inf, and the stop
+    """Key q raised the speed to 0.133 m/s, above the e-puck's 0.126; 8,000 of them overflowed it to inf, and the stop
     on exit (0 x inf) became NaN, which the simulator refuses: with cmd_timeout 0 the robot drove on at full speed."""
     keys = Teleop(speed=0.1, turn=1.5)
     for _ in range(8000):

@@ -140,7 +140,7 @@ class ControllerRun:
                   'pause_at': float(duration),
                   'noise': noise, **({'world': str(world)} if world else {}), **(sim_params or {})}
         self.sim = launch(SIM, *ros_args(params))
-        self.sim.wait_for_output('sim ready')
+        test_node.wait_for_simulator()
         self.controller = launch('webots_controller', str(script), *(['--robot', robot] if robot else []))
         node = test_node.node
         # In the graph = connected enough: the sim re-sends an unanswered first step, so a late match costs no step.

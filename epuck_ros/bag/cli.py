@@ -16,7 +16,9 @@ from epuck_ros.bag.cdr import CdrError
 from epuck_ros.bag.export import export_csv
 from epuck_ros.bag.info import format_info
 from epuck_ros.bag.reader import Bag, BagError
-from epuck_ros.bag.run_summary import BagSummary, RunData, format_bag_summary, load_runs, summarise_runs
+from epuck_ros.bag.run_summary import BagSummary, summarise_runs
+from epuck_ros.bag.runs import RunData, load_runs
+from epuck_ros.bag.summary_text import format_bag_summary
 
 EXIT_ERROR = 2
 PLOT_FORMATS = ('png', 'svg', 'pdf')
@@ -25,7 +27,7 @@ PLOT_FORMATS = ('png', 'svg', 'pdf')
 
 RATES = (0.001, 1000.0)
 """`bag play --rate` bounds: beyond them a bag's times no longer fit the playback clock's arithmetic (1e308
-overflowed) and nothing useful is left (1,000x plays a minute in 60 ms)."""
+overflowed) and nothing useful is left (a thousandfold rate plays a minute in a blink)."""
 CLOCK_HZ = (0.1, 10_000.0)
 """`bag play --clock` bounds: /clock publications per wall second."""
 

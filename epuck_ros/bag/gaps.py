@@ -26,6 +26,7 @@ import numpy as np
 
 from epuck_ros.bag.cdr import CDR_BE, CDR_LE, ENCAPSULATION
 from epuck_ros.bag.reader import Bag, Topic
+from epuck_ros.conversions import NS_PER_SECOND
 
 GAP_FACTOR = 1.5
 """A stamp step of at least this many periods is a gap."""
@@ -134,7 +135,7 @@ def stamps_from_heads(heads: np.ndarray) -> np.ndarray:
     stamp_bytes = np.ascontiguousarray(heads[:, ENCAPSULATION:ENCAPSULATION + 8])
     sec = np.where(little, stamp_bytes[:, :4].copy().view('<i4')[:, 0], stamp_bytes[:, :4].copy().view('>i4')[:, 0])
     nanosec = np.where(little, stamp_bytes[:, 4:].copy().view('<u4')[:, 0], stamp_bytes[:, 4:].copy().view('>u4')[:, 0])
-    stamps = sec.astype(np.int64) * 1_000_000_000 + nanosec.astype(np.int64)
+    stamps = sec.astype(np.int64) * NS_PER_SECOND + nanosec.astype(np.int64)
     return stamps[little | big]
 
 

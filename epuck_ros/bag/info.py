@@ -12,6 +12,7 @@ import time
 
 from epuck_ros.bag.gaps import bag_gaps
 from epuck_ros.bag.reader import Bag
+from epuck_ros.conversions import NS_PER_SECOND
 
 LABEL_WIDTH = 19
 
@@ -27,12 +28,12 @@ def format_size(size: int) -> str:
 
 
 def format_duration(nanoseconds: int) -> str:
-    return f'{nanoseconds // 1_000_000_000}.{nanoseconds % 1_000_000_000:09d}s'
+    return f'{nanoseconds // NS_PER_SECOND}.{nanoseconds % NS_PER_SECOND:09d}s'
 
 
 def format_time(nanoseconds: int) -> str:
     """``Jun 10 2026 11:42:53.307379851 (1781059373.307379851)`` in local time, as rosbag2 prints it."""
-    seconds, rest = divmod(nanoseconds, 1_000_000_000)
+    seconds, rest = divmod(nanoseconds, NS_PER_SECOND)
     local = time.strftime('%b %e %Y %H:%M:%S', time.localtime(seconds))
     return f'{local}.{rest:09d} ({seconds}.{rest:09d})'
 

@@ -43,7 +43,7 @@ class PlaybackClock:
         return self._anchor_ns + round((now - self._anchor_wall) * self.rate * 1e9)
 
     def due(self, log_time_ns: int) -> float:
-        """The wall instant a message logged at `log_time_ns` is due (inf while paused)."""
+        """When a message logged at `log_time_ns` is due, on the wall clock (inf while paused)."""
         if self.paused:
             return math.inf
         return self._anchor_wall + (log_time_ns - self._anchor_ns) / (self.rate * 1e9)

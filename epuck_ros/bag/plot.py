@@ -23,7 +23,9 @@ from matplotlib.colors import BoundaryNorm, ListedColormap  # noqa: E402
 from matplotlib.lines import Line2D  # noqa: E402
 from matplotlib.patches import Circle, Rectangle  # noqa: E402
 
-from epuck_ros.bag.run_summary import BagSummary, RunData, RunSummary, Trajectory, turn_direction  # noqa: E402
+from epuck_ros.bag.run_summary import BagSummary, RunSummary  # noqa: E402
+from epuck_ros.bag.runs import RunData, Trajectory  # noqa: E402
+from epuck_ros.bag.summary_text import turn_direction  # noqa: E402
 from epuck_ros.model import RobotModel  # noqa: E402
 from epuck_ros.sensors.scene import FloorTexture  # noqa: E402
 from epuck_ros.world import World  # noqa: E402

@@ -11,6 +11,8 @@ from dataclasses import dataclass
 
 import yaml
 
+from epuck_ros.conversions import NS_PER_SECOND
+
 INFINITE_NS = 9_223_372_036_854_775_807
 """RMW_DURATION_INFINITE, written as ``sec: 9223372036, nsec: 854775807``."""
 
@@ -57,7 +59,7 @@ class QosProfile:
 
 def _duration(nanoseconds: int) -> dict:
     nanoseconds = min(nanoseconds, INFINITE_NS)
-    return {'sec': nanoseconds // 1_000_000_000, 'nsec': nanoseconds % 1_000_000_000}
+    return {'sec': nanoseconds // NS_PER_SECOND, 'nsec': nanoseconds % NS_PER_SECOND}
 
 
 class RosbagYamlDumper(yaml.SafeDumper):

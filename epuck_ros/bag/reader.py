@@ -20,6 +20,7 @@ from collections.abc import Iterable, Iterator
 from dataclasses import dataclass, replace
 from io import BytesIO
 from pathlib import Path, PurePath
+from typing import NamedTuple
 
 import lz4.frame
 import numpy as np
@@ -50,9 +51,19 @@ MAX_METADATA_BYTES = 2**20
 MAX_YAML_DEPTH = 32
 """Deepest nesting accepted in metadata YAML (rosbag2's is 5 levels)."""
 
-RawMessage = tuple[str, int, int, bytes, int, int]
-"""(topic, log_time ns, publish_time ns, buffer, data start, data end): the CDR bytes are buffer[start:end],
-and the buffer ends with the message, so a decoder reading too far fails instead of reading the next one."""
+
+class RawMessage(NamedTuple):
+    """One message as the file holds it: the CDR bytes are buffer[start:end], and the buffer ends with the
+    message, so a decoder reading too far fails instead of reading the next one."""
+
+    topic: str
+    log_time: int
+    """ns; when the recorder received it."""
+    publish_time: int
+    """ns; when the publisher sent it (rosbag2 writes the receive time here too)."""
+    buffer: memoryview
+    start: int
+    end: int
 
 
 class BagError(Exception):
@@ -458,12 +469,13 @@ class McapFile:
                 yield channel_id, records[offsets[:, None] + MESSAGE_HEAD + columns]
 
     def _walk_records(self, buffer: bytes, position: int, end: int, channel_ids: frozenset[int] | None,
-                      schemas: dict[int, Schema], where: int) -> Iterator[tuple]:
+                      schemas: dict[int, Schema], where: int) -> Iterator[RawMessage]:
         """Messages between two offsets of a buffer; schemas and channels met on the way are registered.
 
         Each message comes with a view of the buffer that ends where the message does.
         """
         unpack_message, unpack_record = _MESSAGE.unpack_from, _RECORD.unpack_from
+        new_message = tuple.__new__   # RawMessage without its Python-level __new__: half the cost per message
         topics, view = self.topics, memoryview(buffer)
         while position < end:
             if buffer[position] == Opcode.MESSAGE and position + MESSAGE_HEAD <= end:
@@ -477,7 +489,8 @@ class McapFile:
                     if topic is None:
                         raise BagError(f'{self.path}: a message at byte {where} + {position} is on channel '
                                        f'{channel_id}, which the file does not define')
-                    yield topic.name, log_time, publish_time, view[:record_end], position + MESSAGE_HEAD, record_end
+                    yield new_message(RawMessage, (topic.name, log_time, publish_time, view[:record_end],
+                                                   position + MESSAGE_HEAD, record_end))
                 position = record_end
                 continue
             if position + 9 > end:

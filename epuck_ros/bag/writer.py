@@ -11,11 +11,12 @@ callbacks only enqueue.
 """
 from __future__ import annotations
 
+import functools
 import os
 import queue
 import threading
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 
 from mcap.writer import CompressionType, IndexType, Writer
@@ -210,13 +211,6 @@ class BagWriter:
         self._file.close()
 
 
-@dataclass
-class _Topic:
-    name: str
-    type_name: str
-    qos_profiles: list[QosProfile] = field(default_factory=list)
-
-
 _STOP = object()
 
 
@@ -236,7 +230,7 @@ class BackgroundWriter:
         self._thread.start()
 
     def add_topic(self, name: str, type_name: str, qos_profiles: list[QosProfile]) -> None:
-        self._queue.put(_Topic(name, type_name, qos_profiles))
+        self._queue.put(functools.partial(self.writer.add_topic, name, type_name, list(qos_profiles)))
 
     @property
     def error(self) -> BaseException | None:
@@ -287,8 +281,8 @@ class BackgroundWriter:
             if isinstance(item, tuple):
                 writer.write(*item)
                 unflushed = True
-            elif isinstance(item, _Topic):
-                writer.add_topic(item.name, item.type_name, item.qos_profiles)
+            elif isinstance(item, functools.partial):   # add_topic, run in this thread as the writes are
+                item()
             elif isinstance(item, threading.Event):
                 writer.flush()
                 unflushed = False

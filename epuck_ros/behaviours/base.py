@@ -56,7 +56,7 @@ class WheelCommand:
 
     @classmethod
     def fractions(cls, left: float, right: float) -> WheelCommand:
-        """The course's way of writing speeds: `WheelCommand.fractions(0.5, 0.5)` = 0.5 * MAX_SPEED each."""
+        """The course's way of writing speeds, a fraction of MAX_SPEED per wheel (0.5, 0.5: half speed)."""
         return cls(left * MAX_WHEEL_SPEED, right * MAX_WHEEL_SPEED)
 
 

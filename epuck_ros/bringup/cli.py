@@ -136,7 +136,8 @@ def make_plan(args: argparse.Namespace) -> Plan:
     plan = _controller_plan(args, several)
     if args.controller and args.robot:
         plan.robots_to_drive = (args.robot,)
-    sim_specs, controller_specs = tables.sim_parameters(), tables.controller_parameters(plan)
+    sim_specs = tables.sim_parameters()
+    controller_specs = tables.controller_parameters(plan.controller_kind, plan.controller)
     view_specs = tables.view_parameters() if args.view else None
     routed: dict[str, list[str]] = {'sim': [], 'controller': [], 'view': []}
     for assignment in args.param:

@@ -17,15 +17,17 @@ from rclpy.experimental import EventsExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.parameter_client import AsyncParameterClient
-from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.qos import QoSProfile, ReliabilityPolicy
 from rclpy.task import Future
 from rosgraph_msgs.msg import Clock
 from std_msgs.msg import String
 
 from epuck_ros.bag.cdr import odometry_fields
-from epuck_ros.bag.run_summary import RunTally
+from epuck_ros.bag.tally import RunTally
+from epuck_ros.conversions import seconds_from_stamp
 from epuck_ros.nodes.announcements import ANNOUNCEMENT_QOS, SIMULATORS_TOPIC, Announcement, parse_announcement
 from epuck_ros.nodes.dds_profile import use_package_profile
+from epuck_ros.nodes.qos import LATCHED
 from epuck_ros.nodes.robot_ports import topic_prefix
 from epuck_ros.world import World, WorldError, world_from_dict
 
@@ -104,13 +106,12 @@ class RunMonitor:
         """Every simulator that announced itself on this domain (ours among them once it is up)."""
         self._parameters = AsyncParameterClient(self.node, SIM_NODE)
         self.node.create_subscription(Clock, '/clock', self._on_clock, 10)
-        latched = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
-        self.node.create_subscription(String, 'world', self._on_world, latched)
+        self.node.create_subscription(String, 'world', self._on_world, LATCHED)
         self.node.create_subscription(String, SIMULATORS_TOPIC, self._on_announcement, ANNOUNCEMENT_QOS)
 
     # --- what the run did -------------------------------------------------------------------------------
     def _on_clock(self, msg: Clock) -> None:
-        self.sim_time = msg.clock.sec + msg.clock.nanosec * 1e-9
+        self.sim_time = seconds_from_stamp(msg.clock.sec, msg.clock.nanosec)
         self.clock_messages += 1
         if self.last_tick is not None and self.sim_time > self._advanced[1]:
             stall = time.monotonic() - self._advanced[0]
@@ -162,8 +163,7 @@ class RunMonitor:
 
         The executor runs the callbacks from C++ all that time. A run brings `/clock` and each robot's ground truth
         every step, and returning to the caller after each of them (`spin_once`, then the caller's checks) made
-        this process a slow third party to every lockstep round trip (measured together with the longer history of
-        ack_window.HISTORY_BUDGET: one robot through `bringup` ran 46-49x real time before both, 56-57x after)."""
+        this process a slow third party to every lockstep round trip (see bench_bringup in the README)."""
         self._spin_until = until_sim_time
         self._reached = Future()
         if self.sim_time < until_sim_time - 1e-6:

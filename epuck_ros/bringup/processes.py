@@ -39,7 +39,7 @@ CLEAN_EXIT_CODES = (0, -signal.SIGINT, 128 + signal.SIGINT, -signal.SIGTERM, 128
 
 
 def _prctl() -> Callable[..., int] | None:
-    """libc's prctl, looked up before any fork (nothing may be loaded between fork and exec)."""
+    """The prctl of libc, looked up before any fork (nothing may be loaded between fork and exec)."""
     if not sys.platform.startswith('linux'):
         return None
     try:
@@ -93,7 +93,7 @@ class Child:
     output_done: threading.Event = field(default_factory=threading.Event)
 
     def forward_output(self) -> None:
-        """Echo the child's output with a `[name]` prefix and keep its last lines. Read in chunks, a line ends at
+        r"""Echo the child's output with a `[name]` prefix and keep its last lines. Read in chunks, a line ends at
         `\n` or `\r` (a progress line rewritten with `\r` is a line each time) and one longer than `MAX_LINE` is
         cut: a child printing 200 MB without a newline took bringup to 800 MB."""
         assert self.process.stdout is not None

@@ -1,6 +1,9 @@
-"""The figures `bringup` prints at the end of a run, by the same code as `bag summary` (`run_summary.RunTally` for
-distance and contacts, `run_summary.classify` and `shape_lines` for the shape driven): from the bag when the run
-was recorded, else from the ground-truth samples `bringup` received. One source of truth, and one format."""
+"""The figures `bringup` prints at the end of a run, by the same code as `bag summary`.
+
+`bag.tally.RunTally` for distance and contacts, `bag.shapes.classify` and `bag.summary_text.shape_lines` for
+the shape driven: from the bag when the run was recorded, else from the ground-truth samples `bringup`
+received. One source of truth, and one format.
+"""
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
@@ -9,8 +12,10 @@ from pathlib import Path
 import numpy as np
 
 from epuck_ros.bag.reader import Bag
-from epuck_ros.bag.run_summary import (Motion, RobotFigures, Trajectory, classify, format_figures, load_runs,
-                                       shape_lines, tally_runs)
+from epuck_ros.bag.runs import Trajectory, load_runs
+from epuck_ros.bag.shapes import Motion, classify
+from epuck_ros.bag.summary_text import format_figures, shape_lines
+from epuck_ros.bag.tally import RobotFigures, tally_runs
 
 
 def from_bag(path: Path) -> tuple[list[RobotFigures], dict[str, Motion]]:

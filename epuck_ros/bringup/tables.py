@@ -1,13 +1,12 @@
-"""Where `bringup` finds each node's parameter table: imported from the node's own module, never copied."""
+"""Where `bringup` finds each node's parameter table: imported from the node's own module, never copied.
+
+Each node module is imported only when its table is asked for, so `bringup --help` loads none of them.
+"""
 from __future__ import annotations
 
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 from epuck_ros.nodes.params import ParamSpec
-
-if TYPE_CHECKING:
-    from epuck_ros.bringup.cli import Plan
 
 
 def sim_parameters() -> list[ParamSpec]:
@@ -20,13 +19,14 @@ def sim_default(name: str) -> object:
     return next(spec.default for spec in sim_parameters() if spec.name == name)
 
 
-def controller_parameters(plan: Plan) -> list[ParamSpec] | None:
-    """The controller's table; None for a student's rclpy script (its parameters are its own business)."""
-    if plan.controller_kind == 'behaviour':
+def controller_parameters(kind: str, controller: str) -> list[ParamSpec] | None:
+    """The table of a controller of `kind` ('behaviour', 'webots', 'rclpy'); None for a student's rclpy script
+    (its parameters are its own business)."""
+    if kind == 'behaviour':
         from epuck_ros.behaviours import BEHAVIOURS
         from epuck_ros.nodes.behaviour_nodes import parameter_specs
-        return parameter_specs(BEHAVIOURS[plan.controller])
-    return [] if plan.controller_kind == 'webots' else None
+        return parameter_specs(BEHAVIOURS[controller])
+    return [] if kind == 'webots' else None
 
 
 def view_parameters() -> list[ParamSpec]:

@@ -19,15 +19,15 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
-from epuck_ros.bag.run_summary import RunTally
+from epuck_ros.bag.tally import RunTally
 from epuck_ros.behaviours import BEHAVIOURS, Behaviour, Observation, WheelCommand
 from epuck_ros.behaviours.base import ranges_from_raw
-from epuck_ros.model import RobotModel
+from epuck_ros.conversions import (nanoseconds_from_stamp, quaternion_from_yaw, stamp_from_seconds,
+                                   yaw_from_quaternion)
+from epuck_ros.model import TIME_STEP, RobotModel
 from epuck_ros.simulation import Simulation
 from epuck_ros.world import World, default_world, load_world, place_robots
 
-TIME_STEP = 0.032
-"""The simulator's default `time_step` (Webots' basicTimeStep), which `bringup` runs with."""
 DEFAULT_WORLD = 'default'
 """A spec's name for the built-in world (`sim` with no `world` parameter)."""
 Policy = Callable[[Observation], WheelCommand]
@@ -122,8 +122,7 @@ def _published(sim: Simulation, tally: RunTally, several: bool, each_step: Calla
     """A step as the simulator publishes it: its ground truth (stamped with the step) into the tally."""
     if each_step is not None:
         each_step(sim)
-    sec, nanosec = divmod(round(sim.time * 1e9), 1_000_000_000)
-    stamp = sec * 1_000_000_000 + nanosec
+    stamp = nanoseconds_from_stamp(*stamp_from_seconds(sim.time))
     for name, (x, y, _) in zip(sim.names, sim.true_pose.tolist()):
         tally.add(name if several else '', stamp, x, y)
 
@@ -136,8 +135,7 @@ def _stamp_seconds(seconds: float) -> float:
 def _odometry_as_received(pose: Sequence[float]) -> tuple[float, float, float]:
     """The odometry pose a node reads: the yaw travels as a quaternion about z (nodes/robot_ports.py)."""
     x, y, yaw = (float(value) for value in pose)
-    qz, qw = math.sin(yaw / 2.0), math.cos(yaw / 2.0)
-    return x, y, math.atan2(2.0 * (qw * qz), 1.0 - 2.0 * (qz * qz))
+    return x, y, yaw_from_quaternion(0.0, 0.0, *quaternion_from_yaw(yaw))
 
 
 def _row(trial: Trial, robot: str, figures: Any = None, pose: Sequence[float] = (math.nan,) * 3,

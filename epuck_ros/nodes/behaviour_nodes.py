@@ -12,10 +12,8 @@ node per robot, named like the executable, in the namespace `<namespace>/<robot>
 
 The nodes spin on rclpy's EventsExecutor (experimental in Jazzy, in rclpy since 7.1.4): it queues each ready
 entity's event in C++ instead of rebuilding a wait set of every node's subscriptions, timers and parameter
-services in Python before each callback. Measured with benchmarks/bench_lockstep.py (lockstep, real_time_factor
-0, alternating runs with SingleThreadedExecutor on a busy 2-core machine), `avoid` CPU per step: one robot on
-`ir_raw` 0.52-0.54 ms instead of 1.09-1.24 ms, on the eight Ranges 0.84-0.93 ms instead of 2.6-2.9 ms, 20 robots in
-one process 6.7-8.4 ms instead of 17-21 ms.
+services in Python before each callback: about half the CPU per lockstep step of SingleThreadedExecutor
+(benchmarks/bench_lockstep.py; its figures are in the README).
 """
 from __future__ import annotations
 
@@ -34,7 +32,7 @@ from rclpy.duration import Duration
 from rclpy.exceptions import InvalidNamespaceException, ParameterException
 from rclpy.experimental import EventsExecutor
 from rclpy.node import Node
-from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.qos import QoSProfile, ReliabilityPolicy
 from rclpy.signals import SignalHandlerOptions
 from rclpy.validate_namespace import validate_namespace
 from sensor_msgs.msg import Range
@@ -42,18 +40,19 @@ from std_msgs.msg import Float64MultiArray, String
 
 from epuck_ros.behaviours import BEHAVIOURS, BehaviourSpec, ConfigError, Observation
 from epuck_ros.behaviours.base import describe, ranges_from_raw
-from epuck_ros.model import SENSOR_NAMES
+from epuck_ros.conversions import nanoseconds_from_stamp, yaw_from_quaternion
+from epuck_ros.model import SENSOR_NAMES, TIME_STEP
 from epuck_ros.nodes.ack_window import COMMAND_QOS
 from epuck_ros.nodes.dds_profile import use_package_profile
 from epuck_ros.nodes.params import ParamSpec, Usage, declare_parameters, prepare_arguments, user_arguments
+from epuck_ros.nodes.qos import LATCHED
 from epuck_ros.nodes.serialized import Patch, float64_values
 from epuck_ros.nodes.spinning import handle_shutdown_signals, shutdown_requested, spin_until_shutdown
 from epuck_ros.world import WorldError, world_from_yaml
 
-CONTROL_PERIOD = 0.032
+CONTROL_PERIOD = TIME_STEP
 """Seconds between two commands: the course's controllers run once per Webots basicTimeStep (32 ms)."""
 QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
-LATCHED = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
 GRAPH_POLL_PERIOD = 0.1
 """Wall seconds between two looks at the graph for an `ir_raw` publisher (until there is one)."""
 FALLBACK_DELAY = 1.0
@@ -86,14 +85,6 @@ class RangeAssembler:
         self._missing.remove(index)
         self._values[index] = value
         return None if self._missing else tuple(self._values)
-
-
-def _nanoseconds(stamp: Any) -> int:
-    return stamp.sec * 1_000_000_000 + stamp.nanosec
-
-
-def yaw_from_quaternion(x: float, y: float, z: float, w: float) -> float:
-    return math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
 
 
 def parameter_specs(spec: BehaviourSpec) -> list[ParamSpec]:
@@ -135,7 +126,7 @@ class BehaviourNode(Node):
     A behaviour that needs the IR alone (avoid) does not wait for the tick at all once `ir_raw` flows: it answers
     each message as it arrives, one command per simulator step (whatever `control_period`). `/clock` reaches the
     node after the step's `ir_raw` (the simulator sends it last), and waiting for it costs more than the step
-    itself: measured in lockstep at real_time_factor 0, 5.6-8.5x real time waiting, 23-26x answering at once.
+    itself (bench_lockstep in the README).
     The command's time is then the previous command's plus one period, or the clock if that is later (a step
     answered late, outside lockstep): in lockstep exactly the step's time, whichever of `ir_raw` and `/clock`
     came first.
@@ -200,7 +191,7 @@ class BehaviourNode(Node):
         pose = msg.pose.pose
         q = pose.orientation
         self._odom = (pose.position.x, pose.position.y, yaw_from_quaternion(q.x, q.y, q.z, q.w))
-        self._odom_stamp = _nanoseconds(msg.header.stamp)
+        self._odom_stamp = nanoseconds_from_stamp(msg.header.stamp.sec, msg.header.stamp.nanosec)
         self._act_when_ready()
 
     def _on_ir_raw(self, data: bytes) -> None:
@@ -235,7 +226,7 @@ class BehaviourNode(Node):
             return
         if ranges is not None:
             self._ranges = ranges
-            self._ranges_stamp = _nanoseconds(msg.header.stamp)
+            self._ranges_stamp = nanoseconds_from_stamp(msg.header.stamp.sec, msg.header.stamp.nanosec)
             self._act_when_ready()
 
     def _on_tick(self) -> None:
@@ -284,7 +275,7 @@ class BehaviourNode(Node):
 
     def wait_until_stopped(self, timeout: float) -> None:
         """Wait until every reader acknowledged the zero command: a busy reader may have dropped it on arrival, and
-        only this writer, still alive, can send it again (measured: lost in 4 of 8 exits without this wait)."""
+        only this writer, still alive, can send it again (without this wait it was lost in about half the exits)."""
         if not self._publisher.wait_for_all_acked(Duration(seconds=max(timeout, 0.0))):
             self.get_logger().warning(f'the last (zero) wheel command was not acknowledged within {timeout:.1f} s')
 

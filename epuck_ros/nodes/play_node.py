@@ -23,6 +23,7 @@ from std_srvs.srv import Trigger
 
 from epuck_ros.bag.play import CLOCK_TOPIC, PlaybackClock, replay_profile
 from epuck_ros.bag.reader import Bag, BagError, Topic
+from epuck_ros.conversions import stamp_from_nanoseconds
 from epuck_ros.nodes.dds_profile import use_package_profile
 from epuck_ros.nodes.matching import wait_until_matched
 from epuck_ros.nodes.record_node import message_class
@@ -153,7 +154,7 @@ class Player(Node):
 
     def _tick(self, bag_ns: int) -> None:
         msg = Clock()
-        msg.clock.sec, msg.clock.nanosec = divmod(bag_ns, 1_000_000_000)
+        msg.clock.sec, msg.clock.nanosec = stamp_from_nanoseconds(bag_ns)
         self._clock_publisher.publish(msg)
 
 

@@ -8,7 +8,6 @@ are `epuck3/odom`, `epuck3/base_link`, `epuck3/ps0`... (stage_ros2's convention)
 """
 from __future__ import annotations
 
-import math
 from collections.abc import Callable
 
 import numpy as np
@@ -21,6 +20,7 @@ from rclpy.qos import QoSProfile
 from sensor_msgs.msg import JointState, Range
 from std_msgs.msg import Float64MultiArray, UInt32
 
+from epuck_ros.conversions import quaternion_from_yaw
 from epuck_ros.model import SENSOR_NAMES, RobotModel
 from epuck_ros.nodes.serialized import Patch, float64_values
 from epuck_ros.simulation import Simulation
@@ -192,4 +192,4 @@ def _diagonal(values: list[float]) -> list[float]:
 def _odometry(stamp: tuple[int, int], pose: np.ndarray, twist: np.ndarray) -> tuple[float | int, ...]:
     """The values of ODOMETRY_FIELDS: a planar pose's quaternion is a rotation about z."""
     x, y, yaw = pose.tolist()
-    return (*stamp, x, y, math.sin(yaw / 2.0), math.cos(yaw / 2.0), *twist.tolist())
+    return (*stamp, x, y, *quaternion_from_yaw(yaw), *twist.tolist())

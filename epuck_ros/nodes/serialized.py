@@ -2,7 +2,7 @@
 
 Why hand-written: `Publisher.publish(msg)` converts the Python message to C and serialises it on every call;
 for an Odometry (two 36-double covariances) that costs several times what publishing the bytes does
-(measured on the 2-core machines: about 40-110 µs against 5-18 µs per message; Range about 40 against 16 µs).
+(bench_sim_node in the README).
 The simulator sends 13 messages per robot and step, so this is most of its cost. A `Patch` is built from a
 real message, serialised exactly (`exact_cdr`), and the offset of each field that changes is found by setting it
 to a marker value and locating the marker's bytes. Each step the numbers are packed into a copy of those bytes,
@@ -14,8 +14,8 @@ refuses such a message ("CDR message size mismatch") and every copy would carry 
 writes the exact CDR with zero padding, as Fast DDS does for `publish(msg)` on the wire.
 
 The other way round, `float64_values` reads the numbers of a Float64MultiArray received as bytes (`raw=True`):
-rclpy would build a message object, its layout and an array for them (about 10 us in-process against 0.3 us,
-measured), on both sides of every lockstep round trip (`ir_raw`, `wheel_cmd`).
+rclpy would build a message object, its layout and an array for them, many times the cost of reading the
+numbers, on both sides of every lockstep round trip (`ir_raw`, `wheel_cmd`).
 """
 from __future__ import annotations
 

@@ -18,24 +18,25 @@ from collections.abc import Callable
 
 import rclpy
 import yaml
-from rcl_interfaces.msg import SetParametersResult
 from rclpy.exceptions import ParameterException
 from rclpy.experimental import EventsExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
-from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.signals import SignalHandlerOptions
 from rosgraph_msgs.msg import Clock
 from std_msgs.msg import String
 from std_srvs.srv import Empty, Trigger
 from visualization_msgs.msg import MarkerArray
 
+from epuck_ros.conversions import stamp_from_seconds
 from epuck_ros.markers import world_markers
-from epuck_ros.model import RobotModel
+from epuck_ros.model import TIME_STEP, RobotModel
 from epuck_ros.nodes.ack_window import AckWindow, history_steps, window_steps
 from epuck_ros.nodes.announcements import ANNOUNCEMENT_QOS, SIMULATORS_TOPIC, announcement, parse_announcement
 from epuck_ros.nodes.dds_profile import use_package_profile, warn_if_not_fast_dds
 from epuck_ros.nodes.params import ParamSpec, Usage, command_line_value, declare_parameters, prepare_arguments
+from epuck_ros.nodes.qos import LATCHED
 from epuck_ros.nodes.robot_ports import JOINT_NAMES, WARN_PERIOD, WORLD_FRAME, RobotPorts, quiet_publisher
 from epuck_ros.nodes.sense_ports import SENSE_POLL, SENSE_TOPICS, SenseError, SensePorts
 from epuck_ros.nodes.serialized import Patch
@@ -78,7 +79,7 @@ SUMMARY_PERIOD = 30.0
 """Wall seconds between two summaries of a repeated condition (command time-outs)."""
 
 SIM_PARAMETERS = [
-    ParamSpec('time_step', 0.032, 'simulated seconds per step (Webots basicTimeStep is 32 ms)', (0.001, 1.0),
+    ParamSpec('time_step', TIME_STEP, 'simulated seconds per step (Webots basicTimeStep is 32 ms)', (0.001, 1.0),
               read_only=True),
     ParamSpec('real_time_factor', 1.0, 'simulated seconds per wall second; 0 = as fast as possible', (0.0, 1e4)),
     ParamSpec('paused', False, 'while true, simulated time stands still (nothing is stepped or published); '
@@ -243,17 +244,16 @@ class SimNode(Node):
         self._thread = threading.Thread(target=self._run, name='sim_loop', daemon=True)
         self._timeouts = RepeatedCondition(self.get_logger().info, 'command time-out: wheels stopped')
         self._stalled_topics: set[str] = set()
-        self.add_on_set_parameters_callback(self._on_set_parameters)
+        self.add_post_set_parameters_callback(self._on_parameters_set)
 
         history = history_steps(len(world.robots))
         stream = QoSProfile(depth=history, reliability=ReliabilityPolicy.RELIABLE)
-        latched = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
         several = len(world.robots) > 1
         self.ports = []
         for index, name in enumerate(self._sim.names):
             if shutdown_requested():   # Ctrl-C while a swarm's ports are made (1,000 robots take ~15 s): stop now
                 raise StartInterrupted()
-            self.ports.append(RobotPorts(self, index, name, several, stream, latched, self._on_command,
+            self.ports.append(RobotPorts(self, index, name, several, stream, LATCHED, self._on_command,
                                          values['frame_prefix'], values['cmd_vel_stamped']))
         self.sense_ports = [SensePorts(self, index, name, several, stream, self._sim, values['frame_prefix'])
                             for index, name in enumerate(self._sim.names)]
@@ -261,9 +261,9 @@ class SimNode(Node):
         self._sense_turn = 0
         """The robots with a subscriber on some sense topic: their sense messages are published after each step."""
         self.create_timer(SENSE_POLL, self._update_sense_wants)
-        quiet_publisher(self, String, 'world', latched).publish(
+        quiet_publisher(self, String, 'world', LATCHED).publish(
             String(data=yaml.safe_dump(world.to_dict(), sort_keys=False)))
-        quiet_publisher(self, MarkerArray, 'world_markers', latched).publish(
+        quiet_publisher(self, MarkerArray, 'world_markers', LATCHED).publish(
             world_markers(world, values['frame_prefix'] + WORLD_FRAME))
         self.create_service(Empty, 'reset', self._on_reset)
         self.create_service(Trigger, 'step', self._on_step)
@@ -366,7 +366,9 @@ class SimNode(Node):
 
     # --- parameters, commands, services -----------------------------------------------------------------
 
-    def _on_set_parameters(self, params: list[Parameter]) -> SetParametersResult:
+    def _on_parameters_set(self, params: list[Parameter]) -> None:
+        """Apply parameters once they are set: their descriptors (ranges, types) already refused bad values, as in
+        the anchors' set_parameters_callback demo (checks before, effects after)."""
         with self._lock:
             for param in params:
                 if param.name == 'real_time_factor':
@@ -378,7 +380,6 @@ class SimNode(Node):
                 elif param.name == 'cmd_timeout':
                     self._sim.cmd_timeout = param.value
         self._wake.set()
-        return SetParametersResult(successful=True)
 
     def _on_command(self, robot: int, topic: str, kind: str, first: float, second: float) -> None:
         apply = self._sim.command_wheels if kind == 'wheels' else self._sim.command_twist
@@ -496,7 +497,7 @@ class SimNode(Node):
     def _publish(self) -> None:
         """One step's messages, robot by robot; `/clock` goes last, so a node whose timer fires on that tick has
         its data."""
-        stamp = _stamp(self._sim.time)
+        stamp = stamp_from_seconds(self._sim.time)
         for ports in self.ports:
             ports.publish(self._sim, stamp)
         for senses in self._sensing:
@@ -645,11 +646,6 @@ def _senses(value: str) -> frozenset[str]:
     if unknown:
         raise SenseError(f'senses: unknown sense {unknown[0]!r} (senses: {", ".join(SENSE_TOPICS)})')
     return words
-
-
-def _stamp(seconds: float) -> tuple[int, int]:
-    """(sec, nanosec) of a simulated time."""
-    return divmod(round(seconds * 1e9), 1_000_000_000)
 
 
 class StartInterrupted(Exception):

@@ -36,17 +36,18 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter, parameter_value_to_python
 from rclpy.parameter_client import AsyncParameterClient
 from rclpy.publisher import Publisher
-from rclpy.qos import DurabilityPolicy, QoSProfile, qos_profile_sensor_data
+from rclpy.qos import QoSProfile, qos_profile_sensor_data
 from rclpy.subscription import Subscription
 from rclpy.task import Future
 from sensor_msgs.msg import Image, JointState, Range
 from std_msgs.msg import Float64MultiArray, Int32MultiArray, String, UInt32
 from std_srvs.srv import Empty, Trigger
 
+from epuck_ros.conversions import seconds_from_stamp, yaw_from_quaternion
 from epuck_ros.model import SENSOR_NAMES
-from epuck_ros.nodes.behaviour_nodes import yaw_from_quaternion
 from epuck_ros.nodes.dds_profile import use_package_profile
 from epuck_ros.nodes.params import ParamSpec, Usage, declare_parameters, prepare_arguments
+from epuck_ros.nodes.qos import LATCHED
 from epuck_ros.nodes.sim_node import JOINT_NAMES
 from epuck_ros.sensors.png import png_bytes
 from epuck_ros.view.server import Action, ActionError, ViewServer, is_loopback
@@ -79,7 +80,6 @@ USAGE = Usage(
 
 SETTINGS = ('paused', 'real_time_factor')
 """The simulator's parameters the page shows (and sets)."""
-LATCHED = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
 NEWEST_ONLY = QoSProfile(depth=1, reliability=qos_profile_sensor_data.reliability)
 """Best-effort, depth 1: the simulator never waits for the view, which sees each topic's newest sample."""
 
@@ -322,7 +322,7 @@ def _planar_pose(msg: Odometry) -> tuple[float, float, float]:
 
 
 def _seconds(stamp: Time) -> float:
-    return stamp.sec + stamp.nanosec * 1e-9
+    return seconds_from_stamp(stamp.sec, stamp.nanosec)
 
 
 def _parameter_set(param: Parameter, result: ResultFuture, future: Future) -> None:

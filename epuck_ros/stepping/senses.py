@@ -33,8 +33,11 @@ class Senses:
     """
 
     def __init__(self, world: World, state: RobotArrays, time_step: float, seed: int, noise: bool,
-                 camera_size: tuple[int, int] = (CAMERA_WIDTH, CAMERA_HEIGHT)) -> None:
+                 camera_size: tuple[int, int] = (CAMERA_WIDTH, CAMERA_HEIGHT), isolated: bool = False) -> None:
+        """`isolated`: each robot alone in its own copy of the world (the simulation's option): no robot sees
+        another, nor shades its light."""
         count = len(state.true)
+        self._isolated = isolated
         self.world, self.count, self.time_step, self.noise = world, count, time_step, noise
         self._state = state
         self._seed = seed
@@ -132,7 +135,7 @@ class Senses:
 
     def _read(self, kind: str, rows: np.ndarray, state: RobotArrays) -> None:
         true = state.true
-        others = true[:, :2] if self.count > 1 else None
+        others = true[:, :2] if self.count > 1 and not self._isolated else None
         if kind == 'ground':
             if self._ground is None:
                 self._ground = GroundSensors(self.scene)

@@ -67,7 +67,7 @@ class RobotArrays:
 
 
 def step_travel(model: RobotModel, time_step: float) -> float:
-    """m the fastest robot covers in one step (both wheels at full speed)."""
+    """Metres the fastest robot covers in one step (both wheels at full speed)."""
     return model.max_wheel_speed * model.wheel_radius * time_step
 
 

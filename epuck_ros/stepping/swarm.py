@@ -26,8 +26,11 @@ _OVERLAP_TOLERANCE = 1e-9
 class SwarmStepper:
     """Moves all robots of a world together, out of obstacles and apart, turns their wheels and reads sensors."""
 
-    def __init__(self, world: World, model: RobotModel, time_step: float, ir: IrRing, start: np.ndarray) -> None:
+    def __init__(self, world: World, model: RobotModel, time_step: float, ir: IrRing, start: np.ndarray,
+                 isolated: bool = False) -> None:
         self.world, self.model, self.time_step, self.ir = world, model, time_step, ir
+        self.isolated = isolated
+        """Each robot alone in its own copy of the world: no pairs, no robot contacts, no robot in a ray."""
         self._geometry = world.geometry
         self._substeps = substeps(model, time_step)
         count = len(start)
@@ -49,7 +52,8 @@ class SwarmStepper:
 
     def reset(self, state: RobotArrays) -> None:
         """Search the pairs afresh where the robots are now and sense there."""
-        self._cover_pairs(state.true[:, :2], refresh=True)
+        if not self.isolated:
+            self._cover_pairs(state.true[:, :2], refresh=True)
         self._sense(state, None)
 
     def _sense(self, state: RobotArrays, offsets: np.ndarray | None) -> None:
@@ -89,8 +93,9 @@ class SwarmStepper:
             arc_end[:, 0], arc_end[:, 1] = x, y
             xy, hit = collisions.resolve_collision(self._geometry, arc_end, radius, clear)
             obstacle |= hit
-            touching, offsets = self._separate(xy, clear, obstacle)
-            robot |= touching
+            if not self.isolated:
+                touching, offsets = self._separate(xy, clear, obstacle)
+                robot |= touching
         state.true[:, :2], state.true[:, 2] = xy, yaw
         self._true_twist(state, start, obstacle | robot)
         return obstacle, robot, offsets

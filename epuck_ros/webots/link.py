@@ -28,6 +28,7 @@ import numpy as np
 from sensor_msgs.msg import Image, Imu, JointState
 from std_msgs.msg import Float64MultiArray, Int32MultiArray
 
+from epuck_ros.conversions import nanoseconds_from_stamp
 from epuck_ros.nodes.ack_window import COMMAND_QOS
 from epuck_ros.nodes.robot_ports import JOINT_NAMES
 from epuck_ros.nodes.sense_ports import SENSE_TOPICS
@@ -83,7 +84,7 @@ class _SenseFeed:
         else:
             self.value = tuple(msg.data)
         if self.kind in ('camera', 'imu'):
-            self.stamp_ns = _nanoseconds(msg.header.stamp)
+            self.stamp_ns = nanoseconds_from_stamp(msg.header.stamp.sec, msg.header.stamp.nanosec)
         self.since_answer += 1
 
     def ready(self, clock_ns: int, clocks: int) -> bool:
@@ -93,10 +94,6 @@ class _SenseFeed:
         if self.stamp_ns is not None:
             return self.stamp_ns == clock_ns
         return self.since_answer > 0 and (self.since_answer == clocks or clocks >= MISMATCH_GIVE_UP)
-
-
-def _nanoseconds(stamp: object) -> int:
-    return stamp.sec * 1_000_000_000 + stamp.nanosec
 
 
 class SimLink:
@@ -129,7 +126,7 @@ class SimLink:
     # --- callbacks --------------------------------------------------------------------------------------------
 
     def _on_clock(self, msg: Clock) -> None:
-        self._clock_ns = _nanoseconds(msg.clock)
+        self._clock_ns = nanoseconds_from_stamp(msg.clock.sec, msg.clock.nanosec)
         self._clocks_since_answer += 1
 
     def _on_joints(self, msg: JointState) -> None:
@@ -273,9 +270,10 @@ class SimLink:
         That also holds when the simulator went on without waiting (its lockstep_timeout): the readings then are
         those of its newest step, all three. Three publications without the counts meeting (a re-sent first step
         straddling the answer) and the newest ir_raw is taken as it is."""
-        clock, clocks = self._clock_ns, self._clocks_since_answer
-        return clock is not None and clock > self._consumed_ns and self._joints is not None and \
-            _nanoseconds(self._joints.header.stamp) == clock and self._ir_since_answer > 0 and \
+        clock, clocks, joints = self._clock_ns, self._clocks_since_answer, self._joints
+        return clock is not None and clock > self._consumed_ns and joints is not None and \
+            nanoseconds_from_stamp(joints.header.stamp.sec, joints.header.stamp.nanosec) == clock and \
+            self._ir_since_answer > 0 and \
             (self._ir_since_answer == clocks or clocks >= MISMATCH_GIVE_UP) and \
             all(feed.ready(clock, clocks) for feed in self._feeds.values())
 

@@ -60,7 +60,10 @@ class Session:
     in_step: bool = False
 
     def start(self) -> None:
-        """rclpy without its own signal handling: Ctrl-C inside step() is step's -1, elsewhere KeyboardInterrupt."""
+        """Start `rclpy` without its own signal handling.
+
+        Ctrl-C inside step() is step's -1, elsewhere KeyboardInterrupt.
+        """
         if not rclpy.ok():
             use_package_profile()
             rclpy.init(args=['webots_controller', *self.ros_args], signal_handler_options=SignalHandlerOptions.NO)

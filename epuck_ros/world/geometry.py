@@ -150,7 +150,7 @@ class Geometry:
         the surface towards the point; the distance is negative inside an obstacle (the normal then points to
         the nearest way out), so a push of (radius - distance) along the normal frees a disc from that surface.
         """
-        found = []   # the walls one by one: a third of the cost of a loop over them (measured)
+        found = []   # the walls one by one: cheaper than a loop over them
         if x + self.half_x < reach:
             found.append((0, x + self.half_x, 1.0, 0.0))
         if y + self.half_y < reach:

@@ -1,0 +1,172 @@
+"""What kind of run it was, from the path and heading alone: standing, a straight line, a spin in place, a
+circle, a rectangle or free motion such as `avoid`, with that shape's figures only."""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from epuck_ros.bag.runs import Trajectory
+
+STRAIGHT_YAW_RATE = 0.05
+"""rad/s; slower heading changes than this while moving count as driving straight."""
+MOVING_SPEED = 0.005
+"""m/s; slower than this the robot is standing (or turning in place)."""
+MIN_SEGMENT_TIME = 0.3
+"""s; straight stretches shorter than this are not sides of a shape."""
+MIN_CORNER_DEG = 15.0
+"""Straight stretches whose headings differ by less than this are one side; smaller turns are no corner."""
+STILL_DISTANCE = 0.01
+"""m; a run travelling less than this (a quarter of the body radius) stayed in place."""
+CORNER_RANGE_DEG = (45.0, 135.0)
+"""A rectangle's corners, as driven: the course's timed turns make 82.4-85.0° ones (31 or 32 steps), not 90°."""
+MIN_SIDE_RATIO = 0.25
+"""A rectangle's shortest side is at least this fraction of its longest (else it is free motion)."""
+CIRCLE_RMS_RATIO = 0.1
+"""A circle's points lie within this fraction of its radius (rms) of the fitted circle."""
+
+
+@dataclass
+class StraightLine:
+    length: float
+    """m from the first to the last pose."""
+    heading_deg: float
+    max_deviation: float
+    """m; the farthest the robot strayed from the line through its first and last poses."""
+
+
+@dataclass
+class Spin:
+    heading_rate: float
+    """rad/s while turning (the sign says which way: + is counter-clockwise)."""
+    turns: float
+
+
+@dataclass
+class CircleFit:
+    radius: float
+    centre: tuple[float, float]
+    rms_error: float
+    laps: float
+
+
+@dataclass
+class Corners:
+    angles_deg: list[float]
+    """The heading change at each corner, as driven (+ is a left turn), including a turn after the last side."""
+    side_lengths: list[float]
+
+
+@dataclass
+class Motion:
+    """What a run was, and that shape's figures (the others None)."""
+
+    kind: str
+    straight: StraightLine | None = None
+    spin: Spin | None = None
+    circle: CircleFit | None = None
+    corners: Corners | None = None
+
+
+def fit_circle(x: np.ndarray, y: np.ndarray) -> tuple[float, tuple[float, float], float]:
+    """Least-squares circle (Kåsa): radius, centre and rms distance of the points from the circle."""
+    design = np.column_stack([x, y, np.ones_like(x)])
+    (a, b, c), *_ = np.linalg.lstsq(design, -(x * x + y * y), rcond=None)
+    cx, cy = -a / 2.0, -b / 2.0
+    radius = math.sqrt(max(cx * cx + cy * cy - c, 0.0))
+    rms = float(np.sqrt(np.mean((np.hypot(x - cx, y - cy) - radius) ** 2)))
+    return radius, (float(cx), float(cy)), rms
+
+
+def _rates(trajectory: Trajectory) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per interval: duration (nan when not positive), speed, |heading rate|."""
+    dt = np.diff(trajectory.t)
+    dt[dt <= 0.0] = np.nan
+    speed = np.hypot(np.diff(trajectory.x), np.diff(trajectory.y)) / dt
+    return dt, speed, np.abs(np.diff(trajectory.yaw)) / dt
+
+
+def straight_segments(trajectory: Trajectory) -> list[tuple[int, int]]:
+    """Index ranges [i, j] where the robot moves with an almost constant heading for long enough."""
+    _, speed, yaw_rate = _rates(trajectory)
+    straight = (speed > MOVING_SPEED) & (yaw_rate < STRAIGHT_YAW_RATE)
+    segments, start = [], None
+    for i, flag in enumerate(np.append(straight, False)):
+        if flag and start is None:
+            start = i
+        elif not flag and start is not None:
+            if trajectory.t[i] - trajectory.t[start] >= MIN_SEGMENT_TIME:
+                segments.append((start, i))
+            start = None
+    return segments
+
+
+def _sides(trajectory: Trajectory, segments: list[tuple[int, int]]) -> list[tuple[float, float, int]]:
+    """(heading, length, last index) of each side: straight segments on one heading (e.g. after backing off)
+    are one side."""
+    sides: list[tuple[float, float, int]] = []
+    for i, j in segments:
+        heading = float(np.mean(trajectory.yaw[i:j + 1]))
+        length = float(np.hypot(trajectory.x[j] - trajectory.x[i], trajectory.y[j] - trajectory.y[i]))
+        if sides and abs(heading - sides[-1][0]) < math.radians(MIN_CORNER_DEG):
+            sides[-1] = (sides[-1][0], sides[-1][1] + length, j)
+        else:
+            sides.append((heading, length, j))
+    return sides
+
+
+def classify(trajectory: Trajectory) -> Motion:
+    """Say what the run was, from the path and heading alone; a shape's figures only when it is that shape."""
+    if len(trajectory.t) < 3:
+        return Motion('standing')
+    dt, speed, yaw_rate = _rates(trajectory)
+    turned = float(trajectory.yaw[-1] - trajectory.yaw[0])
+    turning = yaw_rate >= STRAIGHT_YAW_RATE
+    moving_time = float(np.nansum(np.where((speed > MOVING_SPEED) | turning, dt, 0.0)))
+    if trajectory.distance < STILL_DISTANCE:
+        turning_time = float(np.nansum(np.where(turning, dt, 0.0)))
+        if abs(turned) < math.radians(MIN_CORNER_DEG) or turning_time <= 0.0:
+            return Motion('standing')
+        return Motion('spin in place', spin=Spin(turned / turning_time, abs(turned) / (2.0 * math.pi)))
+    total_turn = float(np.abs(np.diff(trajectory.yaw)).sum())
+    if total_turn < math.radians(MIN_CORNER_DEG):
+        return Motion('straight line', straight=_straight_line(trajectory))
+    segments = straight_segments(trajectory)
+    straight_time = sum(trajectory.t[j] - trajectory.t[i] for i, j in segments)
+    if abs(turned) >= math.pi and straight_time < 0.2 * moving_time:
+        radius, centre, rms = fit_circle(trajectory.x, trajectory.y)
+        if rms < CIRCLE_RMS_RATIO * radius:
+            return Motion('circle', circle=CircleFit(radius, centre, rms, abs(turned) / (2.0 * math.pi)))
+    corners = _rectangle_corners(trajectory, _sides(trajectory, segments))
+    if corners is not None and straight_time >= 0.5 * moving_time:
+        return Motion('rectangle', corners=corners)
+    return Motion('free motion')
+
+
+def _straight_line(trajectory: Trajectory) -> StraightLine:
+    dx, dy = trajectory.x[-1] - trajectory.x[0], trajectory.y[-1] - trajectory.y[0]
+    length = math.hypot(dx, dy)
+    heading = math.atan2(dy, dx) if length > 0.0 else float(trajectory.yaw[0])
+    across = np.abs(-(trajectory.x - trajectory.x[0]) * math.sin(heading)
+                    + (trajectory.y - trajectory.y[0]) * math.cos(heading))
+    return StraightLine(length, math.degrees(heading), float(across.max()))
+
+
+def _rectangle_corners(trajectory: Trajectory, sides: list[tuple[float, float, int]]) -> Corners | None:
+    """The corners when the sides make a rectangle as driven: at least 3 sides of comparable length (the last
+    may be cut short), and turns of 45-135° all one way; a turn after the last side (closing the rectangle)
+    is a corner too."""
+    if len(sides) < 3:
+        return None
+    headings = [heading for heading, _, _ in sides]
+    angles = [math.degrees(b - a) for a, b in zip(headings, headings[1:])]
+    trailing = math.degrees(float(trajectory.yaw[-1]) - headings[-1])
+    if abs(trailing) >= CORNER_RANGE_DEG[0]:
+        angles.append(trailing)
+    lengths = [length for _, length, _ in sides]
+    low, high = CORNER_RANGE_DEG
+    if (not all(low <= abs(a) <= high for a in angles) or len({a > 0 for a in angles}) != 1
+            or min(lengths[:-1]) < MIN_SIDE_RATIO * max(lengths)):  # the run may stop part-way along the last
+        return None
+    return Corners(angles, lengths)

@@ -1,0 +1,42 @@
+"""How ROS messages carry time and heading, converted in one place: stamps <-> seconds, yaw <-> quaternion.
+
+A stamp is (sec, nanosec) as builtin_interfaces/Time holds it; nanoseconds since the epoch (or since the
+simulation's start) are the exact form used to compare stamps. A planar pose's orientation is a rotation
+about z, so its quaternion is (0, 0, sin(yaw / 2), cos(yaw / 2)). No ROS imports: the core, the bag code and
+the nodes all use these.
+"""
+from __future__ import annotations
+
+import math
+
+NS_PER_SECOND = 1_000_000_000
+
+
+def stamp_from_seconds(seconds: float) -> tuple[int, int]:
+    """(sec, nanosec) of a time in seconds, to the nearest nanosecond."""
+    return divmod(round(seconds * 1e9), NS_PER_SECOND)
+
+
+def stamp_from_nanoseconds(nanoseconds: int) -> tuple[int, int]:
+    """(sec, nanosec) of a time in whole nanoseconds."""
+    return divmod(nanoseconds, NS_PER_SECOND)
+
+
+def nanoseconds_from_stamp(sec: int, nanosec: int) -> int:
+    """A stamp as whole nanoseconds: exact, so two stamps compare equal when they are."""
+    return sec * NS_PER_SECOND + nanosec
+
+
+def seconds_from_stamp(sec: int, nanosec: int) -> float:
+    """A stamp in seconds (a float: for display and rates, not for comparing stamps)."""
+    return sec + nanosec * 1e-9
+
+
+def yaw_from_quaternion(x: float, y: float, z: float, w: float) -> float:
+    """The heading (rad) of an orientation quaternion, its rotation about z."""
+    return math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
+
+
+def quaternion_from_yaw(yaw: float) -> tuple[float, float]:
+    """(z, w) of the quaternion of a rotation by `yaw` about z (x and y are 0)."""
+    return math.sin(yaw / 2.0), math.cos(yaw / 2.0)

@@ -1,0 +1,190 @@
+"""N independent Avoid worlds stepped together on the pure core: one e-puck each, one random generator each.
+
+All worlds live in one `Simulation(isolated=True)`: its robots neither touch nor see each other, and its one-robot
+and many-robot paths give the same bits, so world i of N is exactly a lone world with the same generator. The
+simulator runs without noise and the IR noise is drawn here, per world, with Webots' formula (value times 1 +
+sigma N(0, 1), sigma from the lookup table's third column): then a world's noise does not depend on how many
+worlds share the simulator. Each generator draws, in order: the start pose at reset (again until the body is clear
+of everything), eight normals for the readings at reset, eight more at each step.
+
+Observation (float32, 10 values): the eight IR activations, (raw - far) / (near - far) clipped to [0, 1],
+far = 67.19 (nothing within 7 cm) and near = 4095 (touching), then the two wheel speeds applied in the last step as
+fractions of the maximum, in [-1, 1] (the speeds commanded: a blocked robot's wheels turn on). Action: the two wheel
+speeds (left, right) as fractions of the maximum (6.28 rad/s), in [-1, 1]. Reward: Floreano and Mondada's fitness
+of the step, V (1 - sqrt(dv)) (1 - i) in [0, 1] (see `fitness`).
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from epuck_ros.kinematics import wheels_from_twist
+from epuck_ros.model import RobotModel
+from epuck_ros.simulation import CommandError, Simulation
+from epuck_ros.world import CONTACT_TOLERANCE, ROBOT_GAP, RobotStart, World
+
+OBSERVATION_SIZE = 10
+"""Eight IR activations and two wheel speeds."""
+MAX_WORLDS = 65536
+"""Most worlds one vector environment steps together: a bound on what a typo in `num_envs` can allocate."""
+
+
+def fitness(wheels: np.ndarray, activation: np.ndarray) -> np.ndarray:
+    """Floreano and Mondada's Phi = V (1 - sqrt(dv)) (1 - i) per world, each factor in [0, 1]: V the mean of the two
+    wheel speeds, forward only (0 when reversing), dv the absolute difference of the wheel speeds over 2, i the
+    highest IR activation. wheels (N, 2): the wheel speeds of the body's true motion as fractions of the maximum;
+    activation (N, 8) -> (N,).
+
+    Two departures, both loopholes that evolution found here and the paper's robot did not offer: the wheels are
+    those of the body's true motion (a blocked robot's wheels count as still, as a real robot's stall or slip;
+    the simulator's own wheels turn on, and evolution parked robots in a corner with the motors at full speed),
+    and V counts forward speed only (our motors change speed at once, and with V the mean absolute speed
+    evolution found full reverse and full forward on alternate steps: V = 1, dv = 0, no obstacle ever near).
+    """
+    left, right = wheels[:, 0], wheels[:, 1]
+    speed = np.maximum(0.5 * (left + right), 0.0)
+    turning = 0.5 * np.abs(left - right)
+    return speed * (1.0 - np.sqrt(turning)) * (1.0 - activation.max(axis=1))
+
+
+class Worlds:
+    """`count` Avoid worlds in `world` (its robots ignored), `duration` simulated seconds per episode."""
+
+    def __init__(self, count: int, world: World, duration: float, noise: bool = True,
+                 model: RobotModel = RobotModel(), time_step: float = 0.032) -> None:
+        if isinstance(count, bool) or not isinstance(count, (int, np.integer)) or not 1 <= count <= MAX_WORLDS:
+            raise ValueError(f'num_envs must be an integer from 1 to {MAX_WORLDS}, got {count!r}')
+        if not (isinstance(duration, (int, float)) and math.isfinite(duration) and 0.0 < duration <= 1e6):
+            raise ValueError(f'duration must be a number of simulated seconds in (0, 1e6], got {duration!r}')
+        if not isinstance(noise, bool):
+            raise ValueError(f'noise must be True or False, got {noise!r}')
+        self.count, self.world, self.model, self.time_step = int(count), world, model, time_step
+        self.noise = noise
+        self.episode_steps = max(1, math.ceil(duration / time_step - 1e-9))
+        table = model.ir_table
+        self._far, self._near = float(table[-1, 1]), float(table[0, 1])
+        self._noise_raws, self._noise_sigmas = table[::-1, 1].copy(), table[::-1, 2].copy()
+        self.sim: Simulation | None = None
+        self.rngs: list[np.random.Generator] = []
+        self.steps = 0
+        self._activation: np.ndarray | list[float] = np.zeros((count, 8))
+        self._normals = np.empty((count, 8))
+
+    # --- episodes -----------------------------------------------------------------------------------------
+
+    def reset(self, rngs: list[np.random.Generator]) -> np.ndarray:
+        """A new episode in every world, drawn from its generator; the observations (count, 10)."""
+        self.rngs = rngs
+        starts = self._start_poses()
+        robots = [RobotStart(f'w{i}', x, y, yaw) for i, (x, y, yaw) in enumerate(starts.tolist())]
+        self.sim = Simulation(self.world.with_robots(robots), model=self.model, time_step=self.time_step,
+                              noise=False, cmd_timeout=0.0, isolated=True)
+        self.steps = 0
+        return self._observe()
+
+    def _start_poses(self) -> np.ndarray:
+        """(count, 3) start poses, uniform over the arena and headings, redrawn until clear of every obstacle."""
+        radius = self.model.body_radius + ROBOT_GAP + CONTACT_TOLERANCE
+        half_x, half_y = (size / 2.0 - radius for size in self.world.arena_size)
+        low, high = np.array([-half_x, -half_y, -math.pi]), np.array([half_x, half_y, math.pi])
+        poses = np.empty((self.count, 3))
+        todo = np.arange(self.count)
+        for _ in range(10000):
+            for i in todo.tolist():
+                poses[i] = self.rngs[i].uniform(low, high)
+            clear = self.world.discs_clear(poses[todo, :2], radius)
+            todo = todo[~clear]
+            if not len(todo):
+                return poses
+        raise ValueError('the world has no room for an e-puck clear of its walls and obstacles')
+
+    # --- steps --------------------------------------------------------------------------------------------
+
+    def step(self, actions: np.ndarray) -> tuple[np.ndarray, np.ndarray, bool]:
+        """Drive every world one step with `actions` (count, 2), checked by `check_actions`; (observations, rewards,
+        truncated: the same for every world, whose episodes all last `episode_steps`)."""
+        sim = self.sim
+        top = self.model.max_wheel_speed
+        sim.command_all_wheels(actions * top)
+        sim.step()
+        self.steps += 1
+        observation = self._observe()
+        left, right = wheels_from_twist(sim.true_twist[:, 0], sim.true_twist[:, 1], self.model)
+        reward = fitness(np.column_stack([left, right]) / top, self.last_activation)
+        return observation, reward, self.steps >= self.episode_steps
+
+    def step_one(self, left: float, right: float) -> tuple[np.ndarray, float, bool]:
+        """`step` of the one world (count 1) on Python floats: `step`'s arithmetic operation for operation (the same
+        bits: test_envs checks), without NumPy's per-call cost on eight values; (observation (10,), reward,
+        truncated)."""
+        sim, top = self.sim, self.model.max_wheel_speed
+        sim.command_wheels(0, left * top, right * top)
+        sim.step()
+        self.steps += 1
+        raw = sim.ir_raw[0]
+        if self.noise:
+            sigmas = np.interp(raw, self._noise_raws, self._noise_sigmas).tolist()
+            raw = [value * (1.0 + sigma * normal)
+                   for value, sigma, normal in zip(raw.tolist(), sigmas, self.rngs[0].standard_normal(8).tolist())]
+        else:
+            raw = raw.tolist()
+        far, near = self._far, self._near
+        activation = [min(max((value - far) / (near - far), 0.0), 1.0) for value in raw]
+        self._activation = activation
+        (forward, turn), = sim.true_twist.tolist()
+        true_left, true_right = (wheel / top for wheel in wheels_from_twist(forward, turn, self.model))
+        speed = max(0.5 * (true_left + true_right), 0.0)
+        reward = speed * (1.0 - math.sqrt(0.5 * abs(true_left - true_right))) * (1.0 - max(activation))
+        wheels = [wheel / top for wheel in sim.wheel_speeds[0].tolist()]
+        return np.array(activation + wheels, dtype=np.float32), reward, self.steps >= self.episode_steps
+
+    @property
+    def last_activation(self) -> np.ndarray:
+        """(count, 8) IR activations of the last observations."""
+        return np.asarray(self._activation, dtype=float).reshape(self.count, 8)
+
+    def _observe(self) -> np.ndarray:
+        raw = self.sim.ir_raw
+        if self.noise:
+            normals = self._normals
+            for rng, row in zip(self.rngs, normals):
+                rng.standard_normal(out=row)
+            raw = raw * (1.0 + np.interp(raw, self._noise_raws, self._noise_sigmas) * normals)
+        self._activation = activations(raw, self.model)
+        return observations(self._activation, self.sim.wheel_speeds, self.model)
+
+
+def activations(raw: np.ndarray, model: RobotModel) -> np.ndarray:
+    """Raw IR values (N, 8) as activations in [0, 1] (N, 8): 0 when nothing is within range, 1 when touching."""
+    far, near = model.ir_table[-1, 1], model.ir_table[0, 1]
+    return np.minimum(np.maximum((raw - far) / (near - far), 0.0), 1.0)
+
+
+def observations(activation: np.ndarray, wheel_speeds: np.ndarray, model: RobotModel) -> np.ndarray:
+    """(N, 10) float32: the IR activations and the applied wheel speeds (rad/s) as fractions of the maximum."""
+    observation = np.empty((len(activation), OBSERVATION_SIZE), dtype=np.float32)
+    observation[:, :8] = activation
+    observation[:, 8:] = wheel_speeds / model.max_wheel_speed
+    return observation
+
+
+def check_actions(actions: object, shape: tuple[int, ...]) -> np.ndarray:
+    """`actions` as a float array of `shape` ((2,) or (count, 2)); CommandError (a ValueError) saying what is wrong
+    for another shape or a NaN / inf."""
+    try:
+        array = np.asarray(actions, dtype=float)
+    except (TypeError, ValueError):
+        raise CommandError(f'action rejected: expected wheel speeds (fractions of the maximum) of shape {shape}, '
+                           f'got {actions!r}') from None
+    if array.shape != shape:
+        raise CommandError(f'action rejected: expected shape {shape} (left, right wheel speeds as fractions of the '
+                           f'maximum), got shape {array.shape}')
+    if len(shape) == 1 and all(map(math.isfinite, array.tolist())):   # one action: plain floats, no NumPy call
+        return array
+    if not np.isfinite(array).all():
+        rows = array.reshape(-1, 2)
+        bad = int(np.flatnonzero(~np.isfinite(rows).all(axis=1))[0])
+        where = f' in world {bad}' if len(shape) == 2 else ''
+        raise CommandError(f'action rejected: wheel speeds must be finite numbers, got {rows[bad].tolist()}{where}')
+    return array
