@@ -283,3 +283,16 @@ def test_reset_reads_the_senses_at_the_start_again() -> None:
     sim.reset()
     assert (sim.senses.ground_raw == at_start).all()
     assert sim.senses.accelerometer[0].tolist() == pytest.approx([0.0, 0.0, 9.81], abs=1e-12)   # from rest
+
+
+def test_isolated_robots_do_not_see_each_other() -> None:
+    from epuck_ros.simulation import Simulation
+    from epuck_ros.world.data import RobotStart
+    world = World(arena_size=(2.0, 2.0), robots=[RobotStart('a', 0.0, 0.0, 0.0), RobotStart('b', 0.3, 0.0, math.pi)])
+    shared, isolated = Simulation(world, noise=False), Simulation(world, noise=False, isolated=True)
+    for sim in (shared, isolated):
+        sim.senses.want('camera', [0, 1])
+    alone = Simulation(world.with_robots(world.robots[:1]), noise=False)
+    alone.senses.want('camera', [0])
+    assert (isolated.senses.images[0] == alone.senses.images[0]).all()
+    assert not (shared.senses.images[0] == alone.senses.images[0]).all()
