@@ -18,7 +18,8 @@ GRAVITY = 9.81
 
 
 def acceleration(twist: np.ndarray, previous_twist: np.ndarray, time_step: float) -> np.ndarray:
-    """Proper acceleration (R, 3) in the body frame from the (v, w) twists (R, 2) now and a step before."""
+    """What an accelerometer at the body's origin feels, in the body frame: an array (R, 3) from the (v, w)
+    twists (R, 2) now and one step before."""
     v, w = twist[:, 0], twist[:, 1]
     return np.column_stack([(v - previous_twist[:, 0]) / time_step, v * w, np.full(len(v), GRAVITY)])
 
