@@ -9,11 +9,13 @@ setup(
     name=package_name,
     version='0.1.0',
     packages=find_packages(exclude=['test']),
-    package_data={package_name: ['worlds/*.yaml', 'view/static/*', 'webots/examples/*.py', 'nodes/*.xml']},
+    package_data={
+        package_name: ['worlds/*.yaml', 'view/static/*', 'webots/examples/*.py', 'nodes/*.xml', 'urdf/*.urdf']},
     data_files=[
         ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
         ('share/' + package_name, ['package.xml']),
         ('share/' + package_name + '/worlds', glob('epuck_ros/worlds/*.yaml')),
+        ('share/' + package_name + '/urdf', ['epuck_ros/urdf/epuck.urdf']),
     ],
     install_requires=['setuptools', 'numpy', 'pyyaml', 'mcap', 'zstandard', 'lz4', 'matplotlib', 'dask[distributed]',
                       'gymnasium', 'pettingzoo', 'rosbags'],
@@ -40,5 +42,6 @@ setup(
             'sweep = epuck_ros.experiments.cli:main',
             'evolve = epuck_ros.evolution.cli:main',
         ],
+        'pytest11': ['epuck_ros = epuck_ros.testing.plugin'],   # a plugin, not an executable
     },
 )

@@ -4,10 +4,10 @@ Every figure comes from the Webots E-puck.proto (R2022b, ENU frame) and
 E-puckDistanceSensor.proto, as collected in ``shared/reference/epuck-model-sources.md``:
 wheel radius 0.02 m and axle 0.052 m (§1), maxVelocity 6.28 rad/s, encoder resolution
 2π/1000 rad, body collision cylinder radius 0.037 m, sensor poses (§1.1, yaw computed from
-the PROTO rotations) and the IR lookup table (distance m, raw value, relative noise). The other senses (§6 of
-the same file, read from E-puck.proto R2022b and E-puckGroundSensors.proto R2020a): camera, ground sensors,
-light sensors, accelerometer, gyro and LEDs, their poses on the body (x forward, y left, z up from the floor) and
-lookup tables, kept here as the one place a URDF or TF publisher reads them from.
+the PROTO rotations), the camera's translation, and the IR lookup table (distance m, raw value, relative noise).
+The other senses (§6 of the same file, read from E-puck.proto R2022b and E-puckGroundSensors.proto R2020a):
+camera, ground sensors, light sensors, accelerometer, gyro and LEDs, their poses on the body (x forward, y left,
+z up from the floor) and lookup tables, kept here as the one place a URDF or TF publisher reads them from.
 """
 from __future__ import annotations
 
@@ -38,6 +38,18 @@ SENSOR_POSES = np.array([
     [0.030, 0.010, 0.2992],
 ])
 
+SENSOR_HEIGHT = 0.033
+"""m above the floor of ps0..ps7 (the z of their translations); their rays are simulated level."""
+LIGHT_SENSOR_HEIGHT = 0.0329
+"""m above the floor of ls0..ls7, which share the x, y and yaw of ps0..ps7."""
+CAMERA_POSE = (0.030, 0.0, 0.028)
+"""x, y, z (m) of the camera in base_link, looking along +x."""
+BODY_HEIGHT = 0.045
+BODY_CENTRE_HEIGHT = 0.025
+"""m; the body's collision cylinder (radius `RobotModel.body_radius`) and the height of its centre."""
+WHEEL_WIDTH = 0.005
+"""m; the wheel's bounding cylinder (its hinge sits at the wheel radius above the floor)."""
+
 # Webots E-puckDistanceSensor lookupTable: distance (m), raw value, relative noise (std).
 IR_LOOKUP_TABLE = np.array([
     [0.000, 4095.0, 0.002],
@@ -52,12 +64,9 @@ IR_LOOKUP_TABLE = np.array([
     [0.070, 67.19, 0.04897],
 ])
 
+BODY_TOP = BODY_CENTRE_HEIGHT + BODY_HEIGHT / 2.0
+"""m; the top of the body's collision cylinder: how high other robots' cameras and lights see it."""
 
-BODY_HEIGHT = 0.0475
-"""m; top of the body's bounding cylinder (height 0.045 centred at z = 0.025): what other robots' cameras see."""
-
-CAMERA_POSE = (0.03, 0.0, 0.028)
-"""x, y, z (m) of the camera on the body, looking along +x."""
 CAMERA_WIDTH, CAMERA_HEIGHT = 52, 39
 CAMERA_FOV = 0.84
 """rad, horizontal; the vertical field follows from the 4:3 image (square pixels)."""
@@ -72,8 +81,6 @@ GROUND_LOOKUP_TABLE = np.array([[0.0, 1000.0, 0.002], [0.016, 300.0, 0.004]])
 """distance (m), raw value, relative noise: E-puckGroundSensors.proto (R2020a)."""
 
 LIGHT_SENSOR_NAMES: tuple[str, ...] = tuple(f'ls{i}' for i in range(8))
-LIGHT_SENSOR_HEIGHT = 0.0329
-"""m; ls0..ls7 sit on the poses of ps0..ps7 (SENSOR_POSES) at this height."""
 LIGHT_LOOKUP_TABLE = np.array([[1.0, 4095.0, 0.01], [2.0, 0.0, 0.01]])
 """irradiance (W/m^2), raw value, relative noise: more light, lower value, as on the real robot."""
 

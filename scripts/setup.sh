@@ -19,3 +19,5 @@ if [ ! -f "$stamp" ] || [ "$(cat "$stamp")" != "$want" ]; then
   .venv/bin/python -m pip install --quiet --no-deps -e .
   echo "$want" > "$stamp"
 fi
+# tf2_msgs/TFMessage for /tf is not on PyPI: built from PyPI's ament and rosidl packages (a no-op once it imports).
+scripts/gen_tf2_msgs.sh .venv || echo "[setup] tf2_msgs could not be built (see above): the simulator runs without /tf" >&2

@@ -43,6 +43,12 @@ os.environ['EPUCK_ROS_TEST_RUN'] = str(os.getpid())
 """Inherited by every process this test run starts, so it can tell them from anyone else's on the same domain."""
 
 
+def pytest_configure(config: pytest.Config) -> None:
+    """The package's own pytest plugin (`epuck_sim`), also where its `pytest11` entry point is not installed."""
+    if not config.pluginmanager.has_plugin('epuck_ros'):
+        config.pluginmanager.import_plugin('epuck_ros.testing.plugin')
+
+
 def pytest_report_header() -> str:
     return f'ROS_DOMAIN_ID={_DOMAIN} ({_DOMAIN_CHOICE}), ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST'
 

@@ -16,6 +16,7 @@ from rosbags.highlevel import AnyReader
 from rosbags.typesys import Stores, get_typestore
 
 from epuck_ros.bag.msgdefs import schema_text
+from epuck_ros.nodes.tf_ports import tf_available
 
 BAGS = Path(__file__).resolve().parents[1] / 'bags'
 FROM_RCL = ('/rosout', '/parameter_events')
@@ -71,6 +72,9 @@ def test_a_recorded_run_reads_back_exactly_with_rosbags_and_mcap_ros2(launch, tm
         for topic in STEP_TOPICS:
             assert counts.get(f'/{name}{topic}', 0) >= 2 / 0.032, (topic, counts)
         assert counts.get(f'/{name}collisions', 0) >= 1, counts
+        assert counts.get(f'/{name}robot_description', 0) == 1, counts
+    if tf_available():   # the run can be shown from the bag alone (Foxglove's 3D panel): the whole TF tree
+        assert counts.get('/tf', 0) >= robots * 2 / 0.032 and counts.get('/tf_static', 0) == 1, counts
     for topic in ('/clock', '/world', '/world_markers'):
         assert counts.get(topic, 0) >= 1, counts
 

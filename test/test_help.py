@@ -7,7 +7,7 @@ import pytest
 from conftest import BIN_DIR, processes_in_this_domain
 
 SETUP = Path(__file__).resolve().parents[1] / 'setup.py'
-EXECUTABLES = re.findall(r"'(\w+) = epuck_ros\.", SETUP.read_text())
+EXECUTABLES = re.findall(r"'(\w+) = epuck_ros\.", SETUP.read_text().split("'console_scripts'")[1].split(']')[0])
 
 
 def test_the_executables_are_found():

@@ -27,6 +27,23 @@ def test_a_patched_message_is_the_exact_cdr_of_the_message_with_those_values():
     assert data[33:36] == bytes(3), 'the padding before the pose is zero (rclpy leaves it stale)'
 
 
+def test_a_patch_like_another_patches_elements_of_sequences_and_the_other_messages_strings():
+    def joints(prefix: str) -> JointState:
+        return JointState(name=[prefix + 'left', prefix + 'right'], position=[0.0, 0.0])
+
+    fields = [('header.stamp.sec', 'i'), ('position[1]', 'd')]
+    patch = Patch(joints('epuck1/'), fields)
+    other = joints('epuck2/')
+    data = patch.like(other).bytes((7, 0.5))
+    other.header.stamp.sec, other.position[1] = 7, 0.5
+    assert deserialize_message(data, JointState) == other and data == exact_cdr(other)
+    with pytest.raises(ValueError, match='not laid out'):   # position[1] lies further on
+        patch.like(joints('a_much_longer_name/'))
+    patch = Patch(MultiArrayLayout(dim=[MultiArrayDimension(label='a'), MultiArrayDimension(label='b')]),
+                  [('dim[1].size', 'I')])
+    assert deserialize_message(patch.bytes((9,)), MultiArrayLayout).dim[1].size == 9   # an element's field
+
+
 def test_exact_cdr_is_what_an_independent_encoder_writes_and_not_longer_than_the_cdr():
     """The serialize_message of rclpy gave 132 bytes for this JointState; its CDR is 128 (as mcap_ros2 encodes)."""
     joints = JointState(name=['left_wheel_joint', 'right_wheel_joint'], position=[0.5, -1.0], velocity=[1.0, 0.0])

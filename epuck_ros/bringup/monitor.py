@@ -203,15 +203,22 @@ class RunMonitor:
         return [_full_name(ns, name) for name, ns, enclave in sims if enclave != self.sim_enclave]
 
     def recorder_subscribed(self) -> bool:
-        """The recorder subscribes to every topic the simulator publishes."""
+        """The recorder subscribes to every topic the simulator publishes, and to the robots' commands that have a
+        publisher (a recorded swarm run's first wheel commands were missing: the run began before the recorder had
+        subscribed to them)."""
         node = self.node
         try:
             published = node.get_publisher_names_and_types_by_node(SIM_NODE, node.get_namespace())
         except Exception:  # noqa: BLE001 - rclpy raises NodeNameNonExistentError until the node is discovered
             return False
+        topics = [topic for topic, _ in published if topic != '/rosout']
+        if self.world is not None:
+            commands = [node.resolve_topic_name(robot_topic(self.world, robot, topic))
+                        for robot in self.world.names for topic in COMMAND_TOPICS]
+            topics += [topic for topic in commands if node.count_publishers(topic)]
         return bool(published) and all(
             any(info.node_name == RECORDER_NODE for info in node.get_subscriptions_info_by_topic(topic))
-            for topic, _ in published if topic != '/rosout')
+            for topic in topics)
 
     def controllers(self, robot: str) -> list[tuple[str, str]]:
         """(name, namespace) of the nodes publishing `robot`'s wheel_cmd or cmd_vel, once their subscriptions are

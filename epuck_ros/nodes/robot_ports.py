@@ -21,11 +21,11 @@ from sensor_msgs.msg import JointState, Range
 from std_msgs.msg import Float64MultiArray, UInt32
 
 from epuck_ros.conversions import quaternion_from_yaw
+from epuck_ros.description import JOINT_NAMES
 from epuck_ros.model import SENSOR_NAMES, RobotModel
 from epuck_ros.nodes.serialized import Patch, float64_values
 from epuck_ros.simulation import Simulation
 
-JOINT_NAMES = ['left_wheel_joint', 'right_wheel_joint']
 WORLD_FRAME = 'world'
 
 # Diagonal covariances (x, y, z, roll, pitch, yaw): the planar robot knows nothing of z, roll and

@@ -38,13 +38,16 @@ _MARKERS = {'d': 1.234567890123e-271, 'f': 1.2345678e-31, 'i': 0x5A3C1E2F, 'I': 
 
 
 class Patch:
-    """`msg` serialised once; `fields` are attribute paths with a struct code, e.g. ('header.stamp.sec', 'i') or
-    ('position[1]', 'd'). `bytes(values)` returns the message with those fields set, in the order given."""
+    """`msg` serialised once; `fields` are attribute paths with a struct code, e.g. ('header.stamp.sec', 'i'),
+    ('position[1]', 'd') or ('transforms[1].header.stamp.sec', 'i'). `bytes(values)` returns the message with
+    those fields set, in the order given."""
 
     def __init__(self, msg: Any, fields: Sequence[tuple[str, str]]) -> None:
         offsets = []
-        for index, (path, code) in enumerate(fields):
-            marker = _MARKERS[code] * (index + 1) if code in 'df' else _MARKERS[code] + index
+        self._paths = [path for path, _ in fields]
+        self._markers = [_MARKERS[code] * (index + 1) if code in 'df' else _MARKERS[code] + index
+                         for index, (_, code) in enumerate(fields)]
+        for (path, code), marker in zip(fields, self._markers):
             saved = _get(msg, path)
             _set(msg, path, marker)
             data = exact_cdr(msg)
@@ -63,6 +66,23 @@ class Patch:
             size = struct.calcsize('<' + code)
             self._slices.append((offset, offset + size, position, position + size))
             position += size
+
+    def like(self, msg: Any) -> Patch:
+        """The same fields in `msg`, a message of the same type with the same layout: another robot's, its frame ids
+        as long. Two serialisations instead of one per field; ValueError if its fields lie elsewhere."""
+        saved = [_get(msg, path) for path in self._paths]
+        for path, marker in zip(self._paths, self._markers):
+            _set(msg, path, marker)
+        marked = exact_cdr(msg)
+        for path, value in zip(self._paths, saved):
+            _set(msg, path, value)
+        patch = object.__new__(Patch)
+        patch._paths, patch._markers, patch._struct, patch._slices = self._paths, self._markers, self._struct, \
+            self._slices
+        patch._template = exact_cdr(msg)
+        if len(patch._template) != len(self._template) or patch.bytes(self._markers) != marked:
+            raise ValueError(f'{type(msg).__name__} is not laid out as the patch\'s message')
+        return patch
 
     def bytes(self, values: Sequence[float | int]) -> bytes:
         packed = self._struct.pack(*values)
@@ -123,8 +143,10 @@ def _set(msg: Any, path: str, value: Any) -> None:
 
 def _resolve(msg: Any, path: str) -> tuple[Any, str, int | None]:
     *parents, last = path.split('.')
-    for name in parents:
+    for part in parents:   # 'transforms[1]' steps into an element
+        name, bracket, rest = part.partition('[')
         msg = getattr(msg, name)
+        msg = msg[int(rest.rstrip(']'))] if bracket else msg
     name, bracket, rest = last.partition('[')
     return msg, name, int(rest.rstrip(']')) if bracket else None
 

@@ -41,6 +41,7 @@ from epuck_ros.nodes.robot_ports import JOINT_NAMES, WARN_PERIOD, WORLD_FRAME, R
 from epuck_ros.nodes.sense_ports import SENSE_POLL, SENSE_TOPICS, SenseError, SensePorts
 from epuck_ros.nodes.serialized import Patch
 from epuck_ros.nodes.spinning import end_process, handle_shutdown_signals, shutdown_requested, spin_until_shutdown
+from epuck_ros.nodes.tf_ports import TfPorts
 from epuck_ros.simulation import CommandError, Simulation, StepEvents
 from epuck_ros.world import WorldError, default_world, load_world, place_robots
 
@@ -261,6 +262,7 @@ class SimNode(Node):
         self._sense_turn = 0
         """The robots with a subscriber on some sense topic: their sense messages are published after each step."""
         self.create_timer(SENSE_POLL, self._update_sense_wants)
+        self._tf = TfPorts(self, self.ports, self._sim, several, stream, LATCHED, values['frame_prefix'] + WORLD_FRAME)
         quiet_publisher(self, String, 'world', LATCHED).publish(
             String(data=yaml.safe_dump(world.to_dict(), sort_keys=False)))
         quiet_publisher(self, MarkerArray, 'world_markers', LATCHED).publish(
@@ -351,7 +353,8 @@ class SimNode(Node):
                                       'anything else mixes up simulated time')
 
     def _stream_publishers(self) -> list:
-        return [self._clock_pub] + [pub for ports in self.ports for pub in ports.stream_publishers]
+        return [self._clock_pub] + [pub for ports in self.ports for pub in ports.stream_publishers] + \
+            self._tf.stream_publishers
 
     def _kept_all(self, topic: str) -> bool:
         """Some reader of `topic` keeps all its samples (KEEP_ALL history: a recorder)."""
@@ -502,6 +505,7 @@ class SimNode(Node):
             ports.publish(self._sim, stamp)
         for senses in self._sensing:
             senses.publish(self._sim, stamp)
+        self._tf.publish(self._sim, stamp)
         self._clock_pub.publish(self._clock_message.bytes(stamp))
         self._poll_sense_wants()
 

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from epuck_ros.model import LIGHT_LOOKUP_TABLE, LIGHT_SENSOR_HEIGHT, SENSOR_POSES, BODY_HEIGHT
+from epuck_ros.model import LIGHT_LOOKUP_TABLE, LIGHT_SENSOR_HEIGHT, SENSOR_POSES, BODY_TOP
 from epuck_ros.sensors.lookup import lookup
 from epuck_ros.sensors.scene import Scene
 
@@ -66,7 +66,7 @@ class LightSensors:
             t_robot = self.scene.robot_hits(sx, sy, dx, dy, np.asarray(robots_xy, dtype=float),
                                             np.arange(count) if own is None else np.asarray(own))
             line = LIGHT_SENSOR_HEIGHT + (lz - LIGHT_SENSOR_HEIGHT) * t_robot / flat
-            blocked |= (t_robot < flat) & (BODY_HEIGHT > line)
+            blocked |= (t_robot < flat) & (BODY_TOP > line)
         return blocked
 
     def read(self, poses: np.ndarray, rng: np.random.Generator | None, robots_xy: np.ndarray | None = None,

@@ -13,7 +13,7 @@ import math
 import numpy as np
 
 from epuck_ros.world.appearance import ROBOT_COLOR, Appearance, Paint
-from epuck_ros.model import BODY_HEIGHT, RobotModel
+from epuck_ros.model import BODY_TOP, RobotModel
 from epuck_ros.spatial import close_pairs
 from epuck_ros.world import World
 
@@ -51,7 +51,7 @@ class Scene:
         self._cr2 = (circle_array[:, 2] ** 2).reshape(-1, 1, 1)
         self.colors = np.array(colors + [ROBOT_COLOR], dtype=float)
         """(objects + 1, 3): each object's colour; the last row is a robot's."""
-        self.heights = np.array(heights + [BODY_HEIGHT], dtype=float)
+        self.heights = np.array(heights + [BODY_TOP], dtype=float)
         self.robot_index = len(colors)
         self.floor = FloorTexture(world.arena_size, appearance.floor_color, appearance.paint)
 

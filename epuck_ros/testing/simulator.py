@@ -1,0 +1,239 @@
+"""A lockstep simulator on a private ROS domain, driven from a test: start it paused, let the test's own nodes
+connect, run simulated time forward, read each robot's ground truth and contacts, stop it whatever happens.
+
+The `sim` runs in its own process (as in production); the test process talks to it through a node in a private
+rclpy context, spun in a background thread, so the test's code stays plain and blocking.
+"""
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+from pathlib import Path
+from collections.abc import Callable, Mapping
+from typing import IO, Any
+
+from epuck_ros.conversions import seconds_from_stamp, yaw_from_quaternion
+from epuck_ros.testing.domains import claim_free_domain
+
+POLL = 0.05
+"""Wall seconds between two looks at the graph or the simulator's parameters while waiting."""
+STOP_TIMEOUT = 10.0
+"""Wall seconds the simulator has to end after Ctrl-C before it is killed."""
+
+
+class SimulatorUnderTest:
+    """`sim` in lockstep, paused, on a private domain; `env` is the environment for the test's own processes."""
+
+    def __init__(self, world: str | os.PathLike | None = None, robots: int = 0, seed: int = 0,
+                 log_dir: Path | None = None, start_timeout: float = 30.0, env: Mapping[str, str] | None = None,
+                 **parameters: object) -> None:
+        """`parameters` go to `sim` (`-p name:=value`); `env` adds to the environment of the simulator and of
+        `self.env` (e.g. another ROS_AUTOMATIC_DISCOVERY_RANGE; LOCALHOST by default)."""
+        from epuck_ros.world import default_world, load_world, place_robots
+        layout = load_world(str(world)) if world else default_world()
+        if robots > 0:
+            layout = place_robots(layout, robots, seed)
+        self.names: tuple[str, ...] = layout.names
+        """The robots' names, in the simulator's order."""
+        self.start_poses = {robot.name: robot.pose for robot in layout.robots}
+        self.domain, self._domain_lock = claim_free_domain()
+        self.env = {**os.environ, 'ROS_DOMAIN_ID': str(self.domain), 'ROS_AUTOMATIC_DISCOVERY_RANGE': 'LOCALHOST',
+                    **(env or {})}
+        """The environment for the test's own processes: the simulator's domain, discovery on this machine."""
+        self._lock = threading.Lock()
+        self._clock = 0.0
+        self._truth: dict[str, tuple[float, float, float, float]] = {}
+        self._context = None
+        self._thread: threading.Thread | None = None
+        self.process: subprocess.Popen | None = None
+        self.log_path = Path(log_dir or tempfile.mkdtemp(prefix='epuck_sim_')) / f'sim-domain{self.domain}.log'
+        self._log: IO | None = None
+        try:
+            self._start_process(world, robots, seed, parameters)
+            self._connect(start_timeout)
+        except BaseException:
+            self.stop()
+            raise
+
+    # --- the test's API -----------------------------------------------------------------------------------
+
+    @property
+    def time(self) -> float:
+        """The simulated time of the last step (s)."""
+        with self._lock:
+            return self._clock
+
+    def wait_for_controller(self, robot: str | int | None = None, timeout: float = 30.0) -> None:
+        """Return once a publisher on the robot's `wheel_cmd` or `cmd_vel` is matched (None: every robot's)."""
+        robots = self.names if robot is None else (self._name(robot),)
+        topics = {name: [self._topic(name, 'wheel_cmd'), self._topic(name, 'cmd_vel')] for name in robots}
+        self._wait(lambda: all(any(self._node.count_publishers(t) for t in pair) for pair in topics.values()),
+                   timeout, f'no controller publishes the commands of {", ".join(robots)}')
+
+    def run_until(self, t: float, timeout: float = 120.0) -> float:
+        """Run simulated time forward to the first step at or after `t` seconds and pause there; returns that time.
+
+        Returns once the simulator has paused and every robot's ground truth of that step has arrived."""
+        from rclpy.parameter import Parameter
+        if t <= self.time + 1e-9:
+            return self.time
+        result = self._call(self._parameters.set_parameters(
+            [Parameter('pause_at', value=float(t)), Parameter('paused', value=False)]), timeout)
+        refused = [r.reason for r in result.results if not r.successful]
+        if refused:
+            raise ValueError(f'the simulator refused to run to t={t}: {"; ".join(refused)}')
+        self._wait(lambda: self.time >= t - 1e-9, timeout, f'simulated time did not reach {t} s')
+        self._wait(self._paused, timeout, f'the simulator did not pause at {t} s')
+        now = self.time
+        self._wait(lambda: all(self._truth.get(name, (-1.0,))[0] >= now - 1e-9 for name in self.names), timeout,
+                   f'the ground truth of t={now} s did not arrive')
+        return now
+
+    def ground_truth(self, robot: str | int | None = None) -> tuple[float, float, float]:
+        """(x, y, yaw) of the robot in the world (None: the first robot), as of the last step."""
+        name = self._name(robot)
+        with self._lock:
+            stamped = self._truth.get(name)
+        return self.start_poses[name] if stamped is None else stamped[1:]
+
+    def contacts(self, robot: str | int | None = None, timeout: float = 30.0) -> int:
+        """The number of the robot's contacts with obstacles or robots so far (None: the first robot).
+
+        Read from a new subscription to its latched `collisions`: the simulator publishes a count after the step's
+        `/clock`, so a subscription kept from the start could still have it on its way."""
+        from std_msgs.msg import UInt32
+        received: list[int] = []
+        subscription = self._node.create_subscription(UInt32, self._topic(self._name(robot), 'collisions'),
+                                                      lambda msg: received.append(msg.data), self._latched)
+        try:
+            self._wait(lambda: bool(received), timeout, f'no collision count of {self._name(robot)}')
+        finally:
+            self._node.destroy_subscription(subscription)
+        return received[-1]
+
+    def output(self) -> str:
+        """What the simulator printed so far."""
+        if self._log is not None:
+            self._log.flush()
+        return self.log_path.read_text() if self.log_path.exists() else ''
+
+    def stop(self) -> None:
+        """Stop the simulator (Ctrl-C, then SIGKILL after STOP_TIMEOUT) and the test's node; safe to call twice."""
+        from epuck_ros.bringup.processes import interrupt
+        if self._context is not None:
+            self._context.try_shutdown()
+            if self._thread is not None:
+                self._thread.join(timeout=STOP_TIMEOUT)
+            self._context = None
+        if self.process is not None:
+            interrupt(self.process, STOP_TIMEOUT)
+        if self._log is not None:
+            self._log.close()
+            self._log = None
+        if self._domain_lock is not None:
+            self._domain_lock.close()
+            self._domain_lock = None
+
+    # --- inside ------------------------------------------------------------------------------------------
+
+    def _start_process(self, world: str | os.PathLike | None, robots: int, seed: int,
+                       parameters: dict[str, object]) -> None:
+        values: dict[str, object] = {'lockstep': True, 'paused': True, 'real_time_factor': 0.0, 'seed': seed,
+                                     'robots': robots, **parameters}
+        if world:
+            values['world'] = str(Path(world).resolve())
+        args = ['--ros-args'] + [arg for name, value in values.items() for arg in ('-p', f'{name}:={_text(value)}')]
+        self._log = open(self.log_path, 'w')
+        self.process = subprocess.Popen([sys.executable, '-m', 'epuck_ros.nodes.sim_node', *args],
+                                        env=dict(self.env, PYTHONUNBUFFERED='1'), stdout=self._log,
+                                        stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL, start_new_session=True)
+
+    def _connect(self, timeout: float) -> None:
+        import rclpy
+        from nav_msgs.msg import Odometry
+        from rclpy.context import Context
+        from rclpy.executors import SingleThreadedExecutor
+        from rclpy.node import Node
+        from rclpy.parameter_client import AsyncParameterClient
+        from rclpy.qos import DurabilityPolicy, QoSProfile
+        from rosgraph_msgs.msg import Clock
+
+        self._context = Context()
+        rclpy.init(context=self._context, domain_id=self.domain)
+        self._node = Node(f'epuck_sim_fixture_{os.getpid()}', context=self._context)
+        self._executor = SingleThreadedExecutor(context=self._context)
+        self._executor.add_node(self._node)
+        self._latched = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+        self._node.create_subscription(Clock, '/clock', self._on_clock, 10)
+        for name in self.names:
+            self._node.create_subscription(Odometry, self._topic(name, 'ground_truth'),
+                                           lambda msg, name=name: self._on_truth(name, msg), 10)
+        self._parameters = AsyncParameterClient(self._node, 'sim')
+        self._thread = threading.Thread(target=self._spin, name='epuck_sim_fixture', daemon=True)
+        self._thread.start()
+        truth_topics = [self._topic(name, 'ground_truth') for name in self.names]
+        self._wait(lambda: self._parameters.services_are_ready() and all(
+            self._node.count_publishers(topic) for topic in truth_topics), timeout, 'the simulator did not come up')
+
+    def _spin(self) -> None:
+        from rclpy.executors import ExternalShutdownException
+        try:
+            while self._context is not None and self._context.ok():
+                self._executor.spin_once(timeout_sec=POLL)
+        except ExternalShutdownException:
+            pass
+
+    def _on_clock(self, msg: Any) -> None:
+        with self._lock:
+            self._clock = seconds_from_stamp(msg.clock.sec, msg.clock.nanosec)
+
+    def _on_truth(self, name: str, msg: Any) -> None:
+        q = msg.pose.pose.orientation
+        yaw = yaw_from_quaternion(q.x, q.y, q.z, q.w)
+        stamp = seconds_from_stamp(msg.header.stamp.sec, msg.header.stamp.nanosec)
+        with self._lock:
+            self._truth[name] = (stamp, msg.pose.pose.position.x, msg.pose.pose.position.y, yaw)
+
+    def _paused(self) -> bool:
+        result = self._call(self._parameters.get_parameters(['paused']), STOP_TIMEOUT)
+        return bool(result.values and result.values[0].bool_value)
+
+    def _name(self, robot: str | int | None) -> str:
+        if robot is None:
+            return self.names[0]
+        if isinstance(robot, int):
+            return self.names[robot]
+        if robot not in self.names:
+            raise KeyError(f'no robot {robot!r}: the robots are {", ".join(self.names)}')
+        return robot
+
+    def _topic(self, name: str, topic: str) -> str:
+        from epuck_ros.nodes.robot_ports import topic_prefix
+        return '/' + topic_prefix(name, len(self.names) > 1) + topic
+
+    def _wait(self, condition: Callable[[], bool], timeout: float, what: str) -> None:
+        deadline = time.monotonic() + timeout
+        while not condition():
+            if self.process is not None and self.process.poll() is not None:
+                raise RuntimeError(f'{what}: the simulator ended (exit code {self.process.returncode}):\n'
+                                   f'{self.output()[-2000:]}')
+            if time.monotonic() > deadline:
+                raise TimeoutError(f'{what} within {timeout:g} s (wall)')
+            time.sleep(POLL)
+
+    def _call(self, future: Any, timeout: float) -> Any:
+        """The result of an rclpy future that the background executor completes."""
+        done = threading.Event()
+        future.add_done_callback(lambda _: done.set())
+        if not done.wait(timeout):
+            raise TimeoutError(f'the simulator did not answer within {timeout:g} s (wall)')
+        return future.result()
+
+
+def _text(value: object) -> str:
+    """A parameter value as `-p name:=value` wants it."""
+    return str(value).lower() if isinstance(value, bool) else str(value)

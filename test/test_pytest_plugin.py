@@ -1,0 +1,68 @@
+"""The `epuck_sim` pytest plugin as a user meets it: a throwaway project of its own (the README's example test, which
+passes, and a test that fails), run by pytest in a subprocess; afterwards no process of that run is left."""
+from __future__ import annotations
+
+import os
+import re
+import subprocess
+import sys
+import uuid
+from importlib.metadata import entry_points
+from pathlib import Path
+
+from conftest import BIN_DIR
+
+README = Path(__file__).resolve().parents[1] / 'README.md'
+FAILING = '''
+from pathlib import Path
+
+
+def test_fails_after_starting_a_simulator(epuck_sim):
+    sim = epuck_sim(seed=4)
+    Path('sim.pid').write_text(str(sim.process.pid))
+    assert sim.contacts() == 1, 'fails on purpose'
+'''
+
+
+def readme_example() -> str:
+    """The README's ```python block that uses the fixture."""
+    blocks = re.findall(r'^```python\n(.*?)^```', README.read_text(), flags=re.S | re.M)
+    blocks = [block for block in blocks if 'epuck_sim' in block]
+    assert len(blocks) == 1, 'the README shows one test with epuck_sim'
+    return blocks[0]
+
+
+def processes_with(marker: str) -> list[int]:
+    """Processes whose environment holds `marker` (every process the run started inherits it)."""
+    found = []
+    for entry in Path('/proc').iterdir():
+        if entry.name.isdigit() and int(entry.name) != os.getpid():
+            try:
+                if marker.encode() in (entry / 'environ').read_bytes():
+                    found.append(int(entry.name))
+            except OSError:   # gone meanwhile, or not ours to read
+                pass
+    return found
+
+
+def test_a_users_project_passes_and_fails_with_nothing_left_running(tmp_path):
+    project = tmp_path / 'user_project'
+    project.mkdir()
+    example = readme_example()
+    assert len(example.strip().splitlines()) <= 12, 'a short example'
+    (project / 'test_readme_example.py').write_text(example)
+    (project / 'test_failing.py').write_text(FAILING)
+    marker = f'EPUCK_PLUGIN_RUN={uuid.uuid4().hex}'
+    name, value = marker.split('=')
+    installed = any(ep.name == 'epuck_ros' for ep in entry_points(group='pytest11'))
+    plugin = [] if installed else ['-p', 'epuck_ros.testing.plugin']   # until the entry point is installed
+    env = dict(os.environ, PATH=f'{BIN_DIR}{os.pathsep}{os.environ["PATH"]}', **{name: value})
+    run = subprocess.run([sys.executable, '-m', 'pytest', *plugin, '-p', 'no:cacheprovider', '-q', '-rA'],
+                         cwd=project, env=env, capture_output=True, text=True, timeout=300)
+    output = run.stdout + run.stderr
+    assert run.returncode == 1, output
+    assert re.search(r'\b1 failed, 1 passed\b', output), output
+    assert 'PASSED test_readme_example.py' in output and 'fails on purpose' in output, output
+    sim_pid = int((project / 'sim.pid').read_text())
+    assert not Path(f'/proc/{sim_pid}').exists(), 'the failing test\'s simulator was stopped'
+    assert processes_with(marker) == [], 'no process of the run is left'
