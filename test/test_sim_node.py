@@ -8,8 +8,9 @@ import pytest
 from conftest import ros_args
 from geometry_msgs.msg import Twist, Vector3
 from nav_msgs.msg import Odometry
-from rcl_interfaces.msg import ParameterType
-from rcl_interfaces.srv import GetParameters
+from rcl_interfaces.msg import Parameter as ParameterMsg
+from rcl_interfaces.msg import ParameterType, ParameterValue
+from rcl_interfaces.srv import GetParameters, SetParameters
 from rclpy.qos import DurabilityPolicy, QoSProfile
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState, Range
@@ -216,6 +217,14 @@ def test_integers_are_accepted_for_float_parameters_and_use_sim_time_is_ignored(
     # the clock source does not listen to its own /clock
     subscribers = test_node.node.get_subscriptions_info_by_topic('/clock')
     assert not [s for s in subscribers if s.node_name == 'sim']
+    # ... nor can it be made to later: the set is refused with its reason
+    setter = test_node.node.create_client(SetParameters, '/sim/set_parameters')
+    assert setter.wait_for_service(timeout_sec=20.0)
+    on = ParameterMsg(name='use_sim_time', value=ParameterValue(type=ParameterType.PARAMETER_BOOL, bool_value=True))
+    future = setter.call_async(SetParameters.Request(parameters=[on]))
+    test_node.spin_until(future.done, what='the answer to use_sim_time:=true')
+    result, = future.result().results
+    assert not result.successful and 'source of /clock' in result.reason
 
 
 def test_a_second_simulator_on_the_domain_is_refused(launch, test_node):

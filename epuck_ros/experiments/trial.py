@@ -24,6 +24,7 @@ from epuck_ros.behaviours import BEHAVIOURS, Behaviour, Observation, WheelComman
 from epuck_ros.behaviours.base import ranges_from_raw
 from epuck_ros.conversions import (nanoseconds_from_stamp, quaternion_from_yaw, stamp_from_seconds,
                                    yaw_from_quaternion)
+from epuck_ros.lockstep import Lockstep
 from epuck_ros.model import TIME_STEP, RobotModel
 from epuck_ros.simulation import Simulation
 from epuck_ros.world import World, default_world, load_world, place_robots
@@ -99,8 +100,11 @@ def run(trial: Trial, policy: Policy | None = None,
     # What each controller's node subscribes (a plain policy gets everything).
     needs_odom = [getattr(controller, 'needs_odom', True) for controller in controllers]
     needs_ranges = [getattr(controller, 'needs_proximity', True) for controller in controllers]
-    sim.step()   # the first step goes out with no command: the wheels are still
-    _published(sim, tally, several, each_step)
+    # Stepped as the sim node steps, through a Lockstep that waits for every robot (each has its controller).
+    lockstep = Lockstep(len(sim.names), lambda resend: (sim.step(), _published(sim, tally, several, each_step)),
+                        timeout=0.0)
+    lockstep.claim()
+    lockstep.step()   # the first step goes out with no command: the wheels are still
     while not sim.time + 1e-9 >= trial.duration:   # the simulator pauses on the first step at or after it
         now = _stamp_seconds(sim.time)
         for robot, controller in enumerate(controllers):
@@ -108,8 +112,10 @@ def run(trial: Trial, policy: Policy | None = None,
             ranges = ranges_from_raw(sim.ir_raw[robot].tolist()) if needs_ranges[robot] else None
             command = _update(controller, Observation(now, odom, ranges))
             sim.command_wheels(robot, command.left, command.right)
-        sim.step()
-        _published(sim, tally, several, each_step)
+            lockstep.answer(robot)
+        if not lockstep.await_answers():   # every robot answered: never waits
+            raise RuntimeError('lockstep: a robot did not answer its step')
+        lockstep.step()
     return sim, tally
 
 

@@ -1,7 +1,7 @@
 """One robot's ports on the simulator node, as turtlesim's Turtle owns its topics.
 
 `RobotPorts` holds everything of one robot that ROS sees: its command subscriptions, its step publishers with
-their reusable messages, its frame ids, and whether a controller answered the current step (lockstep). With
+their reusable messages and its frame ids; lockstep's bookkeeping is `epuck_ros.lockstep`'s. With
 one robot every name is the historical one (`odom`, frame `base_link`, `frame_prefix` in front); with several,
 each robot's topics live under its name relative to the simulator's namespace (`epuck3/odom`) and its frames
 are `epuck3/odom`, `epuck3/base_link`, `epuck3/ps0`... (stage_ros2's convention).
@@ -64,13 +64,6 @@ class RobotPorts:
                  latched_qos: QoSProfile, on_command: CommandHandler, frames_prefix: str = '',
                  cmd_vel_stamped: bool = False, model: RobotModel = RobotModel()) -> None:
         self.index, self.name = index, name
-        self.answered = False
-        """A command arrived since the current step was published (lockstep)."""
-        self.answered_once = False
-        self.missed_in_a_row = 0
-        """Steps in a row its controller, having answered before, left unanswered until the lockstep timeout."""
-        self.own_rate = False
-        """Its controller answers at its own rate, not every step: lockstep no longer waits for it."""
         topics = topic_prefix(name, several)
         frames = frame_prefix(name, several, frames_prefix)
         self.odom_frame, self.base_frame = frames + 'odom', frames + 'base_link'

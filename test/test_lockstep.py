@@ -1,0 +1,231 @@
+"""`Lockstep` on its own: no ROS, no DDS; the answers come from test threads as they would from an executor.
+
+Timeouts are short and nothing asserts on how long anything took: only on what was stepped, and by which thread."""
+from __future__ import annotations
+
+import threading
+
+import pytest
+
+from epuck_ros.lockstep import LOCKSTEP_START_RESENDS, OWN_RATE_AFTER, Lockstep, StepClaimError
+
+SHORT = 0.02
+"""A timeout that expires quickly."""
+LONG = 30.0
+"""A timeout no passing test waits out."""
+
+
+class Sim:
+    """Records the steps it is asked for: (step number, resend, thread name)."""
+
+    def __init__(self) -> None:
+        self.steps: list[tuple[int, bool, str]] = []
+        self.count = 0
+
+    def __call__(self, resend: bool) -> None:
+        self.count += 0 if resend else 1
+        self.steps.append((self.count, resend, threading.current_thread().name))
+
+
+def lockstep(robots: int = 2, timeout: float = LONG, **kwargs: object) -> tuple[Lockstep, Sim]:
+    sim = Sim()
+    step = Lockstep(robots, sim, timeout, **kwargs)
+    step.claim()
+    return step, sim
+
+
+def in_thread(target: object, name: str = 'answers') -> threading.Thread:
+    thread = threading.Thread(target=target, name=name)
+    thread.start()
+    return thread
+
+
+def test_a_step_waits_for_every_driven_robot_and_only_for_them():
+    step, sim = lockstep(robots=3, driven=lambda: [0, 2])
+    step.step()
+    step.answer(0)
+    step.answer(1)   # nobody drives robot 1: its answer counts for nothing
+    answers = in_thread(lambda: step.answer(2))
+    assert step.await_answers()
+    answers.join()
+    step.step()
+    assert [count for count, _, _ in sim.steps] == [1, 2]
+
+
+def test_a_missing_answer_holds_the_step_until_the_timeout():
+    step, sim = lockstep(robots=2, timeout=SHORT)
+    step.step()
+    step.answer(0)
+    step.answer(0)
+    # robot 1 never answered: its first step is sent again, a few times at most, then the simulation goes on
+    outcomes = [step.await_answers() for _ in range(LOCKSTEP_START_RESENDS + 1)]
+    assert outcomes == [False] * LOCKSTEP_START_RESENDS + [True]
+
+
+def test_with_no_controller_any_answer_completes_the_step():
+    step, _ = lockstep(robots=3, driven=lambda: [])
+    step.step()
+    step.answer(1)
+    assert step.await_answers()
+
+
+def test_an_answer_before_the_step_does_not_answer_it():
+    step, _ = lockstep(robots=1, timeout=SHORT)
+    step.step()
+    step.answer(0)
+    assert step.await_answers()   # robot 0 has answered once: from now on a missed step is passed, not re-sent
+    step.answer(0)                # early: the next step is not out yet
+    step.step()
+    assert step.await_answers()   # ... so this one timed out (nothing to re-send: it answered before)
+
+
+def test_the_thread_of_the_last_answer_steps_while_the_holder_lends_its_claim():
+    waiting = threading.Event()   # set when the holder reads who is driven, under the lock it releases only to wait
+    sim = Sim()
+    step = Lockstep(2, sim, LONG, driven=lambda: waiting.set() or [0, 1], lend=lambda: True)
+
+    def holder() -> None:
+        step.claim()
+        step.step()
+        step.await_answers()
+
+    def answers() -> None:
+        waiting.wait()
+        step.answer(0)
+        step.answer(1)      # the first step's last answer: the second step is taken here
+        step.answer(0)
+        step.answer(1)      # and the third
+
+    holding = in_thread(holder, 'holder')
+    in_thread(answers).join()
+    step.close()
+    holding.join()
+    assert [(count, thread) for count, _, thread in sim.steps] == [(1, 'holder'), (2, 'answers'), (3, 'answers')]
+
+
+def test_the_holder_steps_itself_when_it_does_not_lend_its_claim():
+    step, sim = lockstep(robots=1, lend=lambda: False)
+    step.step()
+    answers = in_thread(lambda: step.answer(0))
+    assert step.await_answers()
+    answers.join()
+    step.step()
+    assert [thread for _, _, thread in sim.steps] == ['MainThread', 'MainThread']
+
+
+def test_only_the_holder_of_the_claim_may_step_or_wait():
+    step, sim = lockstep(robots=1)
+    errors = []
+
+    def intruder() -> None:
+        for attempt in (step.step, step.await_answers):
+            try:
+                attempt()
+            except StepClaimError as error:
+                errors.append(str(error))
+
+    in_thread(intruder, 'intruder').join()
+    assert len(errors) == 2 and all('intruder' in error for error in errors)
+    assert sim.steps == []
+    step.step()   # the holder still may
+    assert len(sim.steps) == 1
+
+
+def test_answers_outside_a_wait_never_step():
+    """Not waiting (paced, paused), the holder lends nothing: an answer does not step, whatever `lend` says."""
+    step, sim = lockstep(robots=1, lend=lambda: True)
+    step.step()
+    step.answer(0)
+    assert len(sim.steps) == 1
+
+
+def test_a_controller_at_its_own_rate_is_found_and_no_longer_held_to_the_timeout():
+    found = []
+    step, sim = lockstep(robots=2, timeout=SHORT, on_own_rate=found.append)
+    step.step()
+    step.answer(0)
+    step.answer(1)
+    assert step.await_answers()
+    for _ in range(OWN_RATE_AFTER + 2):   # robot 1 answers no more: it answered once, so no step is re-sent
+        step.step()
+        step.answer(0)
+        assert step.await_answers()
+    assert found == [1]   # found once, after OWN_RATE_AFTER steps in a row
+    assert not any(resend for _, resend, _ in sim.steps)
+
+
+def test_a_resend_publishes_the_same_step_again_and_says_so():
+    resent = []
+    step, sim = lockstep(robots=1, timeout=SHORT, on_resend=lambda: resent.append(sim.count))
+    step.step()
+    assert not step.await_answers()
+    step.step(resend=True)
+    step.answer(0)
+    assert step.await_answers()
+    assert resent == [1]
+    assert [(count, resend) for count, resend, _ in sim.steps] == [(1, False), (1, True)]
+
+
+def test_close_ends_a_wait_without_answers():
+    step, _ = lockstep(robots=1)
+    step.step()
+    closer = threading.Timer(SHORT, step.close)
+    closer.start()
+    assert step.await_answers()   # closed: go on (the loop then sees it must end)
+    closer.join()
+
+
+@pytest.mark.parametrize('robots', [1, 3])
+def test_a_headless_loop_steps_once_per_round_of_answers(robots):
+    """The trial runner's use: one thread answers for every robot, then waits (at once) and steps."""
+    step, sim = lockstep(robots=robots, timeout=0.0)
+    step.step()
+    for _ in range(5):
+        for robot in range(robots):
+            step.answer(robot)
+        assert step.await_answers()
+        step.step()
+    assert [count for count, _, _ in sim.steps] == list(range(1, 7))
+
+
+def test_answers_from_several_threads_step_each_step_once():
+    """Each robot's answers from its own thread (as from a multi-threaded executor): every step is taken once, by
+    the thread of its last answer, after every robot answered the one before."""
+    robots, rounds = 4, 50
+    published = threading.Condition()
+    sim = Sim()
+
+    def take(resend: bool) -> None:
+        with published:
+            sim(resend)
+            published.notify_all()
+
+    step = Lockstep(robots, take, LONG, lend=lambda: True)
+    ending = threading.Event()
+
+    def loop() -> None:   # as the sim's loop thread: step, wait for the answers (lending the claim), again
+        step.claim()
+        step.step()
+        while True:
+            step.await_answers()
+            if ending.is_set():
+                return
+            step.step()
+
+    def answer_each_step(robot: int) -> None:
+        for number in range(1, rounds + 1):
+            with published:
+                assert published.wait_for(lambda: sim.count >= number, timeout=LONG)
+            step.answer(robot)
+
+    holder = in_thread(loop, 'holder')
+    answerers = [in_thread(lambda robot=robot: answer_each_step(robot), f'robot{robot}') for robot in range(robots)]
+    for thread in answerers:
+        thread.join()
+    with published:
+        assert published.wait_for(lambda: sim.count == rounds + 1, timeout=LONG)
+    ending.set()
+    step.close()
+    holder.join()
+    assert [count for count, _, _ in sim.steps] == list(range(1, rounds + 2))
+    assert {thread for _, _, thread in sim.steps[1:]} <= {'holder'} | {f'robot{robot}' for robot in range(robots)}
