@@ -73,6 +73,8 @@ class _SenseFeed:
         self.value: Any = None
         self.stamp_ns: int | None = None
         self.since_answer = 0
+        self.new = True
+        """No message had come by the last answer: the counts of this step cannot be compared yet."""
 
     def on_message(self, msg: Any) -> None:
         if self.kind == 'camera':
@@ -93,7 +95,11 @@ class _SenseFeed:
             return True
         if self.stamp_ns is not None:
             return self.stamp_ns == clock_ns
-        return self.since_answer > 0 and (self.since_answer == clocks or clocks >= MISMATCH_GIVE_UP)
+        if self.new:   # the first messages straddle the subscription (a step sent again, say): take the newest
+            return self.since_answer > 0
+        # At least one message per /clock since the answer (one more when a message of the step before came after
+        # the answer: the newest is then this step's); fewer, and the step waits, as for ir_raw.
+        return self.since_answer > 0 and (self.since_answer >= clocks or clocks >= MISMATCH_GIVE_UP)
 
 
 class SimLink:
@@ -257,7 +263,7 @@ class SimLink:
         """Send the wheel speeds for the step last returned, then wait for the next one (None: stop or sim gone)."""
         self._clocks_since_answer = self._ir_since_answer = 0
         for feed in self._feeds.values():
-            feed.since_answer = 0
+            feed.since_answer, feed.new = 0, feed.value is None
         self._command.data = [float(left), float(right)]
         self._publisher.publish(self._command)
         return self._next_step()
