@@ -209,3 +209,18 @@ def processes_in_this_domain() -> list[tuple[int, str]]:
         if all(marker in environ for marker in markers):
             found.append((int(entry.name), cmdline))
     return found
+
+
+def set_sim_parameter(test_node: object, sim: object, name: str, value: object) -> None:
+    """Set a parameter of the running `sim` process (failing at once, with its output, if it ended)."""
+    from rclpy.parameter import Parameter
+    from rclpy.parameter_client import AsyncParameterClient
+    client = AsyncParameterClient(test_node.node, 'sim')
+    test_node.spin_until(lambda: client.services_are_ready() or sim.proc.poll() is not None, timeout=60.0,
+                         what='the sim parameter services')
+    assert sim.proc.poll() is None, sim.output()
+    future = client.set_parameters([Parameter(name, value=value)])
+    test_node.spin_until(lambda: future.done() or sim.proc.poll() is not None, timeout=60.0,
+                         what=f'sim to accept {name}')
+    assert future.done(), sim.output()
+    assert all(result.successful for result in future.result().results)

@@ -12,7 +12,7 @@ from nav_msgs.msg import Odometry
 from rclpy.qos import DurabilityPolicy, QoSProfile
 from std_msgs.msg import Float64MultiArray, UInt32
 
-from conftest import ros_args
+from conftest import ros_args, set_sim_parameter
 from epuck_ros.nodes.behaviour_nodes import RangeAssembler
 from test_behaviours import fitted_circle
 
@@ -70,9 +70,15 @@ class Run:
         self.odom: list[Odometry] = test_node.collect(Odometry, 'odom', HISTORY)
         latched = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
         self.collisions: list[UInt32] = test_node.collect(UInt32, 'collisions', latched)
-        self.sim = launch('sim', *ros_args({**SIM_PARAMS, 'noise': noise}))
-        self.wait_for(self.sim, 'sim ready')
+        self.sim = launch('sim', *ros_args({**SIM_PARAMS, 'noise': noise, 'paused': True}))
+        test_node.wait_for_simulator()
+        # Resumed once the test node's readers are matched (from the graph): every step's ground truth is read,
+        # however long discovery takes on a busy machine.
+        readers = [sub for sub in test_node.node.subscriptions if sub.topic_name in ('/ground_truth', '/odom')]
+        test_node.spin_until(lambda: all(sub.get_publisher_count() for sub in readers), timeout=30.0,
+                             what='the sim matched with the test node')
         self.behaviour = launch(behaviour, *ros_args({'use_sim_time': True, **params}))
+        set_sim_parameter(test_node, self.sim, 'paused', False)
 
     def wait_for(self, process: object, text: str, timeout: float = 20.0) -> None:
         """Like `wait_for_output`, but spinning: the test node must keep up with ground_truth meanwhile."""

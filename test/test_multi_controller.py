@@ -13,12 +13,10 @@ import numpy as np
 import pytest
 import yaml
 from nav_msgs.msg import Odometry
-from rclpy.parameter import Parameter
-from rclpy.parameter_client import AsyncParameterClient
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray
 
-from conftest import ros_args
+from conftest import ros_args, set_sim_parameter
 from test_behaviour_nodes import trajectory
 
 PAUSE_AT = 6.0
@@ -64,19 +62,6 @@ class Robots:
     def sim_time(self, name: str) -> float:
         messages = self.truth[name]
         return messages[-1].header.stamp.sec + 1e-9 * messages[-1].header.stamp.nanosec if messages else 0.0
-
-
-def set_sim_parameter(test_node: object, sim: object, name: str, value: object) -> None:
-    """Set a parameter of the running `sim` process (failing at once, with its output, if it ended)."""
-    client = AsyncParameterClient(test_node.node, 'sim')
-    test_node.spin_until(lambda: client.services_are_ready() or sim.proc.poll() is not None, timeout=TIMEOUT,
-                         what='the sim parameter services')
-    assert sim.proc.poll() is None, sim.output()
-    future = client.set_parameters([Parameter(name, value=value)])
-    test_node.spin_until(lambda: future.done() or sim.proc.poll() is not None, timeout=TIMEOUT,
-                         what=f'sim to accept {name}')
-    assert future.done(), sim.output()
-    assert all(result.successful for result in future.result().results)
 
 
 def path_length(rows: np.ndarray) -> float:
