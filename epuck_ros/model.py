@@ -1,10 +1,13 @@
-"""The e-puck's physical model: geometry, motor limits, encoders and IR sensor table.
+"""The e-puck's physical model: geometry, motor limits, encoders, the IR sensor table and the other senses' poses.
 
 Every figure comes from the Webots E-puck.proto (R2022b, ENU frame) and
 E-puckDistanceSensor.proto, as collected in ``shared/reference/epuck-model-sources.md``:
 wheel radius 0.02 m and axle 0.052 m (§1), maxVelocity 6.28 rad/s, encoder resolution
 2π/1000 rad, body collision cylinder radius 0.037 m, sensor poses (§1.1, yaw computed from
 the PROTO rotations), the camera's translation, and the IR lookup table (distance m, raw value, relative noise).
+The other senses (§6 of the same file, read from E-puck.proto R2022b and E-puckGroundSensors.proto R2020a):
+camera, ground sensors, light sensors, accelerometer, gyro and LEDs, their poses on the body (x forward, y left,
+z up from the floor) and lookup tables, kept here as the one place a URDF or TF publisher reads them from.
 """
 from __future__ import annotations
 
@@ -60,6 +63,39 @@ IR_LOOKUP_TABLE = np.array([
     [0.060, 104.09, 0.03065],
     [0.070, 67.19, 0.04897],
 ])
+
+BODY_TOP = BODY_CENTRE_HEIGHT + BODY_HEIGHT / 2.0
+"""m; the top of the body's collision cylinder: how high other robots' cameras and lights see it."""
+
+CAMERA_WIDTH, CAMERA_HEIGHT = 52, 39
+CAMERA_FOV = 0.84
+"""rad, horizontal; the vertical field follows from the 4:3 image (square pixels)."""
+CAMERA_NEAR = 0.0055
+"""m; nothing nearer than this is drawn (Webots' near plane)."""
+
+GROUND_SENSOR_NAMES: tuple[str, ...] = ('gs0', 'gs1', 'gs2')
+GROUND_SENSOR_POSES = np.array([[0.027, 0.01, 0.0003], [0.027, 0.0, 0.0003], [0.027, -0.01, 0.0003]])
+"""x, y, z (m) of gs0 (left), gs1 (centre), gs2 (right), each looking straight down: the extension slot at
+(0.03, 0, 0.0003) and the sensors 1 cm apart, 3 mm behind it (E-puckGroundSensors.proto)."""
+GROUND_LOOKUP_TABLE = np.array([[0.0, 1000.0, 0.002], [0.016, 300.0, 0.004]])
+"""distance (m), raw value, relative noise: E-puckGroundSensors.proto (R2020a)."""
+
+LIGHT_SENSOR_NAMES: tuple[str, ...] = tuple(f'ls{i}' for i in range(8))
+LIGHT_LOOKUP_TABLE = np.array([[1.0, 4095.0, 0.01], [2.0, 0.0, 0.01]])
+"""irradiance (W/m^2), raw value, relative noise: more light, lower value, as on the real robot."""
+
+ACCELEROMETER_LOOKUP_TABLE = np.array([[-100.0, -100.0, 0.003], [100.0, 100.0, 0.003]])
+"""m/s^2 -> value (the same figure), relative noise; at the body's origin."""
+GYRO_LOOKUP_TABLE = np.array([[-13.315805, -100000.0, 0.003], [13.315805, 100000.0, 0.003]])
+"""rad/s -> value, relative noise: the proto's gyro returns 7509.9 units per rad/s; at the body's origin."""
+
+LED_NAMES: tuple[str, ...] = tuple(f'led{i}' for i in range(10))
+LED_POSITIONS = np.array([[0.0337, 0.0, 0.041], [0.022, -0.025, 0.041], [0.0, -0.0337, 0.041],
+                          [-0.027, -0.0201, 0.041], [-0.033, 0.0, 0.041], [-0.027, 0.0201, 0.041],
+                          [0.0, 0.0337, 0.041], [0.022, 0.025, 0.041], [0.0, 0.0, 0.025], [0.031, -0.0125, 0.0285]])
+"""x, y, z (m): led0..led7 on the ring, led8 the body (the whole shell), led9 the front LED."""
+LED_COLORS = ((1.0, 0.0, 0.0),) * 8 + ((0.0, 1.0, 0.0), (1.0, 0.3, 0.0))
+"""r, g, b of each LED when on: the ring's are Webots' default LED colour (red), led8 green, led9 orange."""
 
 
 @dataclass(frozen=True, eq=False)

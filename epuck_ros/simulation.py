@@ -8,7 +8,8 @@ blocked; then the sensors are read from the new true pose.
 State is kept as arrays with one row per robot, (N, ...), one robot per `world.robots` entry
 (`stepping.state.RobotArrays`). Robots collide with each other as with walls and see each other's bodies with
 their IR sensors. The motion is one of two paired steppers: `stepping.one_robot` on plain floats for a single
-robot, `stepping.swarm` in NumPy for several; the sensors are parts they compose (`stepping.ir_ring`). This
+robot, `stepping.swarm` in NumPy for several; the sensors are parts they compose (`stepping.ir_ring`); the other
+senses (`stepping.senses`) are read after the step for the robots that want them. This
 module keeps what both share: the commands and their timeout, the contact count, time and the public API.
 """
 from __future__ import annotations
@@ -21,6 +22,7 @@ import numpy as np
 from epuck_ros.kinematics import clamp_wheels, twist_from_wheels, wheels_from_twist
 from epuck_ros.model import TIME_STEP, RobotModel
 from epuck_ros.stepping.ir_ring import IrRing
+from epuck_ros.stepping.senses import Senses
 from epuck_ros.stepping.one_robot import OneRobotStepper
 from epuck_ros.stepping.state import RobotArrays
 from epuck_ros.stepping.swarm import SwarmStepper
@@ -45,10 +47,10 @@ class Simulation:
     """The robots of a World, stepped by `time_step`; read the public properties after each `step()`.
 
     Robot i is `world.robots[i]` (`names[i]`); every state array has one row per robot. `seed` seeds the IR
-    noise (the only random draw); `noise=False` gives the exact table values. `isolated=True` puts each robot alone
-    in its own copy of the world: robots neither touch nor see each other (independent worlds stepped together, as a
-    vector environment needs). The arrays the properties return are the simulator's own state, updated in place by
-    `step()`: read them, copy what you keep, do not write to them.
+    noise (and, each from its own stream, the other senses' noise); `noise=False` gives the exact table values.
+    `isolated=True` puts each robot alone in its own copy of the world: robots neither touch nor see each other
+    (independent worlds stepped together, as a vector environment needs). The arrays the properties return are
+    the simulator's own state, updated in place by `step()`: read them, copy what you keep, do not write to them.
     """
 
     def __init__(self, world: World, model: RobotModel = RobotModel(), time_step: float = TIME_STEP,
@@ -65,6 +67,8 @@ class Simulation:
         self._stepper: OneRobotStepper | SwarmStepper = (
             OneRobotStepper(world, model, self.time_step, self._ir) if n == 1
             else SwarmStepper(world, model, self.time_step, self._ir, self._start, isolated))
+        self.senses = Senses(world, self._state, self.time_step, seed, noise, isolated=isolated)
+        """Camera, ground, light sensors and IMU: read after each step for the robots that want them (`want`)."""
         self._steps = 0
         self._last_command_time = np.zeros(n)
         self._commanded = np.zeros(n, dtype=bool)
@@ -79,7 +83,7 @@ class Simulation:
 
     @noise.setter
     def noise(self, noise: bool) -> None:
-        self._ir.noise = noise
+        self._ir.noise = self.senses.noise = noise
 
     @property
     def names(self) -> tuple[str, ...]:
@@ -146,6 +150,8 @@ class Simulation:
         self._state.wheel_speeds[:] = self._state.command
         obstacle, robot = self._stepper.step(self._state)
         self._count_contacts(obstacle, robot, events)
+        if self.senses.active:
+            self.senses.sense(self._state)
         self._steps += 1
         return events
 
@@ -187,6 +193,7 @@ class Simulation:
         self._commanded.fill(False)
         self._earliest_command = math.inf
         self._stepper.reset(self._state)
+        self.senses.reset()
 
     # --- state --------------------------------------------------------------------------------------------
 

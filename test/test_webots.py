@@ -370,7 +370,7 @@ robot = Robot()
 again = Robot()  # Webots prints an error and goes on
 step = int(robot.getBasicTimeStep())
 report = {'basic_time_step': robot.getBasicTimeStep(), 'name': robot.getName(),
-          'unknown_is_none': robot.getDevice('ps9') is None, 'camera_is_none': robot.getDevice('camera') is None,
+          'unknown_is_none': robot.getDevice('ps9') is None, 'speaker_is_none': robot.getDevice('speaker') is None,
           'typo_is_none': robot.getDevice('left wheel moter') is None}
 left = robot.getMotor('left wheel motor')  # deprecated, forwards to getDevice
 right = robot.getDevice('right wheel motor')
@@ -383,9 +383,9 @@ try:
 except AttributeError as error:
     report['keyboard'] = str(error)
 try:
-    from controller import Camera
+    from controller import Speaker
 except ImportError as error:
-    report['camera_import'] = str(error)
+    report['speaker_import'] = str(error)
 left.setPosition(float('inf'))
 right.setPosition(float('inf'))
 left.setVelocity(2.0)
@@ -412,16 +412,16 @@ def test_misuse_gets_webots_messages_and_the_run_goes_on(launch: object, test_no
     report = json.loads(next(line for line in output.splitlines() if line.startswith('REPORT '))[7:])
     print(output)
     assert report['basic_time_step'] == 32.0 and report['name'] == 'epuck'
-    assert report['unknown_is_none'] and report['camera_is_none'] and report['disabled_is_nan']
+    assert report['unknown_is_none'] and report['speaker_is_none'] and report['disabled_is_nan']
     assert report['typo_is_none']
     assert report['led'] == 1
     assert report['stepped_ms'] == [64, 32]
     assert 'Robot.getKeyboard is part of the Webots API but not supported' in report['keyboard']
-    assert 'controller.Camera is part of the Webots API but not supported' in report['camera_import']
+    assert 'controller.Speaker is part of the Webots API but not supported' in report['speaker_import']
     for message in ('Error: only one Robot instance can be created per controller process.',
                     'Device "ps9" was not found on robot "epuck"',
                     'Device "left wheel moter" was not found on robot "epuck" (did you mean "left wheel motor"?)',
-                    'Device "camera" exists on Webots\' e-puck but is not simulated by epuck_ros',
+                    'Device "speaker" exists on Webots\' e-puck but is not simulated by epuck_ros',
                     'DEPRECATION: Robot.getMotor is deprecated, please use Robot.getDevice instead.',
                     'wb_distance_sensor_get_value() called for a disabled device!',
                     'WARNING: RotationalMotor "right wheel motor": The requested velocity 10 exceeds '

@@ -27,7 +27,9 @@ from epuck_ros.bag.run_summary import BagSummary, RunSummary  # noqa: E402
 from epuck_ros.bag.runs import RunData, Trajectory  # noqa: E402
 from epuck_ros.bag.summary_text import turn_direction  # noqa: E402
 from epuck_ros.model import RobotModel  # noqa: E402
+from epuck_ros.sensors.scene import FloorTexture  # noqa: E402
 from epuck_ros.world import World  # noqa: E402
+from epuck_ros.world.appearance import BOX_COLOR, CYLINDER_COLOR, FLOOR_COLOR, WALL_COLOR  # noqa: E402
 
 FIGURE_INCHES = (10.0, 25.0 / 3.0)
 DPI = 120
@@ -47,13 +49,28 @@ TIME_COLORMAP = 'viridis'
 
 
 def _draw_world(axes: plt.Axes, world: World) -> None:
+    """The arena, its painted floor and lights (when the world has them), obstacles in their colours (grey when
+    the world gives none, as before colours existed)."""
     width, height = world.arena_size
-    axes.add_patch(Rectangle((-width / 2, -height / 2), width, height, fill=False, linewidth=3, edgecolor='0.2'))
-    for box in world.boxes:
+    looks = world.appearance
+    if looks.paint or looks.floor_color != FLOOR_COLOR:
+        floor = FloorTexture(world.arena_size, looks.floor_color, looks.paint)
+        axes.imshow(floor.image, origin='lower', extent=(-width / 2, width / 2, -height / 2, height / 2),
+                    interpolation='nearest', alpha=0.6, zorder=0, gid='floor')
+    axes.add_patch(Rectangle((-width / 2, -height / 2), width, height, fill=False, linewidth=3,
+                             edgecolor=looks.wall_color if looks.wall_color != WALL_COLOR else '0.2'))
+    for index, box in enumerate(world.boxes):
+        color = looks.box_color(index)
+        style = OBSTACLE_STYLE | ({'facecolor': color} if color != BOX_COLOR else {})
         axes.add_patch(Rectangle((box.x - box.size_x / 2, box.y - box.size_y / 2), box.size_x, box.size_y,
-                                 angle=math.degrees(box.yaw), rotation_point='center', **OBSTACLE_STYLE))
-    for cylinder in world.cylinders:
-        axes.add_patch(Circle((cylinder.x, cylinder.y), cylinder.radius, **OBSTACLE_STYLE))
+                                 angle=math.degrees(box.yaw), rotation_point='center', **style))
+    for index, cylinder in enumerate(world.cylinders):
+        color = looks.cylinder_color(index)
+        style = OBSTACLE_STYLE | ({'facecolor': color} if color != CYLINDER_COLOR else {})
+        axes.add_patch(Circle((cylinder.x, cylinder.y), cylinder.radius, **style))
+    for light in looks.lights:
+        axes.plot(light.x, light.y, marker='*', markersize=22, markerfacecolor='gold', markeredgecolor='0.3',
+                  zorder=5, gid='light')
 
 
 def _limits(world: World | None, paths: Sequence[Trajectory], body_radius: float) -> tuple[tuple, tuple]:

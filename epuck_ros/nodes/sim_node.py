@@ -43,6 +43,7 @@ from epuck_ros.nodes.pacing import Controls, Pacer, Settings
 from epuck_ros.nodes.params import ParamSpec, Usage, command_line_value, declare_parameters, prepare_arguments
 from epuck_ros.nodes.qos import LATCHED
 from epuck_ros.nodes.robot_ports import JOINT_NAMES, WARN_PERIOD, WORLD_FRAME, RobotPorts, quiet_publisher
+from epuck_ros.nodes.sense_ports import SENSE_POLL, SENSE_TOPICS, SenseError, SensePorts
 from epuck_ros.nodes.serialized import Patch
 from epuck_ros.nodes.spinning import end_process, handle_shutdown_signals, shutdown_requested, spin_until_shutdown
 from epuck_ros.nodes.tf_ports import TfPorts
@@ -85,13 +86,20 @@ SIM_PARAMETERS = [
               read_only=True),
     ParamSpec('frame_prefix', '', 'prefix of every frame_id (e.g. "sim1/"); with several robots each robot\'s '
                                   'frames are <prefix><name>/odom, ...', read_only=True),
+    ParamSpec('senses', '', 'comma-separated senses every robot computes whether or not their topics have '
+                            'subscribers: camera, ground, light, imu (a sense is computed anyway while its topic has '
+                            'a subscriber)', read_only=True),
+    ParamSpec('camera_width', 52, 'camera image width in pixels (the field of view stays 0.84 rad)', (1, 1024),
+              read_only=True),
+    ParamSpec('camera_height', 39, 'camera image height in pixels', (1, 1024), read_only=True),
 ]
 """The simulator's parameters; `bringup` routes `-p` assignments with this table."""
 
 USAGE = Usage(
     'sim',
     'The e-puck simulator: steps the robots of a world and publishes, per robot, odom, ground_truth, proximity '
-    '(8 Range), ir_raw (the 8 raw IR values), joint_states and collisions, plus the latched world and '
+    '(8 Range), ir_raw (the 8 raw IR values), joint_states and collisions, and while they have subscribers '
+    'camera/image_raw, camera/camera_info, ground_raw, light_raw and imu, plus the latched world and '
     'world_markers and /clock; takes cmd_vel (Twist) or wheel_cmd ([left, right] rad/s) per robot; services '
     'reset (Empty) and step (Trigger, one step while paused). With several robots, robot NAME\'s topics are '
     'NAME/odom, NAME/cmd_vel, ...',
@@ -137,6 +145,11 @@ class SimNode(Node):
         world = _world(values)
         self._sim = Simulation(world, RobotModel(), time_step=values['time_step'], seed=values['seed'],
                                noise=values['noise'], cmd_timeout=values['cmd_timeout'])
+        self._forced_senses = _senses(values['senses'])
+        if (values['camera_width'], values['camera_height']) != self._sim.senses.camera_size:
+            self._sim.senses.set_camera_size(values['camera_width'], values['camera_height'])
+        for kind in self._forced_senses:
+            self._sim.senses.want(kind, range(len(world.robots)))
         self._lock = threading.Lock()
         """Guards the simulation: the stepping thread steps it, the executor thread commands and resets it."""
         self._controls = Controls(Settings(values['real_time_factor'], values['paused'], values['pause_at']))
@@ -152,6 +165,12 @@ class SimNode(Node):
         history = history_steps(len(world.robots))
         stream = QoSProfile(depth=history, reliability=ReliabilityPolicy.RELIABLE)
         self.ports = self._make_ports(values, stream)
+        self.sense_ports = [SensePorts(self, index, name, len(self.ports) > 1, stream, self._sim,
+                                       values['frame_prefix']) for index, name in enumerate(self._sim.names)]
+        self._sensing: list[SensePorts] = []
+        """The robots with a subscriber on some sense topic: their sense messages are published after each step."""
+        self._sense_turn = 0
+        self.create_timer(SENSE_POLL, self._update_sense_wants)
         self._tf = TfPorts(self, self.ports, self._sim, len(self.ports) > 1, stream, LATCHED,
                            values['frame_prefix'] + WORLD_FRAME)
         self._publish_world(world, values['frame_prefix'])
@@ -342,8 +361,30 @@ class SimNode(Node):
         stamp = stamp_from_seconds(self._sim.time)
         for ports in self.ports:
             ports.publish(self._sim, stamp)
+        for senses in self._sensing:
+            senses.publish(self._sim, stamp)
         self._tf.publish(self._sim, stamp)
         self._clock_pub.publish(self._clock_message.bytes(stamp))
+        self._poll_sense_wants()
+
+    def _update_sense_wants(self) -> None:
+        """Senses follow their topics' subscribers (see sense_ports): every robot every SENSE_POLL wall seconds."""
+        with self._lock:
+            for ports in self.sense_ports:
+                self._update_wants_of(ports)
+
+    def _poll_sense_wants(self) -> None:
+        """One robot a step too (under the lock), in turn: at real_time_factor 0 the wall-clock poll alone would
+        leave a controller that just enabled a sense without readings for hundreds of steps."""
+        self._sense_turn = (self._sense_turn + 1) % len(self.sense_ports)
+        self._update_wants_of(self.sense_ports[self._sense_turn])
+
+    def _update_wants_of(self, ports: SensePorts) -> None:
+        was = ports.publishing
+        ports.update_wants(lambda kind, robot, wanted: self._sim.senses.want(kind, [robot], wanted),
+                           self._forced_senses)
+        if ports.publishing != was:
+            self._sensing = [ports for ports in self.sense_ports if ports.publishing]
 
     def _after_step(self, events: StepEvents, now_sim: float) -> None:
         names = self._sim.names
@@ -399,6 +440,15 @@ def publication_mode(argv: list[str]) -> str:
     return 'SYNCHRONOUS' if command_line_value(argv, 'lockstep') is True else 'ASYNCHRONOUS'
 
 
+def _senses(value: str) -> frozenset[str]:
+    """The `senses` parameter's words; an unknown one is a SenseError naming it."""
+    words = frozenset(word.strip() for word in value.split(',') if word.strip())
+    unknown = sorted(words - set(SENSE_TOPICS))
+    if unknown:
+        raise SenseError(f'senses: unknown sense {unknown[0]!r} (senses: {", ".join(SENSE_TOPICS)})')
+    return words
+
+
 class StartInterrupted(Exception):
     """Ctrl-C or SIGTERM came while the node was still being built."""
 
@@ -427,7 +477,7 @@ def main(args: list[str] | None = None) -> None:
         if node.refusal:
             print(f'sim: cannot start: {node.refusal}', file=sys.stderr)
             code = 2
-    except (WorldError, ParameterException) as error:
+    except (WorldError, ParameterException, SenseError) as error:
         print(f'sim: cannot start: {error}', file=sys.stderr)
         code = 2
     except StartInterrupted:

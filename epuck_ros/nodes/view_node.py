@@ -24,6 +24,7 @@ from concurrent.futures import Future as ResultFuture
 from concurrent.futures import TimeoutError as ResultTimeout
 from functools import partial
 
+import numpy as np
 import rclpy
 from builtin_interfaces.msg import Time
 from geometry_msgs.msg import Twist
@@ -38,8 +39,8 @@ from rclpy.publisher import Publisher
 from rclpy.qos import QoSProfile, qos_profile_sensor_data
 from rclpy.subscription import Subscription
 from rclpy.task import Future
-from sensor_msgs.msg import JointState, Range
-from std_msgs.msg import Float64MultiArray, String, UInt32
+from sensor_msgs.msg import Image, JointState, Range
+from std_msgs.msg import Float64MultiArray, Int32MultiArray, String, UInt32
 from std_srvs.srv import Empty, Trigger
 
 from epuck_ros.conversions import seconds_from_stamp, yaw_from_quaternion
@@ -48,6 +49,7 @@ from epuck_ros.nodes.dds_profile import use_package_profile
 from epuck_ros.nodes.params import ParamSpec, Usage, declare_parameters, prepare_arguments
 from epuck_ros.nodes.qos import LATCHED
 from epuck_ros.nodes.sim_node import JOINT_NAMES
+from epuck_ros.sensors.png import png_bytes
 from epuck_ros.view.server import Action, ActionError, ViewServer, is_loopback
 from epuck_ros.view.state import ViewState, robot_topic
 from epuck_ros.world import WorldError, world_from_yaml
@@ -160,6 +162,7 @@ class ViewNode(Node):
                 self.create_subscription(Float64MultiArray, topic('ir_raw'), partial(self._on_ir_raw, robot),
                                          NEWEST_ONLY),
                 self.create_subscription(UInt32, topic('collisions'), partial(self._on_collisions, robot), LATCHED),
+                self.create_subscription(Int32MultiArray, topic('leds'), partial(self._on_leds, robot), LATCHED),
             ]
             if robot not in self._has_ir_raw:
                 # Bags recorded before `ir_raw` existed have only the 8 Range messages (depth: one step's worth);
@@ -180,6 +183,9 @@ class ViewNode(Node):
             self._details[robot] = [
                 self.create_subscription(Odometry, topic('odom'), partial(self._on_odom, robot), NEWEST_ONLY),
                 self.create_subscription(JointState, topic('joint_states'), partial(self._on_joints, robot),
+                                         NEWEST_ONLY),
+                # the camera of the robot shown in detail: the simulator renders it while this subscription lasts
+                self.create_subscription(Image, topic('camera/image_raw'), partial(self._on_image, robot),
                                          NEWEST_ONLY)]
 
     def _on_truth(self, robot: str, msg: Odometry) -> None:
@@ -213,6 +219,15 @@ class ViewNode(Node):
         sensor = msg.header.frame_id.rsplit('/', 1)[-1]
         if robot in self._proximity and sensor in SENSOR_NAMES:
             self.state.set_ir_range(robot, SENSOR_NAMES.index(sensor), msg.range)
+
+    def _on_leds(self, robot: str, msg: Int32MultiArray) -> None:
+        self.state.update(robot, leds=[int(v) for v in msg.data[:10]])
+
+    def _on_image(self, robot: str, msg: Image) -> None:
+        if msg.encoding != 'rgb8' or len(msg.data) != 3 * msg.width * msg.height or msg.step != 3 * msg.width:
+            return
+        pixels = np.frombuffer(bytes(msg.data), dtype=np.uint8).reshape(msg.height, msg.width, 3)
+        self.state.set_camera(robot, png_bytes(pixels), _seconds(msg.header.stamp))
 
     def _on_collisions(self, robot: str, msg: UInt32) -> None:
         self.state.update(robot, collisions=msg.data)

@@ -10,7 +10,8 @@ websocket library would add a dependency and nothing the page uses.
   The view subscribes to the robots' topics only while a page is open (`ViewServer.pages_open`), and to
   odometry and wheel speeds only for the robots a page shows in detail (`ViewServer.watched`): each subscriber
   costs the simulator a send per step.
-- `GET /state?robot=NAME`, `GET /world` the same JSON once (for scripts and benchmarks).
+- `GET /state?robot=NAME`, `GET /world` the same JSON once (for scripts and benchmarks); `GET /camera?robot=NAME`
+  the newest camera image of the robot shown in detail (PNG; 404 before the first).
 - `POST /api/<action>` with a JSON body: one of ACTIONS, checked by `parse_action` before anything reaches ROS.
 
 A POST must be `application/json` and, if the browser says where it comes from (`Origin`), come from this very
@@ -260,6 +261,12 @@ class _Handler(BaseHTTPRequestHandler):
         elif path == '/state':
             self.server.note_poll(robot)
             self._send(HTTPStatus.OK, self.server.state.frame_json(time.monotonic()).encode(), 'application/json')
+        elif path == '/camera':
+            png = self.server.state.camera_png(robot)
+            if png is None:
+                self._send_error(HTTPStatus.NOT_FOUND, 'no camera image of that robot (yet)')
+            else:
+                self._send(HTTPStatus.OK, png, 'image/png')
         elif path == '/world':
             self._send(HTTPStatus.OK, self.server.state.world_json().encode(), 'application/json')
         else:

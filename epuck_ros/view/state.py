@@ -15,7 +15,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from epuck_ros import ir_sensor
-from epuck_ros.model import RobotModel
+from epuck_ros.model import LED_COLORS, LED_POSITIONS, RobotModel
 from epuck_ros.world import World
 
 RTF_WINDOW = 1.0
@@ -58,12 +58,16 @@ class RobotReadings:
     """Distance (m) each ray is drawn to: the inverse lookup table, clipped to [0, ir_range]."""
     wheel_speeds: tuple[float, float] | None = None
     collisions: int = 0
+    leds: list[int] | None = None
+    """led0..led9 as the robot's controller set them (`leds`)."""
+    camera: float | None = None
+    """Simulated time (s) of the newest camera image (shown for the robot a page looks at)."""
 
     def to_json(self, start: tuple[float, float, float]) -> dict:
         return {'pose': self.pose, 'stamp': self.stamp, 'odom': self.odom,
                 'odom_error': _odom_error(start, self.odom, self.pose),
                 'ir_raw': self.ir_raw, 'ir_range': self.ir_range, 'wheel_speeds': self.wheel_speeds,
-                'collisions': self.collisions}
+                'collisions': self.collisions, 'leds': self.leds, 'camera': self.camera}
 
 
 def _odom_error(start: tuple[float, float, float], odom: tuple[float, float, float] | None,
@@ -101,6 +105,7 @@ class ViewState:
     _clock_samples: deque = field(default_factory=lambda: deque(maxlen=512))
     _lock: threading.Condition = field(default_factory=threading.Condition)
     _frame_cache: tuple[int, float, str] | None = None
+    _camera_png: dict[str, bytes] = field(default_factory=dict)
 
     def _changed(self) -> None:
         self.version += 1
@@ -157,6 +162,17 @@ class ViewState:
             target.ir_range[sensor] = round(shown, 5)
             self._changed()
 
+    def set_camera(self, robot: str, png: bytes, stamp: float) -> None:
+        """The newest camera image of a robot, as a PNG file, and its simulated time."""
+        with self._lock:
+            if robot in self.robots:
+                self._camera_png[robot] = png
+        self.update(robot, camera=stamp)
+
+    def camera_png(self, robot: str) -> bytes | None:
+        with self._lock:
+            return self._camera_png.get(robot)
+
     def set_settings(self, **settings: object) -> None:
         with self._lock:
             for name, value in settings.items():
@@ -186,7 +202,9 @@ class ViewState:
             'body_radius': model.body_radius, 'wheel_separation': model.wheel_separation,
             'ir_range': model.ir_range, 'ir_raw_far': float(model.ir_table[-1, 1]),
             'ir_raw_near': float(model.ir_table[0, 1]),
-            'sensor_poses': [[float(v) for v in pose] for pose in model.sensor_poses]}}
+            'sensor_poses': [[float(v) for v in pose] for pose in model.sensor_poses],
+            'led_positions': [[float(x), float(y)] for x, y, _ in LED_POSITIONS.tolist()],
+            'led_colors': [list(color) for color in LED_COLORS]}}
         if world is not None:
             body.update({
                 'arena': list(world.arena_size),

@@ -2,7 +2,9 @@
 
 What each call does, and every message text, follows the Webots controller library (`src/controller/c/motor.c`,
 `distance_sensor.c`, `position_sensor.c`) and the reference pages `motor.md`, `distancesensor.md`,
-`positionsensor.md`, `led.md` (cyberbotics/webots). The robot (`epuck_ros.webots.robot`) hands each sensor the
+`positionsensor.md`, `led.md`, `camera.md`, `lightsensor.md`, `accelerometer.md`, `gyro.md` (cyberbotics/webots).
+Nothing here knows where the readings come from (the simulator over ROS, or the core in this process).
+The robot (`epuck_ros.webots.robot`) hands each sensor the
 readings of every simulator step (`sample`) and asks each motor for the wheel speed of the next step (`command`).
 
 A name a script uses that Webots has but this shim does not is refused with `UnsupportedError`, which says so
@@ -13,8 +15,11 @@ from __future__ import annotations
 import math
 import sys
 from collections.abc import Callable
+from pathlib import Path
 
 import numpy as np
+
+from epuck_ros.sensors.png import png_bytes
 
 NANOSECONDS_PER_MS = 1_000_000
 MOTOR_CONTROL_P = 10.0
@@ -178,18 +183,31 @@ class SampledSensor(Device):
                    f'{self.API_PREFIX}_enable().')
         return self._value
 
-    def sample(self, time_ns: int, value: float) -> None:
+    @property
+    def enabled(self) -> bool:
+        """Whether the script has enabled the sensor: the simulator computes a sense only while one is."""
+        return self._period_ms > 0
+
+    def due(self, time_ns: int) -> bool:
+        """Whether a reading at `time_ns` would be kept (a sampling period has elapsed since the last one)."""
+        return self._period_ms > 0 and time_ns >= self._due_ns
+
+    def sample(self, time_ns: int, value: object) -> None:
         """The simulator's reading at `time_ns`: kept if a sampling period has elapsed since the last one."""
-        if self._period_ms <= 0 or time_ns < self._due_ns:
+        if not self.due(time_ns):
             return
-        self._value = float(value)
+        self._value = self._keep(value)
         period_ns = self._period_ms * NANOSECONDS_PER_MS
         while self._due_ns <= time_ns:
             self._due_ns += period_ns
 
+    def _keep(self, value: object) -> object:
+        return float(value)   # type: ignore[arg-type]
+
 
 class DistanceSensor(SampledSensor):
-    """An IR proximity sensor psN: getValue() is the raw lookup-table value, with the simulator's noise."""
+    """An infra-red DistanceSensor: psN (the ring) or gsN (the ground sensors); getValue() is the raw lookup-table
+    value, with the simulator's noise."""
 
     API_PREFIX = 'wb_distance_sensor'
 
@@ -236,14 +254,160 @@ class PositionSensor(SampledSensor):
 
 
 class LED(Device):
-    """An e-puck LED: 0 off, 1 on (its one colour); the state lives in the controller."""
+    """An e-puck LED: 0 off, 1 on (its one colour); the state lives in the controller, the simulator is told of
+    changes (`changed`) so the view can draw them."""
 
     def __init__(self, name: str) -> None:
         super().__init__(name)
         self._value = 0
+        self.changed = False
+        """Set since the robot last sent the LEDs to the simulator (the robot clears it)."""
 
     def set(self, value: int) -> None:
-        self._value = int(value)
+        value = int(value)
+        self.changed = self.changed or value != self._value
+        self._value = value
 
     def get(self) -> int:
         return self._value
+
+
+class LightSensor(SampledSensor):
+    """A light sensor lsN: getValue() is the proto's lookup table of the irradiance (4095 in the dark, 0 in bright
+    light)."""
+
+    API_PREFIX = 'wb_light_sensor'
+
+    def __init__(self, name: str, now_ns: Callable[[], int], lookup_table: np.ndarray) -> None:
+        super().__init__(name, now_ns)
+        self._table = lookup_table
+
+    def getLookupTable(self) -> list[float]:
+        return [float(x) for x in self._table.ravel()]
+
+
+class VectorSensor(SampledSensor):
+    """A three-axis sensor: getValues() is [x, y, z] in the robot's frame (x forward, y left, z up), NaN until the
+    first sampling period has elapsed."""
+
+    def __init__(self, name: str, now_ns: Callable[[], int], lookup_table: np.ndarray) -> None:
+        super().__init__(name, now_ns)
+        self._table = lookup_table
+        self._value = [math.nan] * 3
+
+    def _keep(self, value: object) -> list[float]:
+        return [float(v) for v in value]   # type: ignore[attr-defined]
+
+    def getValues(self) -> list[float]:
+        if self._period_ms <= 0:
+            report(f'Error: {self.API_PREFIX}_get_values() called for a disabled device! Please use: '
+                   f'{self.API_PREFIX}_enable().')
+        return list(self._value)
+
+    def getValue(self) -> float:
+        raise unsupported(type(self).__name__, 'getValue', public_methods(type(self)))
+
+    def getLookupTable(self) -> list[float]:
+        return [float(x) for x in self._table.ravel()]
+
+
+class Accelerometer(VectorSensor):
+    """m/s^2 through the proto's table (the identity within +-100): [0, 0, 9.81] at rest."""
+
+    API_PREFIX = 'wb_accelerometer'
+
+
+class Gyro(VectorSensor):
+    """The proto's table turns rad/s into its units: 100,000 / 13.315805 per rad/s."""
+
+    API_PREFIX = 'wb_gyro'
+
+
+class Camera(SampledSensor):
+    """The e-puck's camera: an RGB image each sampling period, handed out as Webots does.
+
+    `getImage()` is Webots' buffer: BGRA bytes, 4 per pixel, row by row from the top left; `getImageArray()` is
+    image[x][y] = [r, g, b] (x the column); `imageGetRed/Green/Blue/Gray(image, width, x, y)` read one pixel of the
+    buffer (gray the integer mean of the three). Before the first period has elapsed there is no image (None).
+    """
+
+    API_PREFIX = 'wb_camera'
+
+    def __init__(self, name: str, now_ns: Callable[[], int], width: int, height: int, fov: float,
+                 near: float) -> None:
+        super().__init__(name, now_ns)
+        self._width, self._height, self._fov, self._near = width, height, fov, near
+        self._value = None
+        self._bgra: bytes | None = None
+
+    def _keep(self, value: object) -> np.ndarray:
+        rgb = np.asarray(value, dtype=np.uint8).reshape(self._height, self._width, 3)
+        self._bgra = None   # made on demand: a script may only read getImageArray
+        return rgb
+
+    def getImage(self) -> bytes | None:
+        if self._period_ms <= 0:
+            report('Error: wb_camera_get_image() called for a disabled device! Please use: wb_camera_enable().')
+        rgb = self._value
+        if rgb is None:
+            return None
+        if self._bgra is None:
+            bgra = np.empty((self._height, self._width, 4), dtype=np.uint8)
+            bgra[..., 0], bgra[..., 1], bgra[..., 2], bgra[..., 3] = rgb[..., 2], rgb[..., 1], rgb[..., 0], 255
+            self._bgra = bgra.tobytes()
+        return self._bgra
+
+    def getImageArray(self) -> list[list[list[int]]] | None:
+        image = self.getImage()
+        if image is None:
+            return None
+        return self._value.transpose(1, 0, 2).tolist()   # type: ignore[union-attr]
+
+    @staticmethod
+    def imageGetRed(image: bytes, width: int, x: int, y: int) -> int:
+        return image[4 * (y * width + x) + 2]
+
+    @staticmethod
+    def imageGetGreen(image: bytes, width: int, x: int, y: int) -> int:
+        return image[4 * (y * width + x) + 1]
+
+    @staticmethod
+    def imageGetBlue(image: bytes, width: int, x: int, y: int) -> int:
+        return image[4 * (y * width + x)]
+
+    @staticmethod
+    def imageGetGray(image: bytes, width: int, x: int, y: int) -> int:
+        offset = 4 * (y * width + x)
+        return (image[offset] + image[offset + 1] + image[offset + 2]) // 3
+
+    imageGetGrey = imageGetGray
+
+    def getWidth(self) -> int:
+        return self._width
+
+    def getHeight(self) -> int:
+        return self._height
+
+    def getFov(self) -> float:
+        return self._fov
+
+    def getNear(self) -> float:
+        return self._near
+
+    def saveImage(self, filename: str, quality: int) -> int:
+        """0 on success, -1 on failure (no image yet, a file that cannot be written, an extension other than .png;
+        Webots also writes .jpg, which this shim cannot: it says so)."""
+        if self._value is None:
+            return -1
+        suffix = Path(str(filename)).suffix.lower()
+        if suffix in ('.jpg', '.jpeg'):
+            report(f'Error: wb_camera_save_image(): JPEG is not supported by epuck_ros\'s Webots shim, save '
+                   f'"{Path(str(filename)).with_suffix(".png").name}" instead.')
+            return -1
+        if suffix != '.png':
+            return -1
+        try:
+            Path(str(filename)).write_bytes(png_bytes(self._value))
+        except OSError:
+            return -1
+        return 0

@@ -5,6 +5,9 @@ are read. Over ROS the same exchange is: publish `wheel_cmd` (the answer to the 
 then wait until the simulator's next step is complete here: its `/clock`, its `joint_states` (stamped with
 that time) and its `ir_raw` (unstamped: matched by count, see `_complete`). With the simulator in lockstep
 nothing of a later step exists before the answer, so every reading belongs to the step asked for.
+The other senses (camera, ground and light sensors, IMU) are subscribed when the script enables one (`want`):
+the simulator computes a sense while its topic has a subscriber, so from its first message on a step is complete
+only with that sense's reading of the same step too (stamped ones by stamp, the arrays by count as ir_raw).
 Waiting spins this node's executor in the calling (main) thread: a script that does not call `step` leaves
 messages queued and the simulator, after its `cmd_timeout`, stops the robot.
 """
@@ -13,19 +16,25 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
+from typing import Any
 
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter_client import AsyncParameterClient
-from rclpy.qos import QoSProfile, ReliabilityPolicy
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from rosgraph_msgs.msg import Clock
-from sensor_msgs.msg import JointState
-from std_msgs.msg import Float64MultiArray
+import numpy as np
+from sensor_msgs.msg import Image, Imu, JointState
+from std_msgs.msg import Float64MultiArray, Int32MultiArray
 
 from epuck_ros.conversions import nanoseconds_from_stamp
 from epuck_ros.nodes.ack_window import COMMAND_QOS
 from epuck_ros.nodes.robot_ports import JOINT_NAMES
+from epuck_ros.nodes.sense_ports import SENSE_TOPICS
+from epuck_ros.sensors.imu import gyro_values
+
+LED_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
 
 QOS = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
 COMMAND_TOPIC = 'wheel_cmd'
@@ -51,6 +60,46 @@ class StepData:
     wheel_angles: tuple[float, float]
     wheel_speeds: tuple[float, float]
     ir_raw: tuple[float, ...]
+    senses: dict[str, Any] = field(default_factory=dict)
+    """The enabled senses' readings of this step: 'camera' (H, W, 3) uint8, 'ground' (3 values), 'light' (8),
+    'imu' ((ax, ay, az) m/s^2, gyro values (3)); a sense whose first message has not come yet is absent."""
+
+
+class _SenseFeed:
+    """The newest message of one sense topic, and whether it belongs to the step being gathered."""
+
+    def __init__(self, kind: str) -> None:
+        self.kind = kind
+        self.value: Any = None
+        self.stamp_ns: int | None = None
+        self.since_answer = 0
+        self.new = True
+        """No message had come by the last answer: the counts of this step cannot be compared yet."""
+
+    def on_message(self, msg: Any) -> None:
+        if self.kind == 'camera':
+            self.value = np.frombuffer(bytes(msg.data), dtype=np.uint8).reshape(msg.height, msg.width, 3)
+        elif self.kind == 'imu':
+            rates = (msg.angular_velocity.x, msg.angular_velocity.y, msg.angular_velocity.z)
+            self.value = ((msg.linear_acceleration.x, msg.linear_acceleration.y, msg.linear_acceleration.z),
+                          tuple(gyro_values(np.array(rates), None).tolist()))
+        else:
+            self.value = tuple(msg.data)
+        if self.kind in ('camera', 'imu'):
+            self.stamp_ns = nanoseconds_from_stamp(msg.header.stamp.sec, msg.header.stamp.nanosec)
+        self.since_answer += 1
+
+    def ready(self, clock_ns: int, clocks: int) -> bool:
+        """Its newest message is of the step stamped `clock_ns` (or it has sent none yet: not awaited)."""
+        if self.value is None:
+            return True
+        if self.stamp_ns is not None:
+            return self.stamp_ns == clock_ns
+        if self.new:   # the first messages straddle the subscription (a step sent again, say): take the newest
+            return self.since_answer > 0
+        # At least one message per /clock since the answer (one more when a message of the step before came after
+        # the answer: the newest is then this step's); fewer, and the step waits, as for ir_raw.
+        return self.since_answer > 0 and (self.since_answer >= clocks or clocks >= MISMATCH_GIVE_UP)
 
 
 class SimLink:
@@ -76,6 +125,9 @@ class SimLink:
             self.node.create_subscription(Clock, '/clock', self._on_clock, QOS),
             self.node.create_subscription(JointState, self._prefix + 'joint_states', self._on_joints, QOS),
             self.node.create_subscription(Float64MultiArray, self._prefix + 'ir_raw', self._on_ir_raw, QOS)]
+        self._feeds: dict[str, _SenseFeed] = {}
+        self._subscriptions_of_senses: list = []
+        self._led_publisher = None
 
     # --- callbacks --------------------------------------------------------------------------------------------
 
@@ -192,9 +244,26 @@ class SimLink:
         """The simulator's current step, once it is complete here (the simulator may be paused until then)."""
         return self._next_step()
 
+    def want(self, kind: str) -> None:
+        """From now on gather sense `kind` ('camera', 'ground', 'light', 'imu') with every step."""
+        if kind in self._feeds:
+            return
+        feed = self._feeds[kind] = _SenseFeed(kind)
+        message = {'camera': Image, 'imu': Imu}.get(kind, Float64MultiArray)
+        self._subscriptions_of_senses.append(
+            self.node.create_subscription(message, self._prefix + SENSE_TOPICS[kind], feed.on_message, QOS))
+
+    def publish_leds(self, values: list[int]) -> None:
+        """The ten LED values the script set (latched: a view started later still draws them)."""
+        if self._led_publisher is None:
+            self._led_publisher = self.node.create_publisher(Int32MultiArray, self._prefix + 'leds', LED_QOS)
+        self._led_publisher.publish(Int32MultiArray(data=[int(v) for v in values]))
+
     def answer_and_wait(self, left: float, right: float) -> StepData | None:
         """Send the wheel speeds for the step last returned, then wait for the next one (None: stop or sim gone)."""
         self._clocks_since_answer = self._ir_since_answer = 0
+        for feed in self._feeds.values():
+            feed.since_answer, feed.new = 0, feed.value is None
         self._command.data = [float(left), float(right)]
         self._publisher.publish(self._command)
         return self._next_step()
@@ -211,7 +280,8 @@ class SimLink:
         return clock is not None and clock > self._consumed_ns and joints is not None and \
             nanoseconds_from_stamp(joints.header.stamp.sec, joints.header.stamp.nanosec) == clock and \
             self._ir_since_answer > 0 and \
-            (self._ir_since_answer == clocks or clocks >= MISMATCH_GIVE_UP)
+            (self._ir_since_answer == clocks or clocks >= MISMATCH_GIVE_UP) and \
+            all(feed.ready(clock, clocks) for feed in self._feeds.values())
 
     def _next_step(self) -> StepData | None:
         last_check = time.monotonic()
@@ -228,8 +298,9 @@ class SimLink:
         joints = self._joints
         index = {name.rsplit('/', 1)[-1]: i for i, name in enumerate(joints.name)}
         left, right = index[JOINT_NAMES[0]], index[JOINT_NAMES[1]]
+        senses = {kind: feed.value for kind, feed in self._feeds.items() if feed.value is not None}
         return StepData(self._consumed_ns, (joints.position[left], joints.position[right]),
-                        (joints.velocity[left], joints.velocity[right]), self._ir_raw)
+                        (joints.velocity[left], joints.velocity[right]), self._ir_raw, senses)
 
     def close(self) -> None:
         self._executor.shutdown(timeout_sec=0.0)

@@ -29,11 +29,14 @@ from pathlib import Path
 import rclpy
 from rclpy.signals import SignalHandlerOptions
 
-from epuck_ros.model import SENSOR_NAMES, RobotModel
+from epuck_ros.model import (
+    ACCELEROMETER_LOOKUP_TABLE, CAMERA_FOV, CAMERA_HEIGHT, CAMERA_NEAR, CAMERA_WIDTH, GROUND_LOOKUP_TABLE,
+    GROUND_SENSOR_NAMES, GYRO_LOOKUP_TABLE, LIGHT_LOOKUP_TABLE, LIGHT_SENSOR_NAMES, SENSOR_NAMES, RobotModel)
 from epuck_ros.nodes.dds_profile import use_package_profile
 from epuck_ros.nodes.spinning import end_process
 from epuck_ros.webots.devices import (
-    LED, NANOSECONDS_PER_MS, Device, DistanceSensor, Motor, PositionSensor, public_methods, report, unsupported)
+    LED, NANOSECONDS_PER_MS, Accelerometer, Camera, Device, DistanceSensor, Gyro, LightSensor, Motor, PositionSensor,
+    SampledSensor, public_methods, report, unsupported)
 from epuck_ros.webots.link import SimLink, StepData
 
 _THREAD = threading.local()
@@ -42,8 +45,7 @@ _THREAD = threading.local()
 MOTOR_NAMES = ('left wheel motor', 'right wheel motor')
 ENCODER_NAMES = ('left wheel sensor', 'right wheel sensor')
 LED_NAMES = tuple(f'led{i}' for i in range(10))
-NOT_SIMULATED = ('camera', 'accelerometer', 'gyro', 'speaker', 'emitter', 'receiver', 'tof',
-                 *(f'ls{i}' for i in range(8)), *(f'gs{i}' for i in range(3)))
+NOT_SIMULATED = ('speaker', 'emitter', 'receiver', 'tof')
 """Devices of Webots' e-puck that this simulator does not model."""
 SINGLE_ROBOT_NAME = 'epuck'
 """`getName()` of the robot of a one-robot world (its topics carry no name)."""
@@ -108,7 +110,8 @@ def _first_robot() -> Robot | None:
 
 
 class Robot:
-    """The e-puck: motors, wheel encoders, ps0..ps7, led0..led9, simulated time."""
+    """The e-puck: motors, wheel encoders, ps0..ps7, led0..led9, camera, gs0..gs2, ls0..ls7, accelerometer, gyro,
+    simulated time."""
 
     created: Robot | None = None
 
@@ -147,9 +150,19 @@ class Robot:
         self._distance_sensors = [DistanceSensor(name, now, model.ir_table, model.ir_aperture)
                                   for name in SENSOR_NAMES]
         self._leds = [LED(name) for name in LED_NAMES]
+        self._camera = Camera('camera', now, CAMERA_WIDTH, CAMERA_HEIGHT, CAMERA_FOV, CAMERA_NEAR)
+        self._ground_sensors = [DistanceSensor(name, now, GROUND_LOOKUP_TABLE, 0.0) for name in GROUND_SENSOR_NAMES]
+        self._light_sensors = [LightSensor(name, now, LIGHT_LOOKUP_TABLE) for name in LIGHT_SENSOR_NAMES]
+        self._accelerometer = Accelerometer('accelerometer', now, ACCELEROMETER_LOOKUP_TABLE)
+        self._gyro = Gyro('gyro', now, GYRO_LOOKUP_TABLE)
+        self._senses: dict[str, list[SampledSensor]] = {
+            'camera': [self._camera], 'ground': self._ground_sensors, 'light': self._light_sensors,
+            'imu': [self._accelerometer, self._gyro]}
+        """The devices of each sense the simulator computes on demand: enabling one asks for the sense."""
         self._devices: dict[str, Device] = {
             device.getName(): device
-            for device in (*self._motors, *self._encoders, *self._distance_sensors, *self._leds)}
+            for device in (*self._motors, *self._encoders, *self._distance_sensors, *self._ground_sensors,
+                           *self._light_sensors, self._camera, self._accelerometer, self._gyro, *self._leds)}
 
     # --- time ---------------------------------------------------------------------------------------------------
 
@@ -196,6 +209,7 @@ class Robot:
         target_ns = self._time_ns + round((steps - 0.5) * self._basic_step_ms * NANOSECONDS_PER_MS)
         SESSION.in_step = self._in_step = True
         try:
+            self._ask_for_senses()
             while self._time_ns < target_ns:
                 left, right = (motor.command(angle) for motor, angle in zip(self._motors, self._data.wheel_angles))
                 data = self._link.answer_and_wait(left, right)
@@ -208,6 +222,16 @@ class Robot:
             self._left_step = time.monotonic()
         return -1 if SESSION.ending else 0
 
+    def _ask_for_senses(self) -> None:
+        """The senses of enabled devices are gathered from now on; the LEDs set since the last step are sent."""
+        for kind, devices in self._senses.items():
+            if any(device.enabled for device in devices):
+                self._link.want(kind)
+        if any(led.changed for led in self._leds):
+            self._link.publish_leds([led.get() for led in self._leds])
+            for led in self._leds:
+                led.changed = False
+
     def _read(self, data: StepData) -> None:
         self._data = data
         self._time_ns = data.time_ns
@@ -215,6 +239,18 @@ class Robot:
             encoder.sample_with_speed(data.time_ns, angle, speed)
         for sensor, value in zip(self._distance_sensors, data.ir_raw):
             sensor.sample(data.time_ns, value)
+        senses = data.senses
+        if senses:
+            time_ns = data.time_ns
+            if 'camera' in senses:
+                self._camera.sample(time_ns, senses['camera'])
+            for sensor, value in zip(self._ground_sensors, senses.get('ground', ())):
+                sensor.sample(time_ns, value)
+            for sensor, value in zip(self._light_sensors, senses.get('light', ())):
+                sensor.sample(time_ns, value)
+            if 'imu' in senses:
+                self._accelerometer.sample(time_ns, senses['imu'][0])
+                self._gyro.sample(time_ns, senses['imu'][1])
 
     # --- devices ------------------------------------------------------------------------------------------------
 
@@ -251,6 +287,18 @@ class Robot:
 
     def getPositionSensor(self, name: str) -> Device | None:
         return self._deprecated('getPositionSensor', name)
+
+    def getCamera(self, name: str) -> Device | None:
+        return self._deprecated('getCamera', name)
+
+    def getLightSensor(self, name: str) -> Device | None:
+        return self._deprecated('getLightSensor', name)
+
+    def getAccelerometer(self, name: str) -> Device | None:
+        return self._deprecated('getAccelerometer', name)
+
+    def getGyro(self, name: str) -> Device | None:
+        return self._deprecated('getGyro', name)
 
     def getLED(self, name: str) -> Device | None:
         return self._deprecated('getLed', name)  # sic: Webots' message says getLed

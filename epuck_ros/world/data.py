@@ -17,6 +17,7 @@ import numpy as np
 
 from epuck_ros import untrusted_yaml
 from epuck_ros.world import collisions, raycast
+from epuck_ros.world.appearance import Appearance, appearance_dict
 from epuck_ros.world.geometry import Geometry
 
 
@@ -86,12 +87,14 @@ class World:
     boxes: tuple[Box, ...] = ()
     cylinders: tuple[Cylinder, ...] = ()
     robots: tuple[RobotStart, ...] = ONE_ROBOT
+    appearance: Appearance = Appearance()
+    """Colours, heights, floor paint and lights (what the camera, ground and light sensors see)."""
     geometry: Geometry = field(init=False, repr=False, compare=False)
     """The walls and obstacles prepared for queries (what the raycast and collisions functions take)."""
 
     def __init__(self, arena_size: Iterable[float] = (1.0, 1.0), boxes: Iterable[Box] = (),
                  cylinders: Iterable[Cylinder] = (), robots: Iterable[RobotStart] = ONE_ROBOT,
-                 start_pose: Iterable[float] | None = None) -> None:
+                 start_pose: Iterable[float] | None = None, appearance: Appearance = Appearance()) -> None:
         """Check the robots' names; `start_pose` is the one-robot form kept for older callers (named `epuck`)."""
         if start_pose is not None:
             if robots is not ONE_ROBOT:
@@ -102,6 +105,7 @@ class World:
         object.__setattr__(self, 'cylinders', tuple(cylinders))
         robots = tuple(RobotStart(str(r.name), float(r.x), float(r.y), float(r.yaw)) for r in robots)
         object.__setattr__(self, 'robots', robots)
+        object.__setattr__(self, 'appearance', appearance)
         problem = name_problem(robots)
         if problem:
             raise WorldError(f'robots: {problem}')
@@ -119,7 +123,7 @@ class World:
 
     def with_robots(self, robots: Iterable[RobotStart]) -> World:
         """The same arena and obstacles with other robots."""
-        return World(self.arena_size, self.boxes, self.cylinders, tuple(robots))
+        return World(self.arena_size, self.boxes, self.cylinders, tuple(robots), appearance=self.appearance)
 
     def cast_rays(self, origins: np.ndarray, yaws: np.ndarray, max_range: float) -> np.ndarray:
         """Distance (K,) from each origin (K, 2) inside the arena along its yaw (K,) to the first wall or obstacle.
@@ -174,11 +178,12 @@ class World:
 
     def to_dict(self) -> dict[str, Any]:
         """The world in the YAML file format, with plain floats (yaml.safe_dump writes it; world_from_dict reads it)."""
-        return {
+        data = {
             'arena': {'size': list(self.arena_size)},
             'boxes': [{'position': [b.x, b.y], 'size': [b.size_x, b.size_y], 'yaw': b.yaw} for b in self.boxes],
             'cylinders': [{'position': [c.x, c.y], 'radius': c.radius} for c in self.cylinders],
         } | self._robots_dict()
+        return appearance_dict(self.appearance, data)
 
     def _robots_dict(self) -> dict[str, Any]:
         """`robot:` for the single default-named robot (what one-robot readers expect), else the `robots:` list."""

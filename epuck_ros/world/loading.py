@@ -9,6 +9,8 @@ facing +x); a box needs position and size (yaw defaults to 0), a cylinder positi
     robots: [{name: epuck0, start: [x, y, yaw]}, {name: epuck1, start: [x, y, yaw]}]
     robot: {start: [x, y, yaw]}      # the one-robot form (named `epuck`); not together with `robots`
 
+Colours, heights, floor paint and lights are optional too (`appearance`'s docstring has their keys).
+
 The file is untrusted input: it is read only if it is a regular file under MAX_FILE_BYTES, YAML aliases and deep
 nesting are refused before anything is built, and numbers must be finite and within MAX_MAGNITUDE, so a hostile
 file costs little and ends in one WorldError line naming the file and field.
@@ -30,6 +32,7 @@ from epuck_ros.model import RobotModel
 from epuck_ros.spatial import close_pairs
 from epuck_ros.world.data import (ONE_ROBOT, ROBOT_NAME, ROBOT_NAME_MAX, Box, Cylinder, RobotStart, World, WorldError,
                                   name_problem)
+from epuck_ros.world import appearance
 from epuck_ros.world.geometry import CONTACT_TOLERANCE
 
 MAX_FILE_BYTES = 8 * 2 ** 20
@@ -87,8 +90,8 @@ def world_from_yaml(text: str, source: str = '<yaml>', robot_radius: float = Rob
 def world_from_dict(data: Any, source: str = '<dict>', robot_radius: float = RobotModel().body_radius) -> World:
     """Build a World from the file format (see the module docstring), checking every field and the start poses."""
     fields = _FieldReader(source)
-    top = fields.mapping(data, '<top level>', ('arena', 'boxes', 'cylinders', 'robot', 'robots'))
-    arena = fields.section(top, 'arena', ('size',))
+    top = fields.mapping(data, '<top level>', ('arena', 'boxes', 'cylinders', 'robot', 'robots', *appearance.TOP_KEYS))
+    arena = fields.section(top, 'arena', ('size', *appearance.ARENA_KEYS))
     if top.get('robot') is not None and top.get('robots') is not None:
         raise fields.fail('robots', 'give either `robots` (a list) or `robot` (one robot), not both')
     if top.get('robots') is not None:
@@ -102,9 +105,11 @@ def world_from_dict(data: Any, source: str = '<dict>', robot_radius: float = Rob
     if problem:
         raise fields.fail('robots', problem)
     world = World(arena_size=fields.vector(arena.get('size', [1.0, 1.0]), 'arena.size', 2, positive=True),
-                  boxes=tuple(fields.each(top, 'boxes', ('position', 'size', 'yaw'), _read_box)),
-                  cylinders=tuple(fields.each(top, 'cylinders', ('position', 'radius'), _read_cylinder)),
-                  robots=robots)
+                  boxes=tuple(fields.each(top, 'boxes', ('position', 'size', 'yaw', *appearance.OBSTACLE_KEYS),
+                                          _read_box)),
+                  cylinders=tuple(fields.each(top, 'cylinders', ('position', 'radius', *appearance.OBSTACLE_KEYS),
+                                              _read_cylinder)),
+                  robots=robots, appearance=appearance.read_appearance(fields, top))
     _check_obstacles_are_inside(world, source)
     _check_robots_are_clear(world, robot_radius, source, 'robots' if 'robots' in top else 'robot')
     return world

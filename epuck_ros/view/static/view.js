@@ -90,6 +90,25 @@ function showFigures() {
   setText('odom-error', robot.odom_error
     ? `${fixed(robot.odom_error.distance * 1000, 1)} mm, ${fixed(robot.odom_error.yaw * 180 / Math.PI, 2)}°` : '–');
   setText('robot-collisions', String(robot.collisions));
+  showCamera(robot);
+}
+
+const CAMERA_PERIOD = 200;   // ms between two camera images fetched: the page needs no more
+let cameraShown = null;
+let cameraFetched = 0;
+
+function showCamera(robot) {
+  const image = $('camera');
+  if (robot.camera === null || robot.camera === undefined) {
+    image.hidden = true;
+    return;
+  }
+  const now = performance.now();
+  if (robot.camera === cameraShown || now - cameraFetched < CAMERA_PERIOD) return;
+  cameraShown = robot.camera;
+  cameraFetched = now;
+  image.src = `/camera?robot=${encodeURIComponent(view.selected)}&t=${robot.camera}`;
+  image.hidden = false;
 }
 
 // --- drawing -----------------------------------------------------------------------------------------------
@@ -212,6 +231,16 @@ function drawRobot(name, robot, colour, scale) {
   ctx.moveTo(0, 0);
   ctx.lineTo(model.body_radius, 0);
   ctx.stroke();
+  if (robot.leds) {   // the LEDs its controller switched on, in their colours (led8: the body, a disc)
+    model.led_positions.forEach(([lx, ly], i) => {
+      if (!robot.leds[i]) return;
+      const [r, g, b] = model.led_colors[i].map((c) => Math.round(255 * c));
+      ctx.fillStyle = `rgb(${r}, ${g}, ${b})`;
+      ctx.beginPath();
+      ctx.arc(lx, ly, i === 8 ? model.body_radius * 0.45 : Math.max(0.005, 3 / scale), 0, 2 * Math.PI);
+      ctx.fill();
+    });
+  }
   ctx.restore();
   ctx.save();   // the name, upright
   ctx.translate(x, y + model.body_radius * 1.3);

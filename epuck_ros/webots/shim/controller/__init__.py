@@ -4,10 +4,12 @@ Only `webots_controller` puts this module on the import path (never installed as
 would hide a real Webots installation, and the name is someone else's on PyPI). Names of Webots' module that
 this shim does not provide are refused with a message saying so.
 """
-from epuck_ros.webots.devices import LED, Device, DistanceSensor, Motor, PositionSensor
+from epuck_ros.webots.devices import (
+    LED, Accelerometer, Camera, Device, DistanceSensor, Gyro, LightSensor, Motor, PositionSensor)
 from epuck_ros.webots.robot import Robot
 
-__all__ = ['Robot', 'Device', 'Motor', 'DistanceSensor', 'PositionSensor', 'LED']
+__all__ = ['Robot', 'Device', 'Motor', 'DistanceSensor', 'PositionSensor', 'LED', 'Camera', 'LightSensor',
+           'Accelerometer', 'Gyro']
 
 
 def __getattr__(name: str) -> object:
