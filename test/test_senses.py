@@ -296,3 +296,33 @@ def test_isolated_robots_do_not_see_each_other() -> None:
     alone.senses.want('camera', [0])
     assert (isolated.senses.images[0] == alone.senses.images[0]).all()
     assert not (shared.senses.images[0] == alone.senses.images[0]).all()
+
+
+# --- the three examples headless (issue 20: over ROS in test_senses_ros.py, headless here) --------------------
+
+EXAMPLES = Path(__file__).resolve().parents[1] / 'epuck_ros' / 'webots' / 'examples'
+WORLDS = Path(__file__).resolve().parents[1] / 'epuck_ros' / 'worlds'
+
+
+def headless_row(example: str, world: str, duration: float) -> dict:
+    """The one robot's row of `example` run headless on `world` (a trial in a process of its own, no ROS)."""
+    from epuck_ros.experiments.trial import Script, Trial, run_trial
+    [row] = run_trial(Trial(Script(str(EXAMPLES / example)), world=str(WORLDS / world), duration=duration))
+    assert row['error'] == '', row['error']
+    return row
+
+
+def test_the_sense_examples_do_their_jobs_headless():
+    """The line follower stays on its track without touching anything, the light seeker ends near the light, the
+    red-box finder ends close to the red box: each reading its senses through the shim bound to the core."""
+    follower = headless_row('line_follower.py', 'line_track.yaml', 20.0)
+    assert follower['distance_m'] > 0.5 and follower['contacts_obstacles'] == 0
+    lit = load_world(WORLDS / 'lit_arena.yaml')
+    light = np.array([lit.appearance.lights[0].x, lit.appearance.lights[0].y])
+    start = np.array(lit.start_pose[:2])
+    seeker = headless_row('light_seeker.py', 'lit_arena.yaml', 40.0)
+    end = np.array([seeker['final_x'], seeker['final_y']])
+    assert np.hypot(*(end - light)) < 0.15 < np.hypot(*(start - light))
+    finder = headless_row('find_red_box.py', 'coloured_objects.yaml', 20.0)
+    red = load_world(WORLDS / 'coloured_objects.yaml').boxes[0]
+    assert np.hypot(finder['final_x'] - red.x, finder['final_y'] - red.y) < 0.2

@@ -45,6 +45,13 @@ class CoreLink:
         self._seat.from_script.put((left, right))
         return self._seat.to_script.get()
 
+    def want(self, kind: str) -> None:
+        """A device of sense `kind` was enabled: the core reads that sense for this robot from now on."""
+        self._seat.want(kind)
+
+    def publish_leds(self, values: list[int]) -> None:
+        """No view to tell in a headless run."""
+
     def close(self) -> None:
         """Nothing to release: no node, no sockets."""
 
@@ -80,10 +87,15 @@ class ScriptSeat:
         if len(sim.names) > 1:
             self.name = sim.names[robot]
 
+    def want(self, kind: str) -> None:
+        """Called from the script's thread inside its step(), while the loop waits for the answer."""
+        self._sim.senses.want(kind, [self._robot])
+
     def update(self, observation: Observation) -> WheelCommand:
         sim, robot = self._sim, self._robot
         step = StepData(nanoseconds_from_stamp(*stamp_from_seconds(sim.time)), tuple(sim.wheel_angles[robot].tolist()),
-                        tuple(sim.wheel_speeds[robot].tolist()), tuple(sim.ir_raw[robot].tolist()))
+                        tuple(sim.wheel_speeds[robot].tolist()), tuple(sim.ir_raw[robot].tolist()),
+                        sim.senses.readings_of(robot))
         if self._thread is None:
             self._thread = threading.Thread(target=self._run, name=f'script {self.name}', daemon=True)
             self._thread.start()
