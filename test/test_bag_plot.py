@@ -161,3 +161,12 @@ def test_a_bag_without_a_world_says_the_arena_is_unknown():
         with_world = draw_runs(load_runs(bag), summarise_runs(load_runs(bag)))
     assert not with_world.findobj(match=lambda artist: artist.get_gid() == 'no-world')
     plt.close('all')
+
+
+def test_a_step_published_twice_is_one_pose_of_the_run():
+    """Lockstep sends an unanswered first step again: the bag then holds its stamp twice, the run once."""
+    from epuck_ros.bag.runs import _trajectory
+    rows = [(0, 0.0, 0.0, 0.0, 0.0, 0.0), (0, 0.0, 0.0, 0.0, 0.0, 0.0), (32_000_000, 0.001, 0.0, 0.0, 0.0, 0.0),
+            (64_000_000, 0.002, 0.0, 0.0, 0.0, 0.0)]
+    trajectory = _trajectory('/ground_truth', rows, 0)
+    assert trajectory.t.tolist() == [0.0, 0.032, 0.064] and trajectory.x.tolist() == [0.0, 0.001, 0.002]

@@ -230,9 +230,13 @@ def _world(bag: Bag, topic: str, message: bytes) -> tuple[World | None, str | No
 
 
 def _trajectory(topic: str, rows: list[tuple], origin_ns: int) -> Trajectory:
-    """Odometry rows (stamp ns, x, y, yaw, v, w) sorted by stamp; t counted from `origin_ns`."""
+    """Odometry rows (stamp ns, x, y, yaw, v, w) sorted by stamp, one per stamp; t counted from `origin_ns`.
+
+    A stamp seen twice is one step published twice: in lockstep the simulator sends its first step again when a
+    controller still connecting has not answered it (`epuck_ros.lockstep`), and a step is one pose of the run."""
     stamps, x, y, yaw, _, _ = (np.array(column) for column in zip(*rows))
     stamps = stamps.astype(np.int64)
     order = np.argsort(stamps, kind='stable')
+    order = order[np.concatenate(([True], np.diff(stamps[order]) != 0))]
     stamps = stamps[order]
     return Trajectory(topic, (stamps - origin_ns) * 1e-9, x[order], y[order], np.unwrap(yaw[order]), stamps)
