@@ -19,7 +19,8 @@ from epuck_ros.evolution.controller import controller_script
 from epuck_ros.evolution.evaluate import evaluate
 from epuck_ros.evolution.ga import initial_population, next_generation
 from epuck_ros.evolution.network import GENES
-from epuck_ros.experiments.cluster import ClusterError, default_workers, open_client
+from epuck_ros.experiments.cluster import (
+    ClusterError, add_cluster_arguments, check_cluster_arguments, open_client)
 
 EXIT_BAD_INPUT, EXIT_INTERRUPTED = 2, 130
 PAPER_POPULATION, PAPER_GENERATIONS = 80, 100
@@ -43,19 +44,14 @@ def parse_args(argv: list[str]) -> argparse.Namespace:
     parser.add_argument('--duration', type=float, default=20.0,
                         help='simulated seconds each genome drives (0.032..3600; default 20)')
     parser.add_argument('--seed', type=int, default=0, help='seed of the whole evolution (0..2**32-1; default 0)')
-    parser.add_argument('--workers', type=int, default=None,
-                        help=f'local Dask worker processes (default: one per core, here {default_workers()}); '
-                             '0 = every evaluation in this process')
-    parser.add_argument('--scheduler', help='tcp://HOST:PORT of an existing Dask scheduler (its workers need '
-                                            'epuck_ros installed)')
+    add_cluster_arguments(parser, 'every evaluation')
     args = parser.parse_args(argv)
     for name, (low, high) in LIMITS.items():
         if not low <= getattr(args, name) <= high:
             parser.error(f'--{name} must be from {low} to {high}, got {getattr(args, name)}')
     if not 0.032 <= args.duration <= 3600.0:
         parser.error(f'--duration must be from 0.032 to 3600 simulated seconds, got {args.duration}')
-    if args.workers is not None and args.workers < 0:
-        parser.error('--workers must be 0 or more')
+    check_cluster_arguments(parser, args)
     return args
 
 

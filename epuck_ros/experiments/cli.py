@@ -17,7 +17,8 @@ from collections.abc import Iterable, Iterator
 from dataclasses import replace
 from pathlib import Path
 
-from epuck_ros.experiments.cluster import ClusterError, default_workers, open_client
+from epuck_ros.experiments.cluster import (
+    ClusterError, add_cluster_arguments, check_cluster_arguments, default_workers, open_client)
 from epuck_ros.experiments.spec import SpecError, load_spec
 from epuck_ros.experiments.trial import COLUMNS, Trial, run_trial
 
@@ -36,18 +37,13 @@ def parse_args(argv: list[str]) -> argparse.Namespace:
         epilog='example: sweep epuck_ros/experiments/examples/avoid_seeds.yaml -o sweep_out --workers 2')
     parser.add_argument('spec', type=Path, help='the spec (YAML); its relative paths are relative to it')
     parser.add_argument('-o', '--output', type=Path, required=True, help='output folder (made if missing)')
-    parser.add_argument('--workers', type=int, default=None,
-                        help=f'local Dask worker processes (default: one per core, here {default_workers()}); '
-                             '0 = every trial in this process, one after the other')
-    parser.add_argument('--scheduler', help='tcp://HOST:PORT of an existing Dask scheduler (its workers run the '
-                                            'trials; they need epuck_ros installed)')
+    add_cluster_arguments(parser, 'every trial')
     parser.add_argument('--resume', action='store_true', help='skip the trials already in OUT/trials.csv')
     parser.add_argument('--record', action='store_true',
                         help='also write each trial as a rosbag2 MCAP bag, OUT/bags/<trial>/, readable by `bag` and '
                              'rosbags (the workers write there: with --scheduler, OUT must be on a shared file system)')
     args = parser.parse_args(argv)
-    if args.workers is not None and args.workers < 0:
-        parser.error('--workers must be 0 or more')
+    check_cluster_arguments(parser, args)
     return args
 
 

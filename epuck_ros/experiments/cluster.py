@@ -6,6 +6,7 @@ gives the same rows and the sweep still ends with every trial exactly once.
 """
 from __future__ import annotations
 
+import argparse
 import os
 import signal
 import socket
@@ -30,6 +31,21 @@ class ClusterError(RuntimeError):
 def default_workers() -> int:
     """One worker process per core."""
     return os.cpu_count() or 1
+
+
+def add_cluster_arguments(parser: argparse.ArgumentParser, work: str) -> None:
+    """`--workers` and `--scheduler`, as `sweep` and `evolve` take them; `work` names what runs ('every trial')."""
+    parser.add_argument('--workers', type=int, default=None,
+                        help=f'local Dask worker processes (default: one per core, here {default_workers()}); '
+                             f'0 = {work} in this process, one after the other')
+    parser.add_argument('--scheduler', help='tcp://HOST:PORT of an existing Dask scheduler (its workers need '
+                                            'epuck_ros installed)')
+
+
+def check_cluster_arguments(parser: argparse.ArgumentParser, args: argparse.Namespace) -> None:
+    """Refuse (exit 2, one line) what `add_cluster_arguments` cannot take."""
+    if args.workers is not None and args.workers < 0:
+        parser.error('--workers must be 0 or more')
 
 
 @contextmanager
