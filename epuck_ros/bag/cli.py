@@ -108,47 +108,67 @@ def build_parser() -> argparse.ArgumentParser:
         prog='bag', description=__doc__.split('\n\n')[0], formatter_class=argparse.RawDescriptionHelpFormatter,
         epilog='example:\n  bag summary bags/circle\n\n`bag COMMAND --help` explains each command.')
     commands = parser.add_subparsers(dest='command', required=True, metavar='COMMAND')
+    _command(commands, 'info', _info, 'what ros2 bag info prints, plus topic rates; instant from the MCAP summary',
+             ['bag info bags/avoid'])
+    for add in (_add_summary, _add_plot, _add_csv, _add_play):
+        add(commands)
+    return parser
 
-    def command(name: str, handler: Callable[[argparse.Namespace], None], help_text: str,
-                examples: list[str]) -> argparse.ArgumentParser:
-        sub = commands.add_parser(name, help=help_text, description=help_text,
-                                  formatter_class=argparse.RawDescriptionHelpFormatter,
-                                  epilog='examples:\n' + '\n'.join(f'  {e}' for e in examples))
-        sub.add_argument('path', type=Path, help='bag folder or .mcap file')
-        sub.set_defaults(handler=handler)
-        return sub
 
-    command('info', _info, 'what ros2 bag info prints, plus topic rates; instant from the MCAP summary',
-            ['bag info bags/avoid'])
-    summary = command('summary', _summary,
-                      'distance, speed, closest approach, collisions, and what the run was (straight line, '
-                      'spin, circle, rectangle, free motion) with that shape\'s figures; one row per robot',
-                      ['bag summary bags/rectangle', 'bag summary --json bags/circle',
-                       'bag summary bags/swarm --namespace /epuck3'])
+def _command(commands: argparse._SubParsersAction, name: str, handler: Callable[[argparse.Namespace], None],
+             help_text: str, examples: list[str]) -> argparse.ArgumentParser:
+    """A subcommand on a bag `path`, with its examples under its help."""
+    sub = commands.add_parser(name, help=help_text, description=help_text,
+                              formatter_class=argparse.RawDescriptionHelpFormatter,
+                              epilog='examples:\n' + '\n'.join(f'  {e}' for e in examples))
+    sub.add_argument('path', type=Path, help='bag folder or .mcap file')
+    sub.set_defaults(handler=handler)
+    return sub
+
+
+def _add_namespace(sub: argparse.ArgumentParser) -> None:
+    sub.add_argument('--namespace', help='only this robot, e.g. /epuck3 (default: every robot)')
+
+
+def _add_summary(commands: argparse._SubParsersAction) -> None:
+    summary = _command(commands, 'summary', _summary,
+                       'distance, speed, closest approach, collisions, and what the run was (straight line, '
+                       'spin, circle, rectangle, free motion) with that shape\'s figures; one row per robot',
+                       ['bag summary bags/rectangle', 'bag summary --json bags/circle',
+                        'bag summary bags/swarm --namespace /epuck3'])
     summary.add_argument('--json', action='store_true', help='machine-readable output')
-    plot = command('plot', _plot, 'a picture of the run: every robot\'s path over the arena, heading arrows, '
-                                  'collisions, odometry from the start pose (1200x1000 px)',
-                   ['bag plot bags/rectangle -o rectangle.png', 'bag plot bags/swarm -o swarm.svg'])
+    _add_namespace(summary)
+
+
+def _add_plot(commands: argparse._SubParsersAction) -> None:
+    plot = _command(commands, 'plot', _plot, 'a picture of the run: every robot\'s path over the arena, heading '
+                                             'arrows, collisions, odometry from the start pose (1200x1000 px)',
+                    ['bag plot bags/rectangle -o rectangle.png', 'bag plot bags/swarm -o swarm.svg'])
     plot.add_argument('-o', '--output', type=Path, required=True,
                       help=f'file to write; the extension picks the format ({", ".join(PLOT_FORMATS)})')
-    for sub in (summary, plot):
-        sub.add_argument('--namespace', help='only this robot, e.g. /epuck3 (default: every robot)')
-    csv = command('csv', _csv, "one topic's messages as CSV: log_time, publish_time, then every field",
-                  ['bag csv bags/avoid /odom -o odom.csv', 'bag csv bags/swarm /epuck3/odom | head'])
+    _add_namespace(plot)
+
+
+def _add_csv(commands: argparse._SubParsersAction) -> None:
+    csv = _command(commands, 'csv', _csv, "one topic's messages as CSV: log_time, publish_time, then every field",
+                   ['bag csv bags/avoid /odom -o odom.csv', 'bag csv bags/swarm /epuck3/odom | head'])
     csv.add_argument('topic', help='topic name, e.g. /odom or /epuck3/odom')
     csv.add_argument('-o', '--output', type=Path, help='CSV file to write (default: stdout)')
     csv.add_argument('--join-arrays', action='store_true',
                      help='one space-separated cell per array instead of one column per element')
-    play = command('play', _play,
-                   'publish a bag on its topics with their recorded QoS (latched ones transient local) and '
-                   '/clock from the log time, as `ros2 bag play --clock` does; Ctrl-C stops. While paused, '
-                   'Enter (on a terminal) or the std_srvs/Trigger services ~/resume, ~/pause, '
-                   '~/toggle_paused of the `bag_player` node resume or pause. Before the first message it waits '
-                   '(at most 10 s, saying so) until every subscriber the graph shows on a played topic is matched, '
-                   'so a recorder started first misses nothing',
-                   ['bag play bags/avoid', 'bag play bags/avoid --rate 5 --loop',
-                    'bag play bags/avoid --start-paused --topics /ground_truth /world',
-                    'bag play bags/avoid --ros-args -r /odom:=/replayed/odom'])
+
+
+def _add_play(commands: argparse._SubParsersAction) -> None:
+    play = _command(commands, 'play', _play,
+                    'publish a bag on its topics with their recorded QoS (latched ones transient local) and '
+                    '/clock from the log time, as `ros2 bag play --clock` does; Ctrl-C stops. While paused, '
+                    'Enter (on a terminal) or the std_srvs/Trigger services ~/resume, ~/pause, '
+                    '~/toggle_paused of the `bag_player` node resume or pause. Before the first message it waits '
+                    '(at most 10 s, saying so) until every subscriber the graph shows on a played topic is '
+                    'matched, so a recorder started first misses nothing',
+                    ['bag play bags/avoid', 'bag play bags/avoid --rate 5 --loop',
+                     'bag play bags/avoid --start-paused --topics /ground_truth /world',
+                     'bag play bags/avoid --ros-args -r /odom:=/replayed/odom'])
     play.add_argument('--rate', type=_within(*RATES), default=1.0,
                       help=f'playback speed: 2 plays twice as fast (default 1; {RATES[0]:g} to {RATES[1]:g})')
     play.add_argument('--loop', action='store_true', help='start again at the end, until Ctrl-C')
@@ -156,7 +176,6 @@ def build_parser() -> argparse.ArgumentParser:
     play.add_argument('--topics', nargs='+', metavar='TOPIC', help='only these topics (default: all)')
     play.add_argument('--clock', type=_within(*CLOCK_HZ), default=100.0, metavar='HZ',
                       help=f'/clock publications per wall second (default 100; {CLOCK_HZ[0]:g} to {CLOCK_HZ[1]:g})')
-    return parser
 
 
 def main(argv: list[str] | None = None) -> None:
