@@ -74,17 +74,7 @@ def sweep(args: argparse.Namespace) -> None:
     except SpecError as error:
         print(f'sweep: {error}', file=sys.stderr)
         raise SystemExit(EXIT_BAD_INPUT) from None
-    args.output.mkdir(parents=True, exist_ok=True)
-    table = args.output / 'trials.csv'
-    if args.resume:   # the complete rows only: an interrupted sweep may have left a line cut short
-        write_rows(table, read_rows(table))
-    else:
-        table.unlink(missing_ok=True)
-    done = {int(row['trial']) for row in read_rows(table)}
-    todo = [trial for trial in spec.trials if trial.index not in done]
-    if args.record:
-        bags = args.output.resolve() / 'bags'
-        todo = [replace(trial, record=str(bags / str(trial.index))) for trial in todo]
+    table, done, todo = _pending(args, spec.trials)
     interrupted = False
     try:
         with open_client(args.workers, args.scheduler) as client, open(table, 'a', newline='') as out:
@@ -120,6 +110,23 @@ def sweep(args: argparse.Namespace) -> None:
           (f'; {len(failed)} trials failed (their rows say why)' if failed else ''), file=sys.stderr)
     if failed:
         raise SystemExit(EXIT_FAILED)
+
+
+def _pending(args: argparse.Namespace, trials: Iterable[Trial]) -> tuple[Path, set[int], list[Trial]]:
+    """OUT/trials.csv (emptied, or with --resume cut to its complete rows), the trials it holds, and the trials
+    left to run (each with its bag folder under --record)."""
+    args.output.mkdir(parents=True, exist_ok=True)
+    table = args.output / 'trials.csv'
+    if args.resume:   # the complete rows only: an interrupted sweep may have left a line cut short
+        write_rows(table, read_rows(table))
+    else:
+        table.unlink(missing_ok=True)
+    done = {int(row['trial']) for row in read_rows(table)}
+    todo = [trial for trial in trials if trial.index not in done]
+    if args.record:
+        bags = args.output.resolve() / 'bags'
+        todo = [replace(trial, record=str(bags / str(trial.index))) for trial in todo]
+    return table, done, todo
 
 
 def _finish_uninterrupted() -> None:
