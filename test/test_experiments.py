@@ -335,8 +335,14 @@ def test_three_robots_each_driven_by_a_script_over_dds_are_the_headless_trial(la
     test_node.spin_until(lambda: all(received and stamp_ns(received[-1]) >= last for received in truth.values()),
                          timeout=120.0, what='8 simulated s')
     poses: list[np.ndarray] = []
-    headless, _ = run(Trial(Script(str(COURSE_AVOIDANCE)), robots=3, seed=3, duration=8.0),
-                      each_step=lambda sim: poses.append(sim.true_pose.copy()))
+    path_before = list(sys.path)
+    try:   # in this process, as a library user may: the scripts' shim then sits on sys.path until we take it off
+        headless, _ = run(Trial(Script(str(COURSE_AVOIDANCE)), robots=3, seed=3, duration=8.0),
+                          each_step=lambda sim: poses.append(sim.true_pose.copy()))
+    finally:
+        sys.path[:] = path_before
+        for module in [name for name in sys.modules if name == 'controller' or name.startswith('controller.')]:
+            del sys.modules[module]
     assert list(headless.names) == names
     for index, name in enumerate(names):
         steps = {stamp_ns(msg): (msg.pose.pose.position.x, msg.pose.pose.position.y) for msg in truth[name]}
