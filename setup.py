@@ -19,7 +19,7 @@ setup(
     ],
     install_requires=['setuptools', 'numpy', 'pyyaml', 'mcap', 'zstandard', 'lz4', 'matplotlib', 'dask[distributed]',
                       'gymnasium', 'pettingzoo', 'rosbags'],
-    extras_require={'test': ['pytest', 'mcap-ros2-support', 'selenium', 'yourdfpy', 'flake8', 'pydocstyle']},
+    extras_require={'test': ['pytest', 'pytest-xdist', 'mcap-ros2-support', 'selenium', 'yourdfpy', 'flake8', 'pydocstyle']},
     zip_safe=True,
     maintainer='epuck_ros maintainers',
     maintainer_email='maintainers@epuck-ros.invalid',

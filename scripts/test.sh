@@ -6,4 +6,5 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 scripts/setup.sh
 . scripts/env.sh
-exec python -m pytest "$@"
+# Two test processes (pytest-xdist), each on a ROS domain of its own: the suite takes ~6 min instead of ~11.
+exec python -m pytest -n 2 "$@"
