@@ -14,12 +14,12 @@ from pathlib import Path
 
 import numpy as np
 from mcap.opcode import Opcode
-from mcap.records import Channel, Metadata, Schema
+from mcap.records import Channel, Schema
 
-from epuck_ros.bag.contents import BagError, RawMessage, Topic, rosbag2_metadata
+from epuck_ros.bag.contents import BagError, RawMessage, Topic
 from epuck_ros.bag.mcap_index import McapIndex
 from epuck_ros.bag.mcap_records import MAGIC, MESSAGE, MESSAGE_FIELDS, MESSAGE_HEAD, RECORD, chunk_records, \
-    header_strings, make_topic, read_record
+    header_strings, make_topic, read_record, rosbag2_metadata_in
 
 
 class McapFile:
@@ -146,11 +146,7 @@ class McapFile:
             position = end
 
     def _keep_rosbag2_metadata(self, body: bytes, offset: int) -> None:
-        try:
-            record = read_record(body, Metadata, f'{self.path} at byte {offset}')
-        except BagError:
-            return  # optional (it gives the ROS distro): a corrupt one is ignored
-        document = rosbag2_metadata(record, str(self.path))
+        document = rosbag2_metadata_in(body, self.path, offset)
         if document is not None:
             self.rosbag2_metadata = document
 

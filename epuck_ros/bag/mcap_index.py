@@ -15,11 +15,11 @@ import numpy as np
 from mcap.exceptions import McapError
 from mcap.opcode import Opcode
 from mcap.reader import SeekingReader
-from mcap.records import ChunkIndex, Metadata
+from mcap.records import ChunkIndex
 
-from epuck_ros.bag.contents import BagError, Topic, rosbag2_metadata
+from epuck_ros.bag.contents import BagError, Topic
 from epuck_ros.bag.mcap_records import MAGIC, MESSAGE_FIELDS, MESSAGE_HEAD, U64, chunk_records, make_topic, \
-    read_record
+    rosbag2_metadata_in
 
 _FOOTER = struct.Struct('<BQQQI')  # opcode, length, summary start, summary offset start, summary crc
 _INDEX_HEAD = struct.Struct('<HI')
@@ -101,10 +101,9 @@ class McapIndex:
     def _keep_rosbag2_metadata(self, offset: int) -> None:
         try:
             body = self._record_body(offset, Opcode.METADATA, f'{self.path} metadata record')
-            record = read_record(body, Metadata, f'{self.path} at byte {offset}')
         except BagError:
             return  # optional (it gives the ROS distro): a corrupt one is ignored
-        document = rosbag2_metadata(record, str(self.path))
+        document = rosbag2_metadata_in(body, self.path, offset)
         if document is not None:
             self.rosbag2_metadata = document
 

@@ -13,9 +13,9 @@ import zstandard
 from mcap.data_stream import ReadDataStream
 from mcap.exceptions import McapError
 from mcap.opcode import Opcode
-from mcap.records import Channel, Schema
+from mcap.records import Channel, Metadata, Schema
 
-from epuck_ros.bag.contents import BagError, Topic
+from epuck_ros.bag.contents import BagError, Topic, rosbag2_metadata
 
 MAGIC = b'\x89MCAP0\r\n'
 RECORD = struct.Struct('<BQ')
@@ -39,6 +39,16 @@ def read_record(body: bytes, cls: type, where: str) -> object:
         return cls.read(ReadDataStream(BytesIO(body)))
     except (McapError, struct.error, ValueError, EOFError) as error:
         raise BagError(f'{where}: corrupt {cls.__name__} record ({error or type(error).__name__})') from None
+
+
+def rosbag2_metadata_in(body: bytes, path: Path, offset: int) -> dict | None:
+    """The document of a metadata record's body at `offset` if it is rosbag2's, else None: the record is optional
+    (it gives the ROS distro), so a corrupt one is ignored."""
+    try:
+        record = read_record(body, Metadata, f'{path} at byte {offset}')
+    except BagError:
+        return None
+    return rosbag2_metadata(record, str(path))
 
 
 def decompress(compression: str, data: memoryview, size: int, where: str) -> bytes | memoryview:
