@@ -359,7 +359,12 @@ def spin_thinned(node: ViewNode) -> None:
                                                         node.timers, node.waitables))
         for _ in range(most):
             version = node.state.version
-            executor.spin_once(timeout_sec=0.0)
+            try:
+                executor.spin_once(timeout_sec=0.0)
+            except Exception:   # noqa: BLE001 - rclpy's RCLError when Ctrl-C shut the context down meanwhile
+                if node.context.ok():
+                    raise
+                return
             if node.state.version == version:
                 break
         node.run_requests()
