@@ -138,7 +138,12 @@ def test_a_subscriber_running_before_the_player_gets_the_first_messages_too(laun
     test_node.spin_until(lambda: len(received) >= len(expected) or player.proc.poll() is not None, timeout=120,
                          what='the played /odom')
     assert wait_for_exit(player) == 0, player.output()
-    test_node.spin_until(lambda: len(received) >= len(expected), timeout=30, what='the last /odom')
+    try:
+        test_node.spin_until(lambda: len(received) >= len(expected), timeout=30, what='the last /odom')
+    except AssertionError:
+        first = expected.index(received[0]) if received and received[0] in expected else None
+        raise AssertionError(f'{len(received)} of {len(expected)} /odom received, the first being number {first}:\n'
+                             f'{player.output()}') from None
     assert received == expected
 
 

@@ -164,8 +164,9 @@ def _add_play(commands: argparse._SubParsersAction) -> None:
                     '/clock from the log time, as `ros2 bag play --clock` does; Ctrl-C stops. While paused, '
                     'Enter (on a terminal) or the std_srvs/Trigger services ~/resume, ~/pause, '
                     '~/toggle_paused of the `bag_player` node resume or pause. Before the first message it waits '
-                    '(at most 10 s, saying so) until every subscriber the graph shows on a played topic is '
-                    'matched, so a recorder started first misses nothing',
+                    '3.5 s for the graph to show the subscribers already running (a node under Fast DDS\'s '
+                    'default profile announces itself every 3 s), then (at most 10 s, saying so) until every '
+                    'one on a played topic is matched, so a recorder started first misses nothing',
                     ['bag play bags/avoid', 'bag play bags/avoid --rate 5 --loop',
                      'bag play bags/avoid --start-paused --topics /ground_truth /world',
                      'bag play bags/avoid --ros-args -r /odom:=/replayed/odom'])

@@ -25,7 +25,7 @@ from epuck_ros.bag.play import CLOCK_TOPIC, PlaybackClock, replay_profile
 from epuck_ros.bag.reader import Bag, BagError, Topic
 from epuck_ros.conversions import stamp_from_nanoseconds
 from epuck_ros.nodes.dds_profile import use_package_profile
-from epuck_ros.nodes.matching import wait_until_matched
+from epuck_ros.nodes.matching import FOREIGN_DISCOVERY_WINDOW, wait_until_matched
 from epuck_ros.nodes.record_node import message_class
 
 MATCH_TIMEOUT = 10.0
@@ -98,11 +98,13 @@ class Player(Node):
 
     def wait_for_subscribers(self, timeout: float = MATCH_TIMEOUT) -> None:
         """Until every running subscriber of a played topic is matched and none came for `SETTLE` s, or `timeout`
-        (then a warning naming the unmatched topics)."""
+        (then a warning naming the unmatched topics); at least FOREIGN_DISCOVERY_WINDOW from the start, since the
+        subscribers are often a user's nodes, not the package's."""
         unmatched = wait_until_matched(
             self, self._outputs, self._created, timeout, SETTLE,
             lambda topics: self.get_logger().info(f'waiting for the subscribers of {", ".join(topics)} to match '
-                                                  f'(at most {timeout:.0f} s)'))
+                                                  f'(at most {timeout:.0f} s)'),
+            discovery_window=FOREIGN_DISCOVERY_WINDOW)
         if unmatched:
             self.get_logger().warning(f'starting although {", ".join(unmatched)} still has subscribers not matched '
                                       f'after {timeout:.0f} s')
