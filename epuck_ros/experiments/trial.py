@@ -33,7 +33,7 @@ from epuck_ros.simulation import Simulation
 from epuck_ros.world import World, default_world, load_world, place_robots
 
 if TYPE_CHECKING:
-    from epuck_ros.webots.headless import ScriptSeat
+    from epuck_ros.webots.headless import ScriptSeat, ScriptStage
 
 DEFAULT_WORLD = 'default'
 """A spec's name for the built-in world (`sim` with no `world` parameter)."""
@@ -77,9 +77,10 @@ class Script:
     def label(self) -> str:
         return self.name or Path(self.path).name
 
-    def make(self) -> ScriptSeat:
-        from epuck_ros.webots.headless import ScriptSeat   # the shim's Robot imports rclpy (no DDS is started)
-        return ScriptSeat(Path(self.path), TIME_STEP)
+    def stage(self, sim: Simulation, over: Callable[[], bool]) -> ScriptStage:
+        """The script's seats on `sim`, one per robot; `over()`: the run has taken its last step."""
+        from epuck_ros.webots.headless import ScriptStage   # the shim's Robot imports rclpy (no DDS is started)
+        return ScriptStage(Path(self.path), sim, over)
 
 
 @dataclass(frozen=True)
@@ -146,42 +147,49 @@ def run(trial: Trial, policy: Policy | None = None,
     sim = Simulation(world, RobotModel(), time_step=TIME_STEP, seed=trial.seed, noise=trial.noise)
     several = len(world.robots) > 1
     tally = RunTally([name if several else '' for name in sim.names], world)
-    controllers = [policy or trial.controller.make() for _ in sim.names]
-    for robot, controller in enumerate(controllers):   # a script's seat reads the step's raw data itself
-        getattr(controller, 'bind', _nothing)(sim, robot)
+
+    def over() -> bool:   # the simulator pauses on the first step at or after the duration
+        return sim.time + 1e-9 >= trial.duration
+
+    def publish(resend: bool) -> None:
+        sim.step()
+        _published(sim, tally, several, each_step)
+
+    stage = trial.controller.stage(sim, over) if isinstance(trial.controller, Script) and policy is None else None
+    controllers = stage.seats if stage is not None else [policy or trial.controller.make() for _ in sim.names]
     # What each controller's node subscribes (a plain policy gets everything).
     needs_odom = [getattr(controller, 'needs_odom', True) for controller in controllers]
     needs_ranges = [getattr(controller, 'needs_proximity', True) for controller in controllers]
-    # Stepped as the sim node steps, through a Lockstep that waits for every robot (each has its controller).
-    lockstep = Lockstep(len(sim.names), lambda resend: (sim.step(), _published(sim, tally, several, each_step)),
-                        timeout=0.0)
+    # Stepped as the sim node steps, through a Lockstep that waits for every robot (each has its controller). The
+    # scripts answer from their own threads, and the thread of a step's last answer takes the next step itself.
+    lockstep = stage.lockstep_for(publish) if stage is not None else Lockstep(len(sim.names), publish, timeout=0.0)
     lockstep.claim()
     try:
         lockstep.step()   # the first step goes out with no command: the wheels are still
-        while not sim.time + 1e-9 >= trial.duration:   # the simulator pauses on the first step at or after it
+        while not over():
             now = _stamp_seconds(sim.time)
             for robot, controller in enumerate(controllers):
                 odom = _odometry_as_received(sim.odom_pose[robot]) if needs_odom[robot] else None
                 ranges = ranges_from_raw(sim.ir_raw[robot].tolist()) if needs_ranges[robot] else None
                 command = _update(controller, Observation(now, odom, ranges))
-                sim.command_wheels(robot, command.left, command.right)
-                lockstep.answer(robot)
-            if not lockstep.await_answers():   # every robot answered: never waits
+                if command is not None:   # None: a script that answers from its thread
+                    sim.command_wheels(robot, command.left, command.right)
+                    lockstep.answer(robot)
+            if not lockstep.await_answers():   # every robot answered (the scripts' threads may have stepped on)
                 raise RuntimeError('lockstep: a robot did not answer its step')
-            lockstep.step()
+            if stage is not None:
+                stage.check()   # a script that failed ends the trial before the next step
+            if not over():
+                lockstep.step()
     finally:   # a script's step() returns -1
-        for controller in controllers:
-            getattr(controller, 'close', _nothing)()
-    for controller in controllers:   # a script may fail after the end, too
-        getattr(controller, 'check', _nothing)()
+        if stage is not None:
+            stage.close()
+    if stage is not None:   # a script may fail after the end, too
+        stage.check()
     return sim, tally
 
 
-def _nothing(*_: object) -> None:
-    """What a controller without a seat's hooks (bind, close, check) does with them."""
-
-
-def _update(controller: Behaviour | Policy, observation: Observation) -> WheelCommand:
+def _update(controller: Behaviour | Policy | ScriptSeat, observation: Observation) -> WheelCommand | None:
     return controller.update(observation) if hasattr(controller, 'update') else controller(observation)
 
 

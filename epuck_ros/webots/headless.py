@@ -2,52 +2,151 @@
 bound to a `CoreLink` instead of to the simulator's topics.
 
 A script steps the world itself (`robot.step()` returns when the next step has happened), while a headless trial
-is stepped by one loop that asks every robot's controller for its answer to each step
-(`epuck_ros.experiments.trial.run`, the order of lockstep). A `ScriptSeat` joins the two: it is the robot's
-controller in that loop, and the script runs in a thread of its own that the seat hands each step to, and takes
-the script's answer from, as the simulator and the script's node exchange `joint_states`/`ir_raw` and `wheel_cmd`
-in lockstep. The run is therefore the lockstep run over ROS, step for step.
+is stepped through one `Lockstep` that waits for every robot's answer to each step (`epuck_ros.experiments.trial.run`,
+the order of the sim node in lockstep). A `ScriptStage` joins the two as the sim node joins the simulator and the
+controllers' nodes: each robot's script runs in a thread of its own, its `step()` answers the lockstep with the
+wheel speeds, and the thread of a step's last answer takes the next step itself (the lockstep lends it the claim,
+as the sim node lends it to the thread that receives the last wheel_cmd). A single robot's script thus steps the
+world inside its own step() call: no hand-off between threads per step. The trial's loop waits meanwhile, and takes
+over when the run reaches its end or a script ends. The run is the lockstep run over ROS, step for step.
 """
 from __future__ import annotations
 
-import queue
 import threading
+import time
+from collections.abc import Callable
 from pathlib import Path
 
 from epuck_ros.behaviours import Observation, WheelCommand
 from epuck_ros.conversions import nanoseconds_from_stamp, stamp_from_seconds
+from epuck_ros.lockstep import Lockstep, StepFunction
 from epuck_ros.simulation import Simulation
 from epuck_ros.webots.link import StepData
 from epuck_ros.webots.robot import KILL_DELAY, SINGLE_ROBOT_NAME, bind_thread
 from epuck_ros.webots.runner import run_script
-
-_END = None
-"""Handed to the script instead of a step: the simulation is over (its `step()` returns -1)."""
 
 
 class ScriptError(RuntimeError):
     """The script ended with an error (raised, or exited with a non-zero code); the message says which."""
 
 
-class CoreLink:
-    """The Robot's link in a headless run: steps come from, and answers go to, the robot's `ScriptSeat`."""
+class ScriptStage:
+    """The scripts of one trial, one per robot (`seats`), and what they share: the simulation, the lockstep they
+    answer (`lockstep_for`), and the count of steps taken, which each script's step() waits on."""
 
-    def __init__(self, seat: ScriptSeat) -> None:
-        self._seat = seat
+    def __init__(self, script: Path, sim: Simulation, over: Callable[[], bool],
+                 arguments: tuple[str, ...] = ()) -> None:
+        """`over()`: the run has taken its last step (the simulator pauses there)."""
+        self.sim, self._over = sim, over
+        self.lockstep: Lockstep | None = None
+        self.changed = threading.Condition()
+        """Guards `steps`, `closed` and `failure`; notified when a step is taken or the run closes."""
+        self.steps = 0
+        self.closed = False
+        """The run is over: every script's step() returns -1 from now on."""
+        self.failure: BaseException | None = None
+        """What a step taken in a script's thread raised (the recorder's, say): the trial's error, not the script's."""
+        self._ended = 0
+        """Scripts that have ended: the trial's loop answers for them (wheels still), so no step is lent."""
+        self.seats = [ScriptSeat(self, robot, script, arguments) for robot in range(len(sim.names))]
+
+    def lockstep_for(self, publish: StepFunction) -> Lockstep:
+        """The trial's lockstep: `publish` takes and publishes a step; the scripts' threads take steps (lent) while
+        every script runs and the run is not over, and wait for them, however long, otherwise."""
+        def step(resend: bool) -> None:
+            publish(resend)
+            with self.changed:
+                self.steps += 1
+                self.changed.notify_all()
+
+        self.lockstep = Lockstep(len(self.seats), step, timeout=float('inf'), lend=self.lend)
+        return self.lockstep
+
+    def lend(self) -> bool:
+        """Whether the thread of a step's last answer takes the next step (asked by the lockstep)."""
+        return not self._ended and not self._over()
+
+    def answer(self, robot: int, left: float, right: float) -> None:
+        """Robot `robot`'s wheel speeds answer the current step; the next step may be taken here (lent)."""
+        self.sim.command_wheels(robot, left, right)
+        try:
+            self.lockstep.answer(robot)
+        except BaseException as error:  # noqa: BLE001 - the trial's loop raises it
+            with self.changed:
+                self.failure, self.closed = error, True
+                self.changed.notify_all()
+            self.lockstep.close()   # the loop stops waiting for this step's answers
+
+    def script_ended(self, robot: int) -> None:
+        """Robot `robot`'s script has ended before the run: its wheels stand still from the step it left unanswered
+        on (as the simulator's cmd_timeout stops them over ROS), answered by the trial's loop from then on."""
+        with self.changed:
+            self._ended += 1
+            if self.closed:
+                return
+        self.answer(robot, 0.0, 0.0)   # lends nothing now: the trial's loop wakes and takes the next step
+
+    def close(self) -> None:
+        """The end of the simulation: every script's step() returns -1; they have KILL_DELAY s to end (as in Webots),
+        then are left behind (daemon threads)."""
+        with self.changed:
+            self.closed = True
+            self.changed.notify_all()
+        deadline = time.monotonic() + KILL_DELAY
+        for seat in self.seats:
+            seat.join(max(0.0, deadline - time.monotonic()))
+
+    def check(self) -> None:
+        """Raise what a step taken in a script's thread raised, or ScriptError if a script has ended with an error."""
+        if self.failure is not None:
+            raise self.failure
+        for seat in self.seats:
+            seat.check()
+
+
+class CoreLink:
+    """The Robot's link in a headless run: it answers its robot's step to the stage and returns the next one."""
+
+    def __init__(self, stage: ScriptStage, robot: int) -> None:
+        self._stage, self._robot = stage, robot
+        self._seen = 0
+        """The number of the step the script was last handed."""
+        self._wanted: set[str] = set()
 
     def connect(self) -> float:
-        return self._seat.time_step
+        return self._stage.sim.time_step
 
     def first_step(self) -> StepData | None:
-        return self._seat.to_script.get()
+        return self._step_after(-1)
 
     def answer_and_wait(self, left: float, right: float) -> StepData | None:
-        self._seat.from_script.put((left, right))
-        return self._seat.to_script.get()
+        stage = self._stage
+        if stage.closed:
+            return None
+        stage.answer(self._robot, left, right)
+        return self._step_after(self._seen)
+
+    def _step_after(self, seen: int) -> StepData | None:
+        """The first step after step number `seen` (the robot's answer holds the simulation on it: read it as is);
+        None once the run is over."""
+        stage = self._stage
+        with stage.changed:
+            while stage.steps == seen and not stage.closed:
+                stage.changed.wait()
+            if stage.steps == seen:
+                return None
+            self._seen = stage.steps
+        sim, robot = stage.sim, self._robot
+        return StepData(nanoseconds_from_stamp(*stamp_from_seconds(sim.time)), tuple(sim.wheel_angles[robot].tolist()),
+                        tuple(sim.wheel_speeds[robot].tolist()), tuple(sim.ir_raw[robot].tolist()),
+                        sim.senses.readings_of(robot))
 
     def want(self, kind: str) -> None:
-        """A device of sense `kind` was enabled: the core reads that sense for this robot from now on."""
-        self._seat.want(kind)
+        """A device of sense `kind` was enabled: the core reads that sense for this robot from now on (called inside
+        step(), while the simulation waits for this robot's answer)."""
+        if kind not in self._wanted:
+            self._wanted.add(kind)
+            self._stage.sim.senses.want(kind, [self._robot])
 
     def publish_leds(self, values: list[int]) -> None:
         """No view to tell in a headless run."""
@@ -57,72 +156,52 @@ class CoreLink:
 
 
 class ScriptSeat:
-    """Robot `robot`'s controller in the headless loop, answered by a Webots-style script in a thread of its own.
-
-    `update` hands the script the step just taken and returns the wheel speeds it answers with. A script that
-    ends before the simulation leaves the wheels still from then on (as the simulator's cmd_timeout does over
-    ROS); one that raises or exits with a non-zero code ends the trial with a `ScriptError`.
-    """
+    """Robot `robot`'s controller in the trial's loop: a Webots-style script in a thread of its own, which answers
+    each step itself (`CoreLink`). A script that ends before the simulation leaves the wheels still from then on;
+    one that raises or exits with a non-zero code ends the trial with a `ScriptError`."""
 
     needs_odom = False
     needs_proximity = False
-    """What it reads comes from `bind` (joint states and raw IR values), not from the loop's Observation."""
+    """What it reads comes from the simulation (joint states and raw IR values), not from the loop's Observation."""
 
-    def __init__(self, script: Path, time_step: float, arguments: tuple[str, ...] = ()) -> None:
-        self.script, self.time_step, self.arguments = script, time_step, arguments
-        self.name = SINGLE_ROBOT_NAME
-        self.to_script: queue.SimpleQueue[StepData | None] = queue.SimpleQueue()
-        self.from_script: queue.SimpleQueue[tuple[float, float] | int] = queue.SimpleQueue()
+    def __init__(self, stage: ScriptStage, robot: int, script: Path, arguments: tuple[str, ...] = ()) -> None:
+        self.stage, self.robot, self.script, self.arguments = stage, robot, script, arguments
+        names = stage.sim.names
+        self.name = names[robot] if len(names) > 1 else SINGLE_ROBOT_NAME
+        """The robot's name as `getName()` gives it over ROS."""
         self.exit_code: int | None = None
         """The script's exit code once it has ended (0: it returned, sys.exit(0), or step() returned -1)."""
         self.failure = ''
         """What went wrong, in one line, when the script failed."""
-        self._sim: Simulation | None = None
-        self._robot = 0
         self._thread: threading.Thread | None = None
+        self._ending = threading.Lock()
+        """Makes the script's end and its last answer one event for `update`."""
 
-    def bind(self, sim: Simulation, robot: int) -> None:
-        """The simulation whose robot `robot` this seat answers for (its name as `getName()` gives it over ROS)."""
-        self._sim, self._robot = sim, robot
-        if len(sim.names) > 1:
-            self.name = sim.names[robot]
-
-    def want(self, kind: str) -> None:
-        """Called from the script's thread inside its step(), while the loop waits for the answer."""
-        self._sim.senses.want(kind, [self._robot])
-
-    def update(self, observation: Observation) -> WheelCommand:
-        sim, robot = self._sim, self._robot
-        step = StepData(nanoseconds_from_stamp(*stamp_from_seconds(sim.time)), tuple(sim.wheel_angles[robot].tolist()),
-                        tuple(sim.wheel_speeds[robot].tolist()), tuple(sim.ir_raw[robot].tolist()),
-                        sim.senses.readings_of(robot))
+    def update(self, observation: Observation) -> WheelCommand | None:
+        """None while the script runs (it answers from its thread; the first call starts it); then wheels still."""
         if self._thread is None:
             self._thread = threading.Thread(target=self._run, name=f'script {self.name}', daemon=True)
             self._thread.start()
-        elif self.exit_code is not None:
-            return WheelCommand(0.0, 0.0)
-        self.to_script.put(step)
-        answer = self.from_script.get()
-        if isinstance(answer, int):   # the script has ended instead of answering
-            self.check()
-            return WheelCommand(0.0, 0.0)
-        return WheelCommand(*answer)
+            return None
+        with self._ending:
+            if self.exit_code is None:
+                return None
+        self.check()
+        return WheelCommand(0.0, 0.0)
 
     def _run(self) -> None:
-        bind_thread(CoreLink(self), self.name)
+        bind_thread(CoreLink(self.stage, self.robot), self.name)
         code = 1
         try:
             code, self.failure = run_script(self.script, list(self.arguments))
         finally:
-            self.exit_code = code
-            self.from_script.put(code)
+            with self._ending:
+                self.exit_code = code
+                self.stage.script_ended(self.robot)
 
-    def close(self) -> None:
-        """The end of the simulation: the script's step() returns -1; it has KILL_DELAY s to end (as in Webots),
-        then it is left behind (a daemon thread)."""
-        if self._thread is not None and self.exit_code is None:
-            self.to_script.put(_END)
-            self._thread.join(KILL_DELAY)
+    def join(self, timeout: float) -> None:
+        if self._thread is not None:
+            self._thread.join(timeout)
 
     def check(self) -> None:
         """Raise ScriptError if the script has ended with an error."""
