@@ -41,6 +41,10 @@ def unsupported(owner: str, name: str, supported: list[str]) -> UnsupportedError
         f'{owner} supports: {", ".join(supported)}')
 
 
+def _nothing() -> None:
+    """A device's listener until the robot sets its own."""
+
+
 def public_methods(cls: type) -> list[str]:
     return sorted(name for name in dir(cls) if not name.startswith('_') and callable(getattr(cls, name)))
 
@@ -162,6 +166,8 @@ class SampledSensor(Device):
         self._period_ms = 0
         self._due_ns = 0
         self._value = math.nan
+        self.on_enable: Callable[[], None] = _nothing
+        """Called by `enable`: the robot then asks for the sense, not each step whether it is wanted."""
 
     def enable(self, samplingPeriod: int) -> None:
         period = int(samplingPeriod)
@@ -170,6 +176,7 @@ class SampledSensor(Device):
             return
         self._period_ms = period
         self._due_ns = self._now_ns() + period * NANOSECONDS_PER_MS
+        self.on_enable()
 
     def disable(self) -> None:
         self.enable(0)
@@ -188,13 +195,9 @@ class SampledSensor(Device):
         """Whether the script has enabled the sensor: the simulator computes a sense only while one is."""
         return self._period_ms > 0
 
-    def due(self, time_ns: int) -> bool:
-        """Whether a reading at `time_ns` would be kept (a sampling period has elapsed since the last one)."""
-        return self._period_ms > 0 and time_ns >= self._due_ns
-
     def sample(self, time_ns: int, value: object) -> None:
         """The simulator's reading at `time_ns`: kept if a sampling period has elapsed since the last one."""
-        if not self.due(time_ns):
+        if self._period_ms <= 0 or time_ns < self._due_ns:
             return
         self._value = self._keep(value)
         period_ns = self._period_ms * NANOSECONDS_PER_MS
@@ -262,10 +265,14 @@ class LED(Device):
         self._value = 0
         self.changed = False
         """Set since the robot last sent the LEDs to the simulator (the robot clears it)."""
+        self.on_change: Callable[[], None] = _nothing
+        """Called when `changed` is set: the robot then sends the LEDs, not each step whether one changed."""
 
     def set(self, value: int) -> None:
         value = int(value)
-        self.changed = self.changed or value != self._value
+        if value != self._value:
+            self.changed = True
+            self.on_change()
         self._value = value
 
     def get(self) -> int:

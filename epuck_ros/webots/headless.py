@@ -130,12 +130,13 @@ class CoreLink:
         """The first step after step number `seen` (the robot's answer holds the simulation on it: read it as is);
         None once the run is over."""
         stage = self._stage
-        with stage.changed:
-            while stage.steps == seen and not stage.closed:
-                stage.changed.wait()
-            if stage.steps == seen:
-                return None
-            self._seen = stage.steps
+        if stage.steps == seen:   # else taken already (by this thread when lent: a single robot's every step)
+            with stage.changed:
+                while stage.steps == seen and not stage.closed:
+                    stage.changed.wait()
+                if stage.steps == seen:
+                    return None
+        self._seen = stage.steps
         sim, robot = stage.sim, self._robot
         return StepData(nanoseconds_from_stamp(*stamp_from_seconds(sim.time)), tuple(sim.wheel_angles[robot].tolist()),
                         tuple(sim.wheel_speeds[robot].tolist()), tuple(sim.ir_raw[robot].tolist()),

@@ -159,6 +159,12 @@ class Robot:
             'camera': [self._camera], 'ground': self._ground_sensors, 'light': self._light_sensors,
             'imu': [self._accelerometer, self._gyro]}
         """The devices of each sense the simulator computes on demand: enabling one asks for the sense."""
+        self._to_ask = self._to_send = False
+        """A device was enabled, an LED changed, since the last step: the next one asks for senses, sends LEDs."""
+        for device in (device for devices in self._senses.values() for device in devices):
+            device.on_enable = self._note_enabled
+        for led in self._leds:
+            led.on_change = self._note_led
         self._devices: dict[str, Device] = {
             device.getName(): device
             for device in (*self._motors, *self._encoders, *self._distance_sensors, *self._ground_sensors,
@@ -209,10 +215,12 @@ class Robot:
         target_ns = self._time_ns + round((steps - 0.5) * self._basic_step_ms * NANOSECONDS_PER_MS)
         SESSION.in_step = self._in_step = True
         try:
-            self._ask_for_senses()
+            if self._to_ask or self._to_send:
+                self._ask_for_senses()
+            left_motor, right_motor = self._motors
             while self._time_ns < target_ns:
-                left, right = (motor.command(angle) for motor, angle in zip(self._motors, self._data.wheel_angles))
-                data = self._link.answer_and_wait(left, right)
+                left_angle, right_angle = self._data.wheel_angles
+                data = self._link.answer_and_wait(left_motor.command(left_angle), right_motor.command(right_angle))
                 if data is None:
                     self._ended = True
                     return -1
@@ -222,8 +230,15 @@ class Robot:
             self._left_step = time.monotonic()
         return -1 if SESSION.ending else 0
 
+    def _note_enabled(self) -> None:
+        self._to_ask = True
+
+    def _note_led(self) -> None:
+        self._to_send = True
+
     def _ask_for_senses(self) -> None:
         """The senses of enabled devices are gathered from now on; the LEDs set since the last step are sent."""
+        self._to_ask = self._to_send = False   # first: a device enabled meanwhile (another thread) is asked next step
         for kind, devices in self._senses.items():
             if any(device.enabled for device in devices):
                 self._link.want(kind)
