@@ -13,6 +13,7 @@ Whatever else happens, the time limit ends it.
 """
 from __future__ import annotations
 
+import gc
 import os
 import pickle
 import select
@@ -34,10 +35,12 @@ def call_in_child(function: Callable[[Any], T], argument: Any, limit: float) -> 
     """`function(argument)` in a forked child; ChildFailed if it raises, dies or is not done within `limit` wall
     seconds (then it is killed, with every process it started)."""
     read_end, write_end = os.pipe()
+    gc.freeze()   # the child's collections then leave the parent's objects alone (no copy of every page they touch)
     pid = os.fork()
     if pid == 0:   # the child: never returns
         os.close(read_end)
         _child(function, argument, write_end)
+    gc.unfreeze()
     os.close(write_end)
     try:
         os.setpgid(pid, pid)   # as the child does: whichever runs first, the group exists before any kill

@@ -114,6 +114,7 @@ def run_trial(trial: Trial, policy: Policy | None = None) -> list[dict[str, Any]
     began = time.perf_counter()
     try:
         if isinstance(trial.controller, Script) and policy is None:
+            import numpy.random  # noqa: F401 - loaded by numpy on first use (the noise): here once, not in every child
             import epuck_ros.webots.headless  # noqa: F401 - imported here once, not in every child
             return call_in_child(_rows, trial, trial.time_limit)
         return _rows(trial, policy)

@@ -197,15 +197,15 @@ class SampledSensor(Device):
 
     def sample(self, time_ns: int, value: object) -> None:
         """The simulator's reading at `time_ns`: kept if a sampling period has elapsed since the last one."""
-        if self._period_ms <= 0 or time_ns < self._due_ns:
+        due_ns = self._due_ns
+        if self._period_ms <= 0 or time_ns < due_ns:
             return
         self._value = self._keep(value)
         period_ns = self._period_ms * NANOSECONDS_PER_MS
-        while self._due_ns <= time_ns:
-            self._due_ns += period_ns
+        self._due_ns = due_ns + ((time_ns - due_ns) // period_ns + 1) * period_ns   # the first period's end after it
 
-    def _keep(self, value: object) -> object:
-        return float(value)   # type: ignore[arg-type]
+    _keep: Callable[[object], object] = staticmethod(float)
+    """The value as getValue() gives it (a plain function: it is called for every sensor each step)."""
 
 
 class DistanceSensor(SampledSensor):

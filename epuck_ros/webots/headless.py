@@ -39,8 +39,12 @@ class ScriptStage:
         """`over()`: the run has taken its last step (the simulator pauses there)."""
         self.sim, self._over = sim, over
         self.lockstep: Lockstep | None = None
-        self.changed = threading.Condition()
-        """Guards `steps`, `closed` and `failure`; notified when a step is taken or the run closes."""
+        self._lock = threading.Lock()
+        self._changed = threading.Condition(self._lock)
+        """Guards `steps`, `closed` and `failure`; notified, if a script waits, when a step is taken or the run
+        closes."""
+        self._waiting = 0
+        """Scripts waiting for the next step (none while a single robot's thread takes every step itself)."""
         self.steps = 0
         self.closed = False
         """The run is over: every script's step() returns -1 from now on."""
@@ -55,12 +59,26 @@ class ScriptStage:
         every script runs and the run is not over, and wait for them, however long, otherwise."""
         def step(resend: bool) -> None:
             publish(resend)
-            with self.changed:
+            with self._lock:
                 self.steps += 1
-                self.changed.notify_all()
+                if self._waiting:
+                    self._changed.notify_all()
 
         self.lockstep = Lockstep(len(self.seats), step, timeout=float('inf'), lend=self.lend)
         return self.lockstep
+
+    def step_after(self, seen: int) -> bool:
+        """Wait until step number `seen` is followed by the next (True), or the run is closed (False)."""
+        if self.steps != seen:   # taken already (by the calling thread when lent: a single robot's every step)
+            return True
+        with self._changed:
+            self._waiting += 1
+            try:
+                while self.steps == seen and not self.closed:
+                    self._changed.wait()
+            finally:
+                self._waiting -= 1
+            return self.steps != seen
 
     def lend(self) -> bool:
         """Whether the thread of a step's last answer takes the next step (asked by the lockstep)."""
@@ -72,15 +90,15 @@ class ScriptStage:
         try:
             self.lockstep.answer(robot)
         except BaseException as error:  # noqa: BLE001 - the trial's loop raises it
-            with self.changed:
+            with self._changed:
                 self.failure, self.closed = error, True
-                self.changed.notify_all()
+                self._changed.notify_all()
             self.lockstep.close()   # the loop stops waiting for this step's answers
 
     def script_ended(self, robot: int) -> None:
         """Robot `robot`'s script has ended before the run: its wheels stand still from the step it left unanswered
         on (as the simulator's cmd_timeout stops them over ROS), answered by the trial's loop from then on."""
-        with self.changed:
+        with self._changed:
             self._ended += 1
             if self.closed:
                 return
@@ -89,9 +107,9 @@ class ScriptStage:
     def close(self) -> None:
         """The end of the simulation: every script's step() returns -1; they have KILL_DELAY s to end (as in Webots),
         then are left behind (daemon threads)."""
-        with self.changed:
+        with self._changed:
             self.closed = True
-            self.changed.notify_all()
+            self._changed.notify_all()
         deadline = time.monotonic() + KILL_DELAY
         for seat in self.seats:
             seat.join(max(0.0, deadline - time.monotonic()))
@@ -130,17 +148,14 @@ class CoreLink:
         """The first step after step number `seen` (the robot's answer holds the simulation on it: read it as is);
         None once the run is over."""
         stage = self._stage
-        if stage.steps == seen:   # else taken already (by this thread when lent: a single robot's every step)
-            with stage.changed:
-                while stage.steps == seen and not stage.closed:
-                    stage.changed.wait()
-                if stage.steps == seen:
-                    return None
+        if not stage.step_after(seen):
+            return None
         self._seen = stage.steps
         sim, robot = stage.sim, self._robot
+        senses = sim.senses
         return StepData(nanoseconds_from_stamp(*stamp_from_seconds(sim.time)), tuple(sim.wheel_angles[robot].tolist()),
                         tuple(sim.wheel_speeds[robot].tolist()), tuple(sim.ir_raw[robot].tolist()),
-                        sim.senses.readings_of(robot))
+                        senses.readings_of(robot) if senses.active else {})
 
     def want(self, kind: str) -> None:
         """A device of sense `kind` was enabled: the core reads that sense for this robot from now on (called inside
