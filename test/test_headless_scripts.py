@@ -53,8 +53,7 @@ def test_a_script_that_returns_early_leaves_its_wheels_still_to_the_end(tmp_path
         assert np.linalg.norm(track[-1, other, :2] - track[12, other, :2]) > 0.01
 
 
-def test_a_step_that_fails_in_a_script_thread_is_the_trial_error_not_the_script_one(tmp_path: Path,
-                                                                                   clean_imports: None) -> None:
+def test_a_step_failing_in_a_script_thread_is_the_trial_error(tmp_path: Path, clean_imports: None) -> None:
     """A single robot's steps are taken in its script's thread: an error there (a recorder's, say) ends the trial
     with that error, and the script sees step() == -1 (it does not get the error to catch)."""
     script = tmp_path / 'catches.py'
