@@ -17,11 +17,9 @@ DISCOVERY_WINDOW = 1.0
 (they announce every 0.5 s)."""
 FOREIGN_DISCOVERY_WINDOW = 3.5
 """s from a node's creation before its view of the graph also holds every other participant already running (a
-user's node, a test process) under Fast DDS's default profile, which announces every 3 s. Such a participant
-normally answers a new one at once, but when that answer is missed it is seen only at its next announcement.
-Measured (/tmp probe: a default-profile subscriber 2 s old, a package-profile publisher looking for it): quiet, 5
-of 6 seen in 0.12 s and 1 in 1.67 s; with three busy loops on the two cores, all 8 in 1.64-1.86 s, so `bag play`
-with a 1 s window sent all 125 messages of a test to nobody in half the loaded runs."""
+user's node, a test process) under Fast DDS's default profile, which announces every 3 s: such a participant
+answers a new one at once, but when that answer is missed (often, on a loaded machine) it is seen only at its
+next announcement."""
 
 
 def wait_until_matched(node: Node, publishers: Mapping[str, Publisher], created: float, timeout: float,
