@@ -26,9 +26,11 @@ def wait_until_matched(node: Node, publishers: Mapping[str, Publisher], created:
                        settle: float = 0.0, say: Callable[[list[str]], None] | None = None,
                        say_after: float = 1.0, discovery_window: float = DISCOVERY_WINDOW) -> list[str]:
     """Wait until the graph has had `discovery_window` since `created` (time.monotonic()), every subscriber it shows
-    on each topic of `publishers` is matched, and the counts stayed the same for `settle` s; at most `timeout` s.
-    `say(topics)` is called once if the wait for a match lasts `say_after` s. Returns the topics still unmatched."""
+    on each topic of `publishers` is matched, and the counts stayed the same for `settle` s; at most `timeout` s
+    once the discovery window is over. `say(topics)` is called once if the wait for a match lasts `say_after` s.
+    Returns the topics still unmatched."""
     begin = time.monotonic()
+    give_up = max(begin, created + discovery_window) + timeout
     seen, since, said = None, begin, False
     while node.context.ok():
         now = time.monotonic()
@@ -39,7 +41,7 @@ def wait_until_matched(node: Node, publishers: Mapping[str, Publisher], created:
             seen, since = counts, now
         if not waiting and now >= created + discovery_window and now - since >= settle:
             return []
-        if now - begin >= timeout:
+        if now >= give_up:
             return waiting
         if waiting and say is not None and not said and now - begin >= say_after:
             say(waiting)
