@@ -78,8 +78,10 @@ def test_one_process_drives_three_robots_the_same_way_twice(launch: object, test
         sim = launch('sim', *ros_args({**LOCKSTEP, 'world': world}))
         avoid = launch('avoid', '--robots', 'a', 'b', 'c', *ros_args({'use_sim_time': True}))
         robots.wait_for_controllers(['a', 'b', 'c'])
-        test_node.spin_until(lambda: sorted(ns for name, ns in test_node.node.get_node_names_and_namespaces()
-                                            if name == 'avoid') == ['/a', '/b', '/c'],
+        # the nodes, by their parameter services: the node list comes from another channel (ros_discovery_info)
+        # that once, at load average 5.7, did not show them in 60 s while their topics were there
+        services = {f'/{name}/avoid/get_parameters' for name in 'abc'}
+        test_node.spin_until(lambda: services <= {name for name, _ in test_node.node.get_service_names_and_types()},
                              timeout=TIMEOUT, what='nodes /a/avoid, /b/avoid, /c/avoid')
         runs.append(robots.run_until_paused(sim))
         assert 'reading the eight proximity' not in avoid.output()  # the one-message-per-step ir_raw path

@@ -29,7 +29,7 @@ from rclpy.signals import SignalHandlerOptions
 
 from epuck_ros.model import RobotModel
 from epuck_ros.nodes.dds_profile import use_package_profile
-from epuck_ros.nodes.matching import wait_until_matched
+from epuck_ros.nodes.matching import FOREIGN_DISCOVERY_WINDOW, wait_until_matched
 from epuck_ros.nodes.params import ParamSpec, Usage, declare_parameters, prepare_arguments, user_arguments
 from epuck_ros.world import ROBOT_NAME, ROBOT_NAME_MAX
 
@@ -172,10 +172,12 @@ class TeleopNode(Node):
 
     def stop(self) -> None:
         """Zero the command and wait until every subscriber has it (bounded), so the robot stops; a subscriber
-        still being matched (teleop leaving at once, its input closed) is waited for first."""
+        still being discovered or matched (teleop leaving at once, its input closed) is waited for first: any
+        node may drive on cmd_vel, not only the package's."""
         with self._lock:
             self.keys.forward = self.keys.rotation = 0
-        wait_until_matched(self, {self.publisher.topic_name: self.publisher}, self._created, STOP_ACK_TIMEOUT)
+        wait_until_matched(self, {self.publisher.topic_name: self.publisher}, self._created, STOP_ACK_TIMEOUT,
+                           discovery_window=FOREIGN_DISCOVERY_WINDOW)
         self.publish()
         self.publisher.wait_for_all_acked(rclpy.duration.Duration(seconds=STOP_ACK_TIMEOUT))
         print('stopped', flush=True)
