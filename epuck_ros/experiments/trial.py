@@ -180,8 +180,9 @@ def run(trial: Trial, policy: Policy | None = None,
                 raise RuntimeError('lockstep: a robot did not answer its step')
             if stage is not None:
                 stage.check()   # a script that failed ends the trial before the next step
-            if not over():
-                lockstep.step()
+                if over():   # the scripts' threads took the steps to the end (lent), and answered the last
+                    break
+            lockstep.step()
     finally:   # a script's step() returns -1
         if stage is not None:
             stage.close()
