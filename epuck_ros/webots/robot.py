@@ -123,15 +123,7 @@ class Robot:
         self._ended = False
         """The link said the simulation is over (the simulator gone, or a headless run's end)."""
         self._in_step = False
-        if getattr(_THREAD, 'link', None) is not None:
-            _THREAD.robot = self
-            self._name, self._link = _THREAD.name, _THREAD.link
-        else:
-            Robot.created = self
-            SESSION.start()
-            node_name = 'webots_controller' + (f'_{SESSION.robot}' if SESSION.robot else '')
-            self._name = SESSION.robot or SINGLE_ROBOT_NAME
-            self._link = SimLink(node_name, SESSION.robot, lambda: SESSION.ending)
+        self._name, self._link = self._claim_link()
         model = RobotModel()
         time_step = self._link.connect()
         data = self._link.first_step() if time_step is not None else None
@@ -143,6 +135,20 @@ class Robot:
         threading.Thread(target=self._watch_steps, name='step_watch', daemon=True).start()
         self._time_ns = data.time_ns
         self._data = data
+        self._build_devices(model)
+
+    def _claim_link(self) -> tuple[str, object]:
+        """This robot's name and link: the thread's own (a headless run), else the simulator's over ROS."""
+        if getattr(_THREAD, 'link', None) is not None:
+            _THREAD.robot = self
+            return _THREAD.name, _THREAD.link
+        Robot.created = self
+        SESSION.start()
+        node_name = 'webots_controller' + (f'_{SESSION.robot}' if SESSION.robot else '')
+        return SESSION.robot or SINGLE_ROBOT_NAME, SimLink(node_name, SESSION.robot, lambda: SESSION.ending)
+
+    def _build_devices(self, model: RobotModel) -> None:
+        """The e-puck's devices, wired to note what the next step must ask for or send."""
         now = lambda: self._time_ns  # noqa: E731 - the devices' view of simulated time
         self._encoders = [PositionSensor(name, now) for name in ENCODER_NAMES]
         self._motors = [Motor(name, model.max_wheel_speed, encoder)
