@@ -11,7 +11,8 @@ from pettingzoo.test import api_test, parallel_api_test, parallel_seed_test
 
 import epuck_ros.envs  # noqa: F401  (registers epuck_ros/Avoid-v0)
 from epuck_ros.envs import swarm_avoid_v0
-from epuck_ros.envs.worlds import MAX_WORLDS
+from epuck_ros.envs.worlds import MAX_WORLDS, fitness
+from epuck_ros.kinematics import wheels_from_twist
 from epuck_ros.simulation import CommandError
 
 AVOID = 'epuck_ros.envs:epuck_ros/Avoid-v0'
@@ -139,3 +140,29 @@ def test_swarm_agents_end_together_and_the_robot_count_is_bounded():
     assert all(truncations.values()) and env.agents == []
     with pytest.raises(ValueError, match='from 1 to 10000'):
         swarm_avoid_v0.parallel_env(robots=0)
+
+
+def test_a_swarm_agent_pushing_into_a_wall_gets_the_avoid_reward():
+    """Avoid-v0's reward counts the body's true motion: a blocked robot earns 0 however its motors turn."""
+    env = swarm_avoid_v0.parallel_env(robots=1, duration=20.0, noise=False)
+    env.reset(seed=3)
+    model, blocked = env.model, []
+    for _ in range(300):
+        _, rewards, *_ = env.step({'epuck0': np.ones(2)})
+        left, right = wheels_from_twist(env.sim.true_twist[:, 0], env.sim.true_twist[:, 1], model)
+        avoid = fitness(np.column_stack([left, right]) / model.max_wheel_speed, env._activation)[0]
+        assert rewards['epuck0'] == avoid
+        if env.sim.in_contact[0] and not env.sim.true_twist[0].any():
+            blocked.append(rewards['epuck0'])
+    assert blocked and blocked == [0.0] * len(blocked), 'it drove into a corner and stayed there'
+
+
+@pytest.mark.parametrize('make', [
+    lambda **options: gymnasium.make(AVOID, **options),
+    lambda **options: swarm_avoid_v0.parallel_env(robots=1, **options),
+])
+def test_a_bad_noise_or_duration_is_named_in_the_error(make):
+    with pytest.raises(ValueError, match=r"^noise must be True or False, got 1$"):
+        make(noise=1)
+    with pytest.raises(ValueError, match=r"^duration must be a number of simulated seconds in \(0, 1e6\], got 0$"):
+        make(duration=0)

@@ -8,7 +8,6 @@ are truncated together after `duration` simulated seconds. `parallel_env(robots=
 """
 from __future__ import annotations
 
-import math
 from pathlib import Path
 from typing import Any
 
@@ -20,7 +19,7 @@ from pettingzoo.utils.conversions import parallel_to_aec
 
 from epuck_ros.envs.avoid import DEFAULT_DURATION, RENDER_FPS, action_space, observation_space, world_of
 from epuck_ros.envs.picture import Picture
-from epuck_ros.envs.worlds import activations, check_actions, fitness, observations
+from epuck_ros.envs.worlds import activations, check_actions, episode_steps, observations, step_rewards
 from epuck_ros.model import RobotModel
 from epuck_ros.simulation import Simulation
 from epuck_ros.world import World, WorldError, place_robots
@@ -41,13 +40,11 @@ class SwarmAvoidEnv(ParallelEnv):
             raise ValueError(f'robots must be an integer from 1 to {MAX_ROBOTS}, got {robots!r}')
         if render_mode not in (None, *self.metadata['render_modes']):
             raise ValueError(f'render_mode must be None or rgb_array, got {render_mode!r}')
-        if not (isinstance(duration, (int, float)) and math.isfinite(duration) and 0.0 < duration <= 1e6):
-            raise ValueError(f'duration must be a number of simulated seconds in (0, 1e6], got {duration!r}')
-        self.render_mode, self.noise, self.model = render_mode, bool(noise), RobotModel()
+        self.episode_steps = episode_steps(duration, noise)
+        self.render_mode, self.noise, self.model = render_mode, noise, RobotModel()
         self.world = world_of(world)
         self.possible_agents = [f'epuck{i}' for i in range(int(robots))]
         self.agents: list[str] = []
-        self.episode_steps = max(1, math.ceil(duration / 0.032 - 1e-9))
         self._observation_space, self._action_space = observation_space(), action_space()
         self._rng: np.random.Generator | None = None
         self.sim: Simulation | None = None
@@ -92,7 +89,7 @@ class SwarmAvoidEnv(ParallelEnv):
         if self.render_mode is not None:
             self._trail.append(self.sim.true_pose[:, :2].copy())
         observation = self._observe()
-        reward = fitness(self.sim.wheel_speeds / top, self._activation).tolist()
+        reward = step_rewards(self.sim, self._activation, self.model).tolist()
         ended = self._steps >= self.episode_steps
         agents = self.agents
         rewards = {agent: reward[int(agent[5:])] for agent in agents}

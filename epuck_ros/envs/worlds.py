@@ -20,7 +20,7 @@ import math
 import numpy as np
 
 from epuck_ros.kinematics import wheels_from_twist
-from epuck_ros.model import RobotModel
+from epuck_ros.model import TIME_STEP, RobotModel
 from epuck_ros.simulation import CommandError, Simulation
 from epuck_ros.world import CONTACT_TOLERANCE, ROBOT_GAP, RobotStart, World
 
@@ -48,20 +48,34 @@ def fitness(wheels: np.ndarray, activation: np.ndarray) -> np.ndarray:
     return speed * (1.0 - np.sqrt(turning)) * (1.0 - activation.max(axis=1))
 
 
+def step_rewards(sim: Simulation, activation: np.ndarray, model: RobotModel) -> np.ndarray:
+    """Each robot's `fitness` of the step `sim` just took, from its body's true motion: the one reward of Avoid-v0
+    and swarm_avoid_v0 (a robot pushing into a wall earns nothing, whatever its motors do). activation (N, 8)."""
+    twist = sim.true_twist
+    left, right = wheels_from_twist(twist[:, 0], twist[:, 1], model)
+    return fitness(np.column_stack([left, right]) / model.max_wheel_speed, activation)
+
+
+def episode_steps(duration: object, noise: object, time_step: float = TIME_STEP) -> int:
+    """The steps of an episode of `duration` simulated seconds; ValueError naming the argument for a bad duration
+    or a `noise` that is not a bool (the checks every environment's constructor shares)."""
+    if not (isinstance(duration, (int, float)) and math.isfinite(duration) and 0.0 < duration <= 1e6):
+        raise ValueError(f'duration must be a number of simulated seconds in (0, 1e6], got {duration!r}')
+    if not isinstance(noise, bool):
+        raise ValueError(f'noise must be True or False, got {noise!r}')
+    return max(1, math.ceil(duration / time_step - 1e-9))
+
+
 class Worlds:
     """`count` Avoid worlds in `world` (its robots ignored), `duration` simulated seconds per episode."""
 
     def __init__(self, count: int, world: World, duration: float, noise: bool = True,
-                 model: RobotModel = RobotModel(), time_step: float = 0.032) -> None:
+                 model: RobotModel = RobotModel(), time_step: float = TIME_STEP) -> None:
         if isinstance(count, bool) or not isinstance(count, (int, np.integer)) or not 1 <= count <= MAX_WORLDS:
             raise ValueError(f'num_envs must be an integer from 1 to {MAX_WORLDS}, got {count!r}')
-        if not (isinstance(duration, (int, float)) and math.isfinite(duration) and 0.0 < duration <= 1e6):
-            raise ValueError(f'duration must be a number of simulated seconds in (0, 1e6], got {duration!r}')
-        if not isinstance(noise, bool):
-            raise ValueError(f'noise must be True or False, got {noise!r}')
         self.count, self.world, self.model, self.time_step = int(count), world, model, time_step
         self.noise = noise
-        self.episode_steps = max(1, math.ceil(duration / time_step - 1e-9))
+        self.episode_steps = episode_steps(duration, noise, time_step)
         table = model.ir_table
         self._far, self._near = float(table[-1, 1]), float(table[0, 1])
         self._noise_raws, self._noise_sigmas = table[::-1, 1].copy(), table[::-1, 2].copy()
@@ -110,9 +124,7 @@ class Worlds:
         sim.step()
         self.steps += 1
         observation = self._observe()
-        left, right = wheels_from_twist(sim.true_twist[:, 0], sim.true_twist[:, 1], self.model)
-        reward = fitness(np.column_stack([left, right]) / top, self.last_activation)
-        return observation, reward, self.steps >= self.episode_steps
+        return observation, step_rewards(sim, self.last_activation, self.model), self.steps >= self.episode_steps
 
     def step_one(self, left: float, right: float) -> tuple[np.ndarray, float, bool]:
         """`step` of the one world (count 1) on Python floats: `step`'s arithmetic operation for operation (the same
