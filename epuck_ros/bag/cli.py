@@ -80,7 +80,7 @@ def _plot(args: argparse.Namespace) -> None:
     if suffix not in PLOT_FORMATS:
         raise BagError(f'{args.output}: cannot write {"." + suffix if suffix else "a file without extension"}; '
                        f'use one of {", ".join("." + f for f in PLOT_FORMATS)}')
-    from epuck_ros.bag.plot import plot_runs  # matplotlib takes ~0.5 s to import: only when plotting
+    from epuck_ros.bag.plot import plot_runs  # matplotlib is slow to import: only when plotting
     with Bag(args.path) as bag:
         runs, summary = _only(*_runs(bag), args.namespace, args.path)
     plot_runs(runs, summary, args.output)

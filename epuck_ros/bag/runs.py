@@ -201,7 +201,7 @@ def start_pose(world: World, name: str, robots: int) -> tuple[float, float, floa
 @contextmanager
 def _cyclic_gc_paused() -> Iterator[None]:
     """Decoding keeps up to millions of small tuples alive; none is in a cycle, so the cyclic
-    garbage collector would only rescan them over and over (a third of the time on a big bag)."""
+    garbage collector would only rescan them over and over (much of the time on a big bag: benchmarks/bench_bag.py)."""
     enabled = gc.isenabled()
     gc.disable()
     try:

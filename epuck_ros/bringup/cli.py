@@ -201,7 +201,8 @@ def _sim_options(args: argparse.Namespace) -> list[str]:
     """The simulator's parameters from bringup's own options. It starts paused; `bringup` resumes it once every
     controller is connected, so all start at t = 0, and it pauses itself exactly at `pause_at` = the duration. It
     steps at once when resumed (discovery_window 0): `bringup` has looked for another simulator on the domain for
-    at least as long by then (its first step came 0.3-0.9 s after the resume, longer than a 30 s run at 50x)."""
+    at least as long by then (with a window of its own the first step came well after the resume, as long as a
+    whole short run at full speed: benchmarks/bench_bringup.py times runs from the resume and from the first step)."""
     options = ['paused:=true', f'pause_at:={float(args.duration)}', 'discovery_window:=0.0', f'seed:={args.seed}',
                f'real_time_factor:={float(args.real_time_factor)}', f'lockstep:={str(args.lockstep).lower()}']
     if args.world:

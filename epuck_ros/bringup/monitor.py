@@ -36,8 +36,8 @@ RECORDER_NODE = 'recorder'
 COMMAND_TOPICS = ('wheel_cmd', 'cmd_vel')
 REQUEST_RETRY = 2.0
 """Wall seconds after which a parameter request to the simulator is sent again (setting `paused` twice is harmless):
-a first request to a service just discovered can go unanswered, its response's way back not yet matched (seen by
-benchmarks/bench_lockstep.py twice in about 60 runs, before it retried too)."""
+a first request to a service just discovered can go unanswered, its response's way back not yet matched (seen now
+and then by benchmarks/bench_lockstep.py, before it retried too)."""
 SAMPLE_DEPTH = 10_000
 """Ground-truth samples DDS may hold for this node while it is busy: the summary needs every step."""
 

@@ -9,8 +9,9 @@ samples KEEP_ALL with bounded resources (the recorder) acknowledges only what it
 runs at the speed of its slowest recorder — the right trade for a recording — while readers with a KEEP_LAST
 history acknowledge on arrival and cost one round trip per window.
 
-rclpy's `wait_for_all_acked` holds the GIL while it waits (measured: a 2 s wait froze every other thread of the
-process), so it is only ever called with a zero timeout, and the waiting is done in short sleeps between calls.
+rclpy's `wait_for_all_acked` holds the GIL while it waits (every other thread of the process stands still for as
+long as the wait), so it is only ever called with a zero timeout, and the waiting is done in short sleeps between
+calls.
 """
 from __future__ import annotations
 
@@ -25,17 +26,17 @@ HISTORY_BUDGET = 3000
 """Steps of history the simulator's per-step publishers keep, shared by its robots (`history_steps`). A longer
 history lets the simulator run further ahead of its reliable readers between two looks at their
 acknowledgements. In lockstep (published synchronously) a reader acknowledges only at the writer's next
-heartbeat, every 50 ms (fastdds_profiles.xml), so each full window cost a 20-40 ms wait: with 300 steps of history
-and a window of 250, a sixth of a lone robot's lockstep run went in these waits (instrumented run at 1,700
-steps/s); with 3,000 and 2,500, 53x became 61-66x real time (benchmarks/bench_lockstep.py). Memory: a volatile
-writer drops a sample as soon as every reader acknowledged it, so a history holds only what a reader lags behind,
-at most a window (Fast DDS's DataWriterImpl, onWriterChangeReceivedByAll)."""
+heartbeat (its period: fastdds_profiles.xml), so each full window costs a wait of part of a heartbeat period,
+and a lone robot's lockstep run steps fast enough that short windows made these waits a large share of its time:
+fewer, longer windows make it faster (benchmarks/bench_lockstep.py). Memory: a volatile writer drops a sample as
+soon as every reader acknowledged it, so a history holds only what a reader lags behind, at most a window (Fast
+DDS's DataWriterImpl, onWriterChangeReceivedByAll)."""
 MIN_HISTORY_STEPS = 300
 """Steps of history each robot's publishers keep at least (ten robots or more)."""
 COMMAND_QOS = QoSProfile(depth=HISTORY_BUDGET, reliability=ReliabilityPolicy.RELIABLE)
 """What a controller publishes `wheel_cmd` with: a recorder reads it as far behind as it reads the simulator, up
-to the longest window (a controller cannot tell how many robots the simulator has). With a history of 10, a
-recorded run at real_time_factor 0 lost 47-265 wheel commands."""
+to the longest window (a controller cannot tell how many robots the simulator has). With a short history, a
+recorded run at real_time_factor 0 lost wheel commands."""
 GIVE_UP = 10.0
 """Wall seconds a reader may go without acknowledging before the simulator stops waiting for it (a hung or
 killed process that DDS has not yet noticed); the node is told so it can warn. The publisher is then not

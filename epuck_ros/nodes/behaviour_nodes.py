@@ -12,7 +12,7 @@ node per robot, named like the executable, in the namespace `<namespace>/<robot>
 
 The nodes spin on rclpy's EventsExecutor (experimental in Jazzy, in rclpy since 7.1.4): it queues each ready
 entity's event in C++ instead of rebuilding a wait set of every node's subscriptions, timers and parameter
-services in Python before each callback: about half the CPU per lockstep step of SingleThreadedExecutor
+services in Python before each callback: less CPU per lockstep step than SingleThreadedExecutor
 (benchmarks/bench_lockstep.py; its figures are in the README).
 """
 from __future__ import annotations

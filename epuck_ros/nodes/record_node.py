@@ -84,7 +84,7 @@ def subscription_qos(offered: list[QoSProfile]) -> QoSProfile:
 
     Reliable topics are taken KEEP_ALL: DDS then acknowledges a sample only once the recorder has room for it, so
     a publisher that waits for acknowledgements (the simulator, see `epuck_ros.nodes.ack_window`) waits for the
-    recorder instead of the recorder's queue overwriting what it has not written yet (KEEP_LAST lost a third of
+    recorder instead of the recorder's queue overwriting what it has not written yet (KEEP_LAST lost much of
     `proximity` at `real_time_factor` 0)."""
     reliable = all(q.reliability == ReliabilityPolicy.RELIABLE for q in offered)
     latched = all(q.durability == DurabilityPolicy.TRANSIENT_LOCAL for q in offered)
@@ -196,8 +196,8 @@ class Recorder(Node):
     def _on_message(self, topic: str, data: bytes, info: dict) -> None:
         """One message, then the others DDS holds for this topic already (up to BACKLOG_PER_CALLBACK). The executor
         takes one message of each ready topic per turn, so a topic of eight messages per step (`proximity`) fell
-        behind the others: a 30 s lockstep run at real_time_factor 0 left 5,500-6,400 of its 7,500 messages
-        unwritten when the recording ended (stamps ending early), against none with this."""
+        behind the others: a lockstep run at real_time_factor 0 left most of its messages unwritten when the
+        recording ended (stamps ending early), against none with this."""
         self._record(topic, data, info)
         subscription = self._subscription_of[topic]
         for _ in range(BACKLOG_PER_CALLBACK):

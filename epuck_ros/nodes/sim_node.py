@@ -202,7 +202,7 @@ class SimNode(Node):
         several = len(self._sim.names) > 1
         ports = []
         for index, name in enumerate(self._sim.names):
-            if shutdown_requested():   # Ctrl-C while a swarm's ports are made (1,000 robots take ~15 s): stop now
+            if shutdown_requested():   # Ctrl-C while a swarm's ports are made (seconds for a big one): stop now
                 raise StartInterrupted()
             ports.append(RobotPorts(self, index, name, several, stream, LATCHED, self._on_command,
                                     values['frame_prefix'], values['cmd_vel_stamped']))
@@ -431,12 +431,12 @@ def publication_mode(argv: list[str]) -> str:
     """Fast DDS's publication mode for this process (read when the participant is made, before any parameter).
 
     Free-running, Fast DDS sends from its own thread instead of inside publish(): the loop thread is then free to
-    step (benchmarks/bench_sim_node.py: 50 robots 1.5-1.9x real time against 0.7-1.1x synchronously). In
-    lockstep nothing runs while the controllers answer, and that hand-off to another thread is one more wake-up
-    per message on the round trip: synchronous, one robot ran 32-37x real time against 10-24x (alternating runs,
-    a window of 250 steps); timed from the first step, 36.8x against 18.5x with the controller asynchronous too
-    (median of 5 alternating runs). Only `-p lockstep:=...` on the command line (what `bringup` passes) is looked
-    at; lockstep from a parameter file runs the same, asynchronously."""
+    step while the sends go out, which is faster with many robots (benchmarks/bench_sim_node.py). In lockstep
+    nothing runs while the controllers answer, so that hand-off to another thread is only one more wake-up per
+    message on the round trip: synchronous sending makes the loop faster (alternating runs of
+    benchmarks/bench_lockstep.py with RMW_FASTRTPS_PUBLICATION_MODE set each way). Only `-p lockstep:=...` on
+    the command line (what `bringup` passes) is looked at; lockstep from a parameter file runs the same,
+    asynchronously."""
     return 'SYNCHRONOUS' if command_line_value(argv, 'lockstep') is True else 'ASYNCHRONOUS'
 
 
@@ -455,8 +455,9 @@ class StartInterrupted(Exception):
 
 DESTROY_UP_TO = 50
 """Robots up to which the node's entities are destroyed one by one at exit, as the anchors do; beyond, the process
-ends without it (destroying 1,000 robots' 11,000 publishers and subscriptions took 14 s, and SIGTERM 29 s in all):
-the other participants drop ours after the lease of the package's DDS profile (2 s)."""
+ends without it (a swarm's thousands of publishers and subscriptions take many seconds to destroy one by one, and
+SIGTERM must end it at once: test_multi_robot_nodes' swarm stop test): the other participants drop ours after the
+lease of the package's DDS profile."""
 
 
 def main(args: list[str] | None = None) -> None:
@@ -472,7 +473,7 @@ def main(args: list[str] | None = None) -> None:
         node = SimNode(started)
         node.start()
         # rclpy's EventsExecutor dispatches from C++ instead of rebuilding a wait set in Python for every received
-        # command: about a third less CPU per lockstep step (measured with a behaviour answering every step).
+        # command: less CPU per lockstep step (benchmarks/bench_lockstep.py prints each process's CPU per step).
         spin_until_shutdown(node, until=lambda: bool(node.refusal), executor_type=EventsExecutor)
         if node.refusal:
             print(f'sim: cannot start: {node.refusal}', file=sys.stderr)

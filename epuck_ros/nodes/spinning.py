@@ -71,7 +71,7 @@ def spin_until_shutdown(*nodes: Node, until: Callable[[], bool] | None = None,
 
 def end_process(code: int) -> None:
     """End this process now with `code`, its output flushed: no thread left running keeps it alive (a Webots
-    script's, as Webots ends a controller) and no DDS entity is destroyed one by one (a swarm's took 14 s); the
+    script's, as Webots ends a controller) and no DDS entity is destroyed one by one (a swarm's take seconds); the
     other participants drop ours after the lease of the package's DDS profile."""
     for stream in (sys.stdout, sys.stderr):
         try:
