@@ -1,5 +1,6 @@
 """Step messages as CDR bytes (nodes/serialized.py), checked against rclpy's own (de)serialisation, no DDS."""
 import math
+import struct
 
 import pytest
 from mcap_ros2._dynamic import generate_dynamic, serialize_dynamic
@@ -73,8 +74,43 @@ def test_an_array_with_a_layout_goes_through_rclpy():
     assert float64_values(serialize_message(Float64MultiArray(layout=layout, data=[4.0, 5.0]))) == (4.0, 5.0)
 
 
-def test_bytes_that_are_no_float64_array_read_as_none():
-    data = bytearray(serialize_message(Float64MultiArray(data=[1.0, 2.0])))
-    data[12:16] = (1000).to_bytes(4, 'little')  # claims 1,000 numbers: neither read past the end nor decoded
-    assert float64_values(bytes(data)) is None
-    assert float64_values(b'\x00\x01\x00') is None
+def _cdr(kind: int, order: str, dims: list[tuple[bytes, int, int]], values: list[float]) -> bytes:
+    """A Float64MultiArray written by hand in CDR `kind` (XCDR1 0/1, XCDR2 plain 6/7: 8-byte values 4-aligned)."""
+    body = bytearray(struct.pack(order + 'I', len(dims)))
+    for label, size, stride in dims:
+        body += struct.pack(order + 'I', len(label) + 1) + label + b'\0'
+        body += bytes(-len(body) % 4) + struct.pack(order + '2I', size, stride)
+    body += bytes(-len(body) % 4) + struct.pack(order + '2I', 0, len(values))
+    body += bytes(-len(body) % (8 if kind < 6 else 4)) + struct.pack(f'{order}{len(values)}d', *values)
+    return bytes((0, kind, 0, 0)) + bytes(body)
+
+
+@pytest.mark.parametrize('kind, order', [(0, '>'), (1, '<'), (6, '>'), (7, '<')])
+@pytest.mark.parametrize('dims', [[], [(b'wheels', 2, 2)], [(b'ab', 1, 2), (b'abcdefg', 3, 4)]])
+def test_float64_values_reads_each_encoding_as_rclpy_does(kind, order, dims):
+    data = _cdr(kind, order, dims, [4.0, -5.5])
+    assert float64_values(data) == tuple(deserialize_message(data, Float64MultiArray).data) == (4.0, -5.5)
+
+
+def _malformed() -> dict[str, bytes]:
+    good = serialize_message(Float64MultiArray(data=[1.0, 2.0]))
+    too_many = bytearray(good)
+    too_many[12:16] = (1000).to_bytes(4, 'little')   # claims 1,000 numbers: neither read past the end nor decoded
+    with_dims = _cdr(1, '<', [(b'wheels', 2, 2)], [1.0, 2.0])
+    huge_label = bytearray(with_dims)
+    huge_label[8:12] = (2 ** 31).to_bytes(4, 'little')
+    return {'too many numbers': bytes(too_many), 'big-endian, cut short': _cdr(0, '>', [], [1.0])[:-1],
+            'huge label': bytes(huge_label), 'half a header': b'\x00\x01\x00', 'empty': b'',
+            'huge counts': b'\x00\x01\x00\x00' + b'\xff' * 12, 'no CDR': b'\x12\x34' + good[2:],
+            'XCDR2 parameter list': b'\x00\x0b' + good[2:]}
+
+
+@pytest.mark.parametrize('data', _malformed().values(), ids=_malformed().keys())
+def test_bytes_that_are_no_float64_array_read_as_none_without_a_word_from_rclpy(data, capfd):
+    assert float64_values(data) is None
+    assert capfd.readouterr() == ('', '')   # rclpy's C deserialiser printed a line per message
+
+
+def test_every_truncation_of_an_array_reads_as_none():
+    data = _cdr(1, '<', [(b'wheels', 2, 2)], [1.0, 2.0])
+    assert all(float64_values(data[:end]) is None for end in range(len(data)))

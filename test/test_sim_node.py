@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import math
+import time
 from pathlib import Path
 
 import pytest
@@ -12,6 +13,7 @@ from rcl_interfaces.msg import Parameter as ParameterMsg
 from rcl_interfaces.msg import ParameterType, ParameterValue
 from rcl_interfaces.srv import GetParameters, SetParameters
 from rclpy.qos import DurabilityPolicy, QoSProfile
+from rclpy.serialization import serialize_message
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState, Range
 from std_msgs.msg import Float64MultiArray, String, UInt32
@@ -19,6 +21,7 @@ from std_srvs.srv import Empty
 from visualization_msgs.msg import MarkerArray
 
 from epuck_ros.model import MAX_WHEEL_SPEED, SENSOR_NAMES
+from epuck_ros.nodes.robot_ports import WARN_PERIOD
 from epuck_ros.nodes.sim_node import publication_mode
 
 HALF_SPEED = 0.5 * MAX_WHEEL_SPEED
@@ -128,6 +131,29 @@ def test_bad_commands_are_refused_and_the_simulation_goes_on(launch, test_node):
     count = len(clocks)
     test_node.spin_until(lambda: len(clocks) > count + 20, what='the clock to go on')
     assert all(m.twist.twist.linear.x == 0.0 for m in truth)
+    assert sim.proc.poll() is None
+
+
+def test_a_flood_of_malformed_wheel_cmd_bytes_costs_a_throttled_warning_and_lockstep_goes_on(launch, test_node):
+    """Before: rclpy's C deserialiser printed a line to stderr for each undecodable message, 200 for 200."""
+    sim = start_sim(launch, test_node, lockstep=True, lockstep_timeout=30.0, real_time_factor=0.0)
+    clocks = test_node.collect(Clock, '/clock', 100)
+    pub = test_node.node.create_publisher(Float64MultiArray, 'wheel_cmd', 200)
+    test_node.spin_until(lambda: pub.get_subscription_count() > 0 and test_node.node.count_publishers('/clock'),
+                         what='the sim to be discovered')
+    bad = bytearray(serialize_message(wheel_cmd(1.0, 1.0)))
+    bad[12:16] = (1000).to_bytes(4, 'little')   # a sequence of 1,000 numbers in a buffer of 2
+    started = time.monotonic()
+    for _ in range(200):
+        pub.publish(bytes(bad))   # bytes go out as the serialised message
+    seen = len(clocks)
+    pub.publish(wheel_cmd(1.0, 1.0))   # after the bad ones on the same writer: lockstep answers it with a step
+    test_node.spin_until(lambda: len(clocks) > seen, timeout=60.0, what='the step answering the good command')
+    elapsed = time.monotonic() - started
+    lines = [line for line in sim.output().splitlines() if 'wheel_cmd refused' in line or 'buffer' in line]
+    assert any('no Float64MultiArray' in line for line in lines)
+    # one warning per WARN_PERIOD at most: the bound grows only if the machine took that long to read 200 messages
+    assert len(lines) <= max(3, 1 + math.ceil(elapsed / WARN_PERIOD)), '\n'.join(lines)
     assert sim.proc.poll() is None
 
 
