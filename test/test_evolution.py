@@ -24,8 +24,14 @@ def run(tmp_path: Path, name: str, *extra: str) -> Path:
     return out
 
 
-def test_a_tiny_evolution_run_twice_gives_identical_files(tmp_path):
-    first, second = run(tmp_path, 'a', '--workers', '0'), run(tmp_path, 'b', '--workers', '0')
+@pytest.fixture(scope='module')
+def tiny_run(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """One tiny evolution in this process, shared by the tests that read its files."""
+    return run(tmp_path_factory.mktemp('evolve'), 'a', '--workers', '0')
+
+
+def test_a_tiny_evolution_run_twice_gives_identical_files(tiny_run, tmp_path):
+    first, second = tiny_run, run(tmp_path, 'b', '--workers', '0')
     names = ['fitness.csv', 'fitness.png', 'best_genome.json', 'evolved_controller.py']
     for name in names:
         assert (first / name).read_bytes() == (second / name).read_bytes(), name
@@ -71,6 +77,19 @@ def test_the_controller_script_computes_the_network_of_the_evolution():
     activation, previous = np.random.default_rng(2).uniform(0, 1, 8), np.array([0.3, -0.2])
     expected = outputs(genome[None], activation[None], previous[None])[0]
     assert scope['network'](activation.tolist(), previous.tolist()) == pytest.approx(expected, abs=1e-12)
+
+
+def test_the_evolved_controller_runs_unchanged_through_webots_controller_headless(tiny_run):
+    """The file `evolve` wrote, as it is: exit 0 and the run's summary (simulated time, distance, contacts)."""
+    script = tiny_run / 'evolved_controller.py'
+    result = subprocess.run([str(BIN_DIR / 'webots_controller'), str(script), '--headless', '--duration', '3',
+                             '--seed', '1'], capture_output=True, text=True, timeout=60)
+    assert result.returncode == 0, result.stderr
+    simulated = re.search(r'^\[webots_controller\] simulated ([\d.]+) s in .* headless$', result.stdout, re.M)
+    assert simulated and float(simulated[1]) == pytest.approx(3.0, abs=0.032), result.stdout
+    summary = re.search(r'^\[webots_controller\] ([\d.]+) m in ([\d.]+) s, (\d+) contacts? with walls/obstacles$',
+                        result.stdout, re.M)
+    assert summary and float(summary[1]) > 0.05, result.stdout   # evolved to drive: it went somewhere
 
 
 def test_the_evolved_controller_runs_unchanged_through_bringup(launch, tmp_path):
