@@ -10,7 +10,11 @@ import uuid
 from importlib.metadata import entry_points
 from pathlib import Path
 
+import domain_coordinator
+import pytest
 from conftest import BIN_DIR
+
+from epuck_ros.testing.simulator import claim_free_domain
 
 README = Path(__file__).resolve().parents[1] / 'README.md'
 FAILING = '''
@@ -66,3 +70,16 @@ def test_a_users_project_passes_and_fails_with_nothing_left_running(tmp_path):
     sim_pid = int((project / 'sim.pid').read_text())
     assert not Path(f'/proc/{sim_pid}').exists(), 'the failing test\'s simulator was stopped'
     assert processes_with(marker) == [], 'no process of the run is left'
+
+
+def test_a_simulators_domain_is_claimed_as_the_test_runs_claim_theirs():
+    """The fixture's domain and a `domain_coordinator` claim (this test run's, a user's fixture) never coincide."""
+    domain, claim = claim_free_domain()
+    try:
+        assert 1 <= domain <= 100 and str(domain) != os.environ['ROS_DOMAIN_ID']
+        with pytest.raises(RuntimeError), domain_coordinator.domain_id(lambda: domain):
+            pass
+    finally:
+        claim.__exit__(None, None, None)
+    with domain_coordinator.domain_id(lambda: domain) as again:
+        assert again == domain, 'freed at the end of the claim'

@@ -6,18 +6,19 @@ rclpy context, spun in a background thread, so the test's code stays plain and b
 """
 from __future__ import annotations
 
+import itertools
 import os
 import subprocess
 import sys
 import tempfile
 import threading
 import time
+from contextlib import AbstractContextManager
 from pathlib import Path
 from collections.abc import Callable, Mapping
 from typing import IO, Any
 
 from epuck_ros.conversions import seconds_from_stamp, yaw_from_quaternion
-from epuck_ros.testing.domains import claim_free_domain
 
 POLL = 0.05
 """Wall seconds between two looks at the graph or the simulator's parameters while waiting."""
@@ -40,7 +41,7 @@ class SimulatorUnderTest:
         self.names: tuple[str, ...] = layout.names
         """The robots' names, in the simulator's order."""
         self.start_poses = {robot.name: robot.pose for robot in layout.robots}
-        self.domain, self._domain_lock = claim_free_domain()
+        self.domain, self._domain_claim = claim_free_domain()
         self.env = {**os.environ, 'ROS_DOMAIN_ID': str(self.domain), 'ROS_AUTOMATIC_DISCOVERY_RANGE': 'LOCALHOST',
                     **(env or {})}
         """The environment for the test's own processes: the simulator's domain, discovery on this machine."""
@@ -134,9 +135,9 @@ class SimulatorUnderTest:
         if self._log is not None:
             self._log.close()
             self._log = None
-        if self._domain_lock is not None:
-            self._domain_lock.close()
-            self._domain_lock = None
+        if self._domain_claim is not None:
+            self._domain_claim.__exit__(None, None, None)
+            self._domain_claim = None
 
     # --- inside ------------------------------------------------------------------------------------------
 
@@ -232,6 +233,19 @@ class SimulatorUnderTest:
         if not done.wait(timeout):
             raise TimeoutError(f'the simulator did not answer within {timeout:g} s (wall)')
         return future.result()
+
+
+def claim_free_domain() -> tuple[int, AbstractContextManager[int]]:
+    """A ROS domain between 1 and 100 that no other claimant on this machine holds, and its claim (exit it to free
+    the domain). Claimed with `domain_coordinator`, as this package's own test runs and ROS 2's tests claim theirs,
+    so that a simulator here and any of them never share a domain; never this process's own ROS_DOMAIN_ID, which
+    its own nodes (or a user's robot) may be using unclaimed."""
+    import domain_coordinator   # only when a test asks for a simulator: the plugin's import stays free
+    own = os.environ.get('ROS_DOMAIN_ID', '')
+    first = os.getpid() % 100   # processes started together try different domains first
+    candidates = [domain for domain in (1 + (first + offset) % 100 for offset in range(100)) if str(domain) != own]
+    claim = domain_coordinator.domain_id(itertools.cycle(candidates).__next__)
+    return claim.__enter__(), claim
 
 
 def _text(value: object) -> str:
