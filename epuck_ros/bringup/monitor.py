@@ -26,7 +26,7 @@ from epuck_ros.bag.cdr import odometry_fields
 from epuck_ros.bag.tally import RunTally
 from epuck_ros.conversions import seconds_from_stamp
 from epuck_ros.nodes.announcements import ANNOUNCEMENT_QOS, SIMULATORS_TOPIC, Announcement, parse_announcement
-from epuck_ros.nodes.dds_profile import use_package_profile
+from epuck_ros.nodes.dds_profile import use_package_profile, warn_if_not_fast_dds
 from epuck_ros.nodes.qos import LATCHED
 from epuck_ros.nodes.robot_ports import topic_prefix
 from epuck_ros.world import World, WorldError, world_from_dict
@@ -76,6 +76,7 @@ class RunMonitor:
         rclpy.init(args=['--ros-args', *remap], context=self.context,
                    signal_handler_options=rclpy.signals.SignalHandlerOptions.NO)
         self.node = Node('bringup', context=self.context, enable_rosout=False)
+        warn_if_not_fast_dds(self.node.get_logger())
         self.created = time.monotonic()
         """Since when this node (its DDS participant) watches the domain."""
         # Every step brings /clock and each robot's ground truth: rclpy's EventsExecutor dispatches them from C++

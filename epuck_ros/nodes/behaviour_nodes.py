@@ -43,7 +43,7 @@ from epuck_ros.behaviours.base import describe, ranges_from_raw
 from epuck_ros.conversions import nanoseconds_from_stamp, yaw_from_quaternion
 from epuck_ros.model import SENSOR_NAMES, TIME_STEP
 from epuck_ros.nodes.ack_window import COMMAND_QOS
-from epuck_ros.nodes.dds_profile import use_package_profile
+from epuck_ros.nodes.dds_profile import use_package_profile, warn_if_not_fast_dds
 from epuck_ros.nodes.params import ParamSpec, Usage, declare_parameters, prepare_arguments, user_arguments
 from epuck_ros.nodes.qos import LATCHED
 from epuck_ros.nodes.serialized import Patch, float64_values
@@ -336,8 +336,9 @@ def main(name: str, args: list[str] | None = None) -> None:
     spec = BEHAVIOURS[name]
     argv = prepare_arguments(args, parameter_specs(spec), usage(name, spec), own_options=True)
     robots = parse_robots(name, user_arguments(argv))
-    use_package_profile()  # heartbeats every 50 ms: the last (zero) wheel command is acknowledged in ~60 ms
+    use_package_profile()  # its quick heartbeats: the last (zero) wheel command is acknowledged within STOP_ACK_TIMEOUT
     rclpy.init(args=argv, signal_handler_options=SignalHandlerOptions.NO)
+    warn_if_not_fast_dds(rclpy.logging.get_logger(name))
     handle_shutdown_signals()
     nodes: list[BehaviourNode] = []
     try:

@@ -11,8 +11,9 @@ Why, in short (the file itself has the figures):
 
 This tuning, the ack window's sizes (Fast DDS's reader limits) and the recorder's take of every message DDS holds
 (rclpy's `Subscription.handle.take_message`, pinned by a test in test_bag_record.py) are Fast DDS's and rclpy 7.1's:
-`warn_if_not_fast_dds` says so at start under another middleware. The sim, the controllers and `bringup`'s monitor
-also spin on rclpy's experimental EventsExecutor (rclpy 7.1.4 on).
+`warn_if_not_fast_dds` says so at start under another middleware, in each process this tuning serves: the sim, the
+controllers, the recorder and `bringup`. The sim, the controllers and `bringup`'s monitor also spin on rclpy's
+experimental EventsExecutor (rclpy 7.1.4 on).
 """
 from __future__ import annotations
 

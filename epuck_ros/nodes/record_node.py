@@ -42,7 +42,7 @@ from epuck_ros.bag.gaps import bag_gaps
 from epuck_ros.bag.qos import QosProfile
 from epuck_ros.bag.reader import Bag, BagError
 from epuck_ros.bag.writer import COMPRESSIONS, BackgroundWriter, BagExistsError, BagWriteError, BagWriter
-from epuck_ros.nodes.dds_profile import use_package_profile
+from epuck_ros.nodes.dds_profile import use_package_profile, warn_if_not_fast_dds
 
 DISCOVERY_PERIOD = 0.2
 """s of wall time between two looks at the graph (rosbag2 polls every 0.1 s)."""
@@ -304,6 +304,7 @@ def main(args: list[str] | None = None) -> None:
     failure = None
     try:
         node = Recorder(writer, options.topics, options.max_duration)
+        warn_if_not_fast_dds(node.get_logger())
         spin_until_finished(node, stop)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
