@@ -7,12 +7,16 @@ import math
 import threading
 import time
 from collections.abc import Iterator
+from pathlib import Path
 
 import pytest
+import yaml
 
 from epuck_ros.view.server import ACTIONS, MAX_POLLED, MAX_STREAMS, Action, ActionError, ViewServer, parse_action
 from epuck_ros.view.state import ViewState, robot_topic
-from epuck_ros.world import Box, RobotStart, World
+from epuck_ros.world import Box, RobotStart, World, load_world, world_from_yaml
+
+WORLDS = Path(__file__).resolve().parents[1] / 'epuck_ros' / 'worlds'
 
 THREE = World(arena_size=(1.5, 1.0), boxes=(Box(0.4, 0.3, 0.1, 0.1),),
               robots=(RobotStart('epuck0', -0.3, 0.0, 0.0), RobotStart('epuck1', 0.1, 0.2, math.pi / 2),
@@ -76,10 +80,39 @@ def test_world_json_carries_what_the_page_draws() -> None:
     state.set_world(THREE)
     world = json.loads(state.world_json())
     assert world['arena'] == [1.5, 1.0]
-    assert world['boxes'] == [{'x': 0.4, 'y': 0.3, 'size_x': 0.1, 'size_y': 0.1, 'yaw': 0.0}]
+    assert world['boxes'] == [{'x': 0.4, 'y': 0.3, 'size_x': 0.1, 'size_y': 0.1, 'yaw': 0.0,
+                               'color': [0.72, 0.53, 0.33]}]   # the default box colour
+    assert (world['floor'], world['lights'], world['wall_color']) == (None, [], None)   # plain: the page's own
     assert [r['name'] for r in world['robots']] == ['epuck0', 'epuck1', 'epuck2']
     assert world['robots'][1]['start'] == [0.1, 0.2, pytest.approx(math.pi / 2)]
     assert len(world['model']['sensor_poses']) == 8
+
+
+def _as_the_view_node_reads_it(name: str) -> World:
+    """A shipped world as the view gets it: the YAML the sim publishes on `world`, read back."""
+    world = load_world(WORLDS / name)
+    return world_from_yaml(yaml.safe_dump(world.to_dict(), sort_keys=False), source='world topic')
+
+
+def test_world_json_carries_the_floor_paint_lights_and_colours_of_the_shipped_worlds() -> None:
+    state = ViewState()
+    state.set_world(_as_the_view_node_reads_it('line_track.yaml'))
+    track = json.loads(state.world_json())
+    assert track['floor']['color'] == [1.0, 1.0, 1.0]
+    [line] = track['floor']['paint']
+    assert (line['kind'], line['width'], line['color']) == ('polyline', 0.025, [0.0, 0.0, 0.0])
+    assert line['points'][0] == [0.0, -0.25] and len(line['points']) == 33
+    state.set_world(_as_the_view_node_reads_it('lit_arena.yaml'))
+    lit = json.loads(state.world_json())
+    assert lit['lights'] == [{'x': 0.25, 'y': 0.25, 'z': 0.07, 'intensity': 0.5}]
+    assert lit['floor']['paint'] == [{'kind': 'disc', 'points': [[0.25, 0.25]], 'color': [1.0, 0.85, 0.2],
+                                      'width': 0.0, 'radius': 0.06}]
+    assert lit['boxes'][0]['color'] == [0.2, 0.3, 0.8]
+    state.set_world(_as_the_view_node_reads_it('coloured_objects.yaml'))
+    coloured = json.loads(state.world_json())
+    assert [b['color'] for b in coloured['boxes']] == [[0.9, 0.1, 0.1], [0.1, 0.7, 0.2]]
+    assert [c['color'] for c in coloured['cylinders']] == [[0.15, 0.25, 0.9]]
+    assert coloured['wall_color'] == [0.8, 0.8, 0.8]
 
 
 # --- actions -------------------------------------------------------------------------------------------------

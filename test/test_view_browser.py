@@ -236,3 +236,21 @@ def test_several_robots_each_drawn_and_only_the_selected_one_driven(launch, test
     screenshot = README_SCREENSHOT if os.environ.get('EPUCK_ROS_UPDATE_SCREENSHOT') == '1' else tmp_path / 'view.png'
     assert browser.save_screenshot(str(screenshot)) and screenshot.stat().st_size > 0
     ActionChains(browser).key_up(Keys.ARROW_UP).key_up(Keys.ARROW_LEFT).perform()
+
+
+def _canvas_pixel(page: Page, x: float, y: float) -> list[int]:
+    """The RGBA the canvas shows at world point (x, y) m, through the page's own world-to-canvas transform."""
+    return page.script(f'const t = worldTransform();'
+                       f'const px = Math.round(t.cx + t.scale * {x}), py = Math.round(t.cy - t.scale * {y});'
+                       f'return Array.from(canvas.getContext("2d").getImageData(px, py, 1, 1).data);')
+
+
+def test_the_floor_paint_of_the_line_track_is_drawn(launch, browser) -> None:
+    """The world the sim publishes reaches the canvas with its floor: a pixel on the track's black line is black,
+    one in the middle of the oval is the floor's white."""
+    world = Path(__file__).resolve().parents[1] / 'epuck_ros' / 'worlds' / 'line_track.yaml'
+    page = Page(browser, _open_view(launch, '-p', f'world:={world}'))
+    page.wait_until(lambda: page.script('return view.drawn && view.drawn.world === view.world.version'),
+                    'the page to draw the world')
+    assert _canvas_pixel(page, 0.35, 0.0) == [0, 0, 0, 255]          # a vertex of the oval, on the line
+    assert _canvas_pixel(page, 0.0, 0.0) == [255, 255, 255, 255]     # the white floor inside it

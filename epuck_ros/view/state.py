@@ -10,13 +10,14 @@ import json
 import math
 import threading
 from collections import deque
-from dataclasses import dataclass, field
+from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
 from epuck_ros import ir_sensor
 from epuck_ros.model import LED_COLORS, LED_POSITIONS, RobotModel
 from epuck_ros.world import World
+from epuck_ros.world.appearance import FLOOR_COLOR, WALL_COLOR
 
 RTF_WINDOW = 1.0
 """Wall seconds of simulated-time samples over which the real-time factor reached is measured."""
@@ -81,6 +82,24 @@ def _odom_error(start: tuple[float, float, float], odom: tuple[float, float, flo
     y = sy + math.sin(syaw) * ox + math.cos(syaw) * oy
     yaw_error = math.remainder(syaw + oyaw - truth[2], math.tau)
     return {'distance': math.hypot(x - truth[0], y - truth[1]), 'yaw': yaw_error, 'odom_in_world': (x, y)}
+
+
+def _world_body(world: World) -> dict:
+    """What the page draws of a world, from the world's own appearance (as `bag plot` draws it): obstacles and walls
+    in their colours, the floor's colour and paint (None when plain and default: the page keeps its own floor), the
+    lights. Paint items keep the world's order (later ones are painted over earlier ones)."""
+    looks = world.appearance
+    plain = not looks.paint and looks.floor_color == FLOOR_COLOR
+    return {
+        'arena': list(world.arena_size),
+        'wall_color': None if looks.wall_color == WALL_COLOR else list(looks.wall_color),
+        'boxes': [{'x': b.x, 'y': b.y, 'size_x': b.size_x, 'size_y': b.size_y, 'yaw': b.yaw,
+                   'color': list(looks.box_color(i))} for i, b in enumerate(world.boxes)],
+        'cylinders': [{'x': c.x, 'y': c.y, 'radius': c.radius, 'color': list(looks.cylinder_color(i))}
+                      for i, c in enumerate(world.cylinders)],
+        'floor': None if plain else {'color': list(looks.floor_color), 'paint': [asdict(p) for p in looks.paint]},
+        'lights': [asdict(light) for light in looks.lights],
+        'robots': [{'name': r.name, 'start': [r.x, r.y, r.yaw]} for r in world.robots]}
 
 
 @dataclass
@@ -194,7 +213,8 @@ class ViewState:
             return self.version
 
     def world_json(self) -> str:
-        """The world event: arena, obstacles, robots' names and starts, and the robot model the page draws with."""
+        """The world event: arena, obstacles, floor paint, lights, robots' names and starts, and the robot model the
+        page draws with."""
         with self._lock:
             world, version = self.world, self.world_version
         model = self.model
@@ -206,12 +226,7 @@ class ViewState:
             'led_positions': [[float(x), float(y)] for x, y, _ in LED_POSITIONS.tolist()],
             'led_colors': [list(color) for color in LED_COLORS]}}
         if world is not None:
-            body.update({
-                'arena': list(world.arena_size),
-                'boxes': [{'x': b.x, 'y': b.y, 'size_x': b.size_x, 'size_y': b.size_y, 'yaw': b.yaw}
-                          for b in world.boxes],
-                'cylinders': [{'x': c.x, 'y': c.y, 'radius': c.radius} for c in world.cylinders],
-                'robots': [{'name': r.name, 'start': [r.x, r.y, r.yaw]} for r in world.robots]})
+            body.update(_world_body(world))
         return page_json(body)
 
     def frame_json(self, wall_now: float) -> str:

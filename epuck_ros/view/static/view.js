@@ -11,7 +11,7 @@ const COLOURS = ['#d62728', '#1f77b4', '#2ca02c', '#9467bd', '#ff7f0e', '#17becf
 // Everything the page knows and what it last drew; `window.epuckView.drawn` is what tests compare with ROS.
 const view = {
   world: null, worldText: null, frame: null, selected: null, trails: {},
-  drawn: null,   // {time, robots: {name: {pose: [x, y, yaw], stamp}}} of the last frame painted
+  drawn: null,   // {time, world: version, robots: {name: {pose: [x, y, yaw], stamp}}} of the last frame painted
   drive: {linear: 0.1, angular: 1.5, keys: new Set(), sent: '0,0', timer: null},
 };
 window.epuckView = view;
@@ -137,8 +137,8 @@ function draw() {
   ctx.setTransform(1, 0, 0, 1, 0, 0);
   ctx.clearRect(0, 0, canvas.width, canvas.height);
   ctx.setTransform(t.scale, 0, 0, -t.scale, t.cx, t.cy);   // metres, x right, y up, origin at the centre
-  if (view.world && view.world.arena) drawWorld(view.world);
-  const drawn = {time: view.frame ? view.frame.time : null, robots: {}};
+  if (view.world && view.world.arena) drawWorld(view.world, t.scale);
+  const drawn = {time: view.frame ? view.frame.time : null, world: view.world ? view.world.version : null, robots: {}};
   if (view.world && view.frame) {
     (view.world.robots || []).forEach((start, index) => {
       const robot = view.frame.robots[start.name];
@@ -150,27 +150,77 @@ function draw() {
   view.drawn = drawn;
 }
 
-function drawWorld(world) {
+const rgb = (colour) => `rgb(${colour.map((c) => Math.round(255 * c)).join(', ')})`;
+
+// The world as `bag plot` draws it: floor colour and paint, walls and obstacles in their colours, the lights.
+function drawWorld(world, scale) {
   const [sizeX, sizeY] = world.arena;
-  ctx.fillStyle = '#eeeee8';
+  ctx.fillStyle = world.floor ? rgb(world.floor.color) : '#eeeee8';
   ctx.fillRect(-sizeX / 2, -sizeY / 2, sizeX, sizeY);
-  ctx.strokeStyle = '#8a8f96';
+  if (world.floor) drawPaint(world.floor.paint, sizeX, sizeY);
+  ctx.strokeStyle = world.wall_color ? rgb(world.wall_color) : '#8a8f96';
   ctx.lineWidth = 0.01;   // RectangleArena's wall thickness, outside the floor
   ctx.strokeRect(-sizeX / 2 - 0.005, -sizeY / 2 - 0.005, sizeX + 0.01, sizeY + 0.01);
-  ctx.fillStyle = '#b7804d';
   for (const box of world.boxes) {
+    ctx.fillStyle = box.color ? rgb(box.color) : '#b7804d';
     ctx.save();
     ctx.translate(box.x, box.y);
     ctx.rotate(box.yaw);
     ctx.fillRect(-box.size_x / 2, -box.size_y / 2, box.size_x, box.size_y);
     ctx.restore();
   }
-  ctx.fillStyle = '#7d8a96';
   for (const cylinder of world.cylinders) {
+    ctx.fillStyle = cylinder.color ? rgb(cylinder.color) : '#7d8a96';
     ctx.beginPath();
     ctx.arc(cylinder.x, cylinder.y, cylinder.radius, 0, 2 * Math.PI);
     ctx.fill();
   }
+  for (const light of world.lights || []) drawLight(light, scale);
+}
+
+// Paint in the world's order, later items over earlier ones, clipped to the floor (as the floor texture is).
+function drawPaint(paint, sizeX, sizeY) {
+  ctx.save();
+  ctx.beginPath();
+  ctx.rect(-sizeX / 2, -sizeY / 2, sizeX, sizeY);
+  ctx.clip();
+  for (const item of paint) {
+    ctx.fillStyle = ctx.strokeStyle = rgb(item.color);
+    ctx.beginPath();
+    if (item.kind === 'disc') {
+      ctx.arc(item.points[0][0], item.points[0][1], item.radius, 0, 2 * Math.PI);
+      ctx.fill();
+      continue;
+    }
+    item.points.forEach(([x, y], i) => (i ? ctx.lineTo(x, y) : ctx.moveTo(x, y)));
+    if (item.kind === 'polygon') {
+      ctx.closePath();
+      ctx.fill('evenodd');   // the floor texture's rule
+    } else {   // a polyline: every point within width / 2 of it, so round ends and joins
+      ctx.lineWidth = item.width;
+      ctx.lineCap = ctx.lineJoin = 'round';
+      ctx.stroke();
+    }
+  }
+  ctx.restore();
+}
+
+// A point light: a gold star with a dark edge, a fixed size on screen.
+function drawLight(light, scale) {
+  const outer = 11 / scale;
+  ctx.beginPath();
+  for (let i = 0; i < 10; i++) {
+    const radius = i % 2 ? outer * 0.45 : outer;
+    const angle = Math.PI / 2 + i * Math.PI / 5;
+    ctx.lineTo(light.x + radius * Math.cos(angle), light.y + radius * Math.sin(angle));
+  }
+  ctx.closePath();
+  ctx.fillStyle = 'gold';
+  ctx.fill();
+  ctx.strokeStyle = '#4d4d4d';
+  ctx.lineWidth = 1.2 / scale;
+  ctx.lineJoin = 'miter';
+  ctx.stroke();
 }
 
 function irColour(raw) {
