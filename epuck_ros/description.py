@@ -15,37 +15,46 @@ from pathlib import Path
 from xml.sax.saxutils import quoteattr
 
 from epuck_ros.conversions import quaternion_from_yaw
-from epuck_ros.model import (BODY_CENTRE_HEIGHT, BODY_HEIGHT, CAMERA_POSE, LIGHT_SENSOR_HEIGHT, SENSOR_HEIGHT,
-                             SENSOR_NAMES, WHEEL_WIDTH, RobotModel)
+from epuck_ros.model import (BODY_CENTRE_HEIGHT, BODY_HEIGHT, CAMERA_POSE, GROUND_SENSOR_NAMES, GROUND_SENSOR_POSES,
+                             IMU_POSITION, LIGHT_SENSOR_HEIGHT, LIGHT_SENSOR_NAMES, SENSOR_HEIGHT, SENSOR_NAMES,
+                             WHEEL_WIDTH, RobotModel)
 
 JOINT_NAMES = ['left_wheel_joint', 'right_wheel_joint']
 """The wheel joints, as in `joint_states`."""
 WHEEL_LINKS = ('left_wheel', 'right_wheel')
-LIGHT_SENSOR_NAMES = tuple(f'ls{i}' for i in range(8))
+IMU_FRAME = 'imu'
+"""The frame of the accelerometer and gyro, and of the `imu` topic's messages."""
 URDF_FILE = Path(__file__).parent / 'urdf' / 'epuck.urdf'
 """The shipped URDF (unprefixed frames); `colcon` installs it under share/epuck_ros/urdf/."""
 
 
 @dataclass(frozen=True)
 class FixedFrame:
-    """A frame rigidly attached to `base_link`: translation (m) and yaw (rad)."""
+    """A frame rigidly attached to `base_link`: translation (m), yaw (rad) and pitch (rad; URDF's rpy order, the yaw
+    applied after the pitch): a ground sensor's x looks down."""
 
     name: str
     xyz: tuple[float, float, float]
     yaw: float = 0.0
+    pitch: float = 0.0
 
     def quaternion(self) -> tuple[float, float, float, float]:
-        """(x, y, z, w) of the yaw."""
-        return 0.0, 0.0, *quaternion_from_yaw(self.yaw)
+        """(x, y, z, w) of the rotation: the yaw's quaternion times the pitch's."""
+        (sz, cz), (sy, cy) = quaternion_from_yaw(self.yaw), quaternion_from_yaw(self.pitch)
+        return 0.0 - sz * sy, cz * sy, sz * cy, cz * cy   # 0.0 - : no -0.0 in a frame without pitch
 
 
 def sensor_frames(model: RobotModel = RobotModel()) -> list[FixedFrame]:
-    """ps0..ps7 (x along each ray), ls0..ls7 (same bearing) and the camera (looking along x)."""
+    """ps0..ps7 (x along each ray), ls0..ls7 (same bearing), the camera (looking along x), gs0..gs2 (x along each
+    ray, straight down) and the imu (base_link's axes): every sensor a tf2 user may look up."""
     frames = [FixedFrame(name, (float(x), float(y), SENSOR_HEIGHT), float(yaw))
               for name, (x, y, yaw) in zip(SENSOR_NAMES, model.sensor_poses.tolist())]
     frames += [FixedFrame(name, (float(x), float(y), LIGHT_SENSOR_HEIGHT), float(yaw))
                for name, (x, y, yaw) in zip(LIGHT_SENSOR_NAMES, model.sensor_poses.tolist())]
     frames.append(FixedFrame('camera', tuple(float(v) for v in CAMERA_POSE)))
+    frames += [FixedFrame(name, tuple(xyz), pitch=math.pi / 2.0)
+               for name, xyz in zip(GROUND_SENSOR_NAMES, GROUND_SENSOR_POSES.tolist())]
+    frames.append(FixedFrame(IMU_FRAME, tuple(float(v) for v in IMU_POSITION)))
     return frames
 
 
@@ -81,7 +90,7 @@ def urdf(model: RobotModel = RobotModel(), prefix: str = '') -> str:
         text.append(link(frame.name))
         text.append(f'  <joint name={quoteattr(prefix + frame.name + "_joint")} type="fixed"><parent link='
                     f'{quoteattr(prefix + "base_link")}/><child link={quoteattr(prefix + frame.name)}/>'
-                    f'{origin(frame.xyz, (0.0, 0.0, frame.yaw))}</joint>\n')
+                    f'{origin(frame.xyz, (0.0, frame.pitch, frame.yaw))}</joint>\n')
     text.append('</robot>\n')
     return ''.join(text)
 

@@ -88,6 +88,9 @@ ACCELEROMETER_LOOKUP_TABLE = np.array([[-100.0, -100.0, 0.003], [100.0, 100.0, 0
 """m/s^2 -> value (the same figure), relative noise; at the body's origin."""
 GYRO_LOOKUP_TABLE = np.array([[-13.315805, -100000.0, 0.003], [13.315805, 100000.0, 0.003]])
 """rad/s -> value, relative noise: the proto's gyro returns 7509.9 units per rad/s; at the body's origin."""
+IMU_POSITION = (0.0, 0.0, 0.0)
+"""x, y, z (m) of the accelerometer and gyro (frame `imu`, axes those of base_link): E-puck.proto gives them no
+translation, so they sit at the robot's origin, base_link's (on the floor midway between the wheels)."""
 
 LED_NAMES: tuple[str, ...] = tuple(f'led{i}' for i in range(10))
 LED_POSITIONS = np.array([[0.0337, 0.0, 0.041], [0.022, -0.025, 0.041], [0.0, -0.0337, 0.041],

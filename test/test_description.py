@@ -10,8 +10,10 @@ import numpy as np
 import pytest
 import yourdfpy
 
-from epuck_ros.description import JOINT_NAMES, URDF_FILE, urdf
-from epuck_ros.model import CAMERA_POSE, SENSOR_HEIGHT, SENSOR_NAMES, SENSOR_POSES, RobotModel
+from epuck_ros import description
+from epuck_ros.description import IMU_FRAME, JOINT_NAMES, URDF_FILE, FixedFrame, sensor_frames, urdf
+from epuck_ros.model import (CAMERA_POSE, GROUND_SENSOR_NAMES, GROUND_SENSOR_POSES, IMU_POSITION, LIGHT_SENSOR_HEIGHT,
+                             LIGHT_SENSOR_NAMES, SENSOR_HEIGHT, SENSOR_NAMES, SENSOR_POSES, RobotModel)
 
 
 def parse(text: str) -> yourdfpy.URDF:
@@ -57,3 +59,40 @@ def test_a_prefix_names_every_link_and_joint():
     assert robot.actuated_joint_names == [f'epuck3/{joint}' for joint in JOINT_NAMES]
     assert planar(robot.get_transform('epuck3/ps3', 'epuck3/base_link')) == pytest.approx(
         (*SENSOR_POSES[3][:2], SENSOR_HEIGHT, SENSOR_POSES[3][2]), abs=1e-12)
+
+
+def test_light_and_ground_sensors_and_the_imu_sit_at_the_models_poses():
+    """ls0..ls7 on the IR sensors' bearings; gs0..gs2 with x along their rays, straight down; imu at the origin."""
+    robot = parse(URDF_FILE.read_text())
+    assert robot.validate()
+    for name, (x, y, yaw) in zip(LIGHT_SENSOR_NAMES, SENSOR_POSES):
+        assert planar(robot.get_transform(name, 'base_link')) == pytest.approx((x, y, LIGHT_SENSOR_HEIGHT, yaw),
+                                                                               abs=1e-12)
+    for name, xyz in zip(GROUND_SENSOR_NAMES, GROUND_SENSOR_POSES):
+        matrix = robot.get_transform(name, 'base_link')
+        assert matrix[:3, 3] == pytest.approx(xyz, abs=1e-15)
+        assert matrix[:3, :3] == pytest.approx(np.array([[0, 0, 1], [0, 1, 0], [-1, 0, 0]]), abs=1e-15)  # x down
+    imu = robot.get_transform(IMU_FRAME, 'base_link')
+    assert imu[:3, 3] == pytest.approx(IMU_POSITION, abs=0) and imu[:3, :3] == pytest.approx(np.eye(3), abs=0)
+
+
+def rotation(quaternion: tuple[float, float, float, float]) -> np.ndarray:
+    """The rotation matrix of a unit quaternion (x, y, z, w)."""
+    x, y, z, w = quaternion
+    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+                     [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+                     [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
+
+
+def test_every_frame_of_tf_static_is_the_urdfs(monkeypatch):
+    """The translations and quaternions /tf_static carries are the URDF's origins, rpy read by yourdfpy (one frame
+    both pitched and yawed added: the order of the two rotations)."""
+    frames = sensor_frames() + [FixedFrame('turned', (0.01, 0.02, 0.03), yaw=0.7, pitch=0.4)]
+    shipped = set(parse(URDF_FILE.read_text()).link_map) - {'base_link', 'left_wheel', 'right_wheel'}
+    assert {frame.name for frame in frames[:-1]} == shipped
+    monkeypatch.setattr(description, 'sensor_frames', lambda model: frames)
+    robot = parse(urdf())
+    for frame in frames:
+        matrix = robot.get_transform(frame.name, 'base_link')
+        assert matrix[:3, 3] == pytest.approx(frame.xyz, abs=1e-15), frame.name
+        assert rotation(frame.quaternion()) == pytest.approx(matrix[:3, :3], abs=1e-12), frame.name

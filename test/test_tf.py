@@ -12,8 +12,10 @@ from collections.abc import Callable
 import pytest
 
 from epuck_ros.bringup.processes import executable, interrupt
-from epuck_ros.description import sensor_frames, urdf
-from epuck_ros.model import SENSOR_HEIGHT, SENSOR_POSES, RobotModel
+from epuck_ros.description import IMU_FRAME, sensor_frames, urdf
+from epuck_ros.model import (GROUND_SENSOR_NAMES, GROUND_SENSOR_POSES, IMU_POSITION, SENSOR_HEIGHT, SENSOR_POSES,
+                             RobotModel)
+from epuck_ros.nodes.sense_ports import SENSE_POLL
 
 tf2_msgs = pytest.importorskip('tf2_msgs.msg', reason='tf2_msgs is not installed: run scripts/gen_tf2_msgs.sh')
 
@@ -21,11 +23,12 @@ tf2_msgs = pytest.importorskip('tf2_msgs.msg', reason='tf2_msgs is not installed
 class Listener:
     """/tf, /tf_static and robot_description topics, heard on the simulator's domain in a context of its own."""
 
-    def __init__(self, domain: int, description_topics: list[str]) -> None:
+    def __init__(self, domain: int, description_topics: list[str], imu_topic: str | None = None) -> None:
         import rclpy
         from rclpy.context import Context
         from rclpy.executors import SingleThreadedExecutor
         from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+        from sensor_msgs.msg import Imu
         from std_msgs.msg import String
         self.context = Context()
         rclpy.init(context=self.context, domain_id=domain)
@@ -35,6 +38,7 @@ class Listener:
         self.dynamic: dict[str, object] = {}
         self.static: dict[str, object] = {}
         self.descriptions: dict[str, str] = {}
+        self.imus: list[object] = []
         latched = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL,
                              reliability=ReliabilityPolicy.RELIABLE)
         self.node.create_subscription(tf2_msgs.TFMessage, '/tf', lambda m: self._keep(self.dynamic, m), 100)
@@ -42,6 +46,8 @@ class Listener:
         for topic in description_topics:
             self.node.create_subscription(String, topic, lambda m, t=topic: self.descriptions.__setitem__(t, m.data),
                                           latched)
+        if imu_topic:
+            self.node.create_subscription(Imu, imu_topic, self.imus.append, 10)
 
     @staticmethod
     def _keep(frames: dict, msg: object) -> None:
@@ -52,6 +58,11 @@ class Listener:
         deadline = time.monotonic() + timeout
         while not condition():
             assert time.monotonic() < deadline, f'{what} within {timeout} s'
+            self.executor.spin_once(timeout_sec=0.05)
+
+    def spin_for(self, seconds: float) -> None:
+        deadline = time.monotonic() + seconds
+        while time.monotonic() < deadline:
             self.executor.spin_once(timeout_sec=0.05)
 
     def close(self) -> None:
@@ -73,16 +84,18 @@ def compose(a: tuple[float, float, float], b: tuple[float, float, float]) -> tup
 def test_base_link_in_world_is_the_ground_truth_and_sensors_are_the_models(epuck_sim):
     """Also the fixture's ground truth and contact count, before and after the robot meets a wall."""
     sim = epuck_sim(robots=1, seed=1)   # one robot placed at a start pose off the origin, turned
-    listener = Listener(sim.domain, ['/robot_description'])
+    listener = Listener(sim.domain, ['/robot_description'], '/imu')
     controller = subprocess.Popen([executable('forward'), '--ros-args', '-p', 'use_sim_time:=true'], env=sim.env,
                                   stdout=subprocess.DEVNULL, stderr=subprocess.STDOUT, start_new_session=True)
     try:
         sim.wait_for_controller()
         listener.spin_until(lambda: 'odom' in listener.static and 'ps3' in listener.static
                             and '/robot_description' in listener.descriptions, 'the static tree and description')
+        listener.spin_for(2 * SENSE_POLL)   # the simulator looks for subscribers on its sense topics this often
         now = sim.run_until(2.0)
         listener.spin_until(lambda: 'base_link' in listener.dynamic and _stamp(listener.dynamic['base_link']) >= now
                             - 1e-9, f'/tf of t={now}')
+        listener.spin_until(lambda: listener.imus, 'imu messages')
         truth, contacts = sim.ground_truth(), sim.contacts()
         sim.run_until(15.0)   # on into the wall at x = -0.5 (its path misses the boxes): the fixture counts it
         truth_later, contacts_later = sim.ground_truth(), sim.contacts()
@@ -100,6 +113,13 @@ def test_base_link_in_world_is_the_ground_truth_and_sensors_are_the_models(epuck
     assert ps3.header.frame_id == 'base_link'
     assert (*planar(ps3), ps3.transform.translation.z) == pytest.approx((*SENSOR_POSES[3], SENSOR_HEIGHT), abs=1e-12)
     assert listener.descriptions['/robot_description'] == urdf()
+    for name, xyz in zip(GROUND_SENSOR_NAMES, GROUND_SENSOR_POSES.tolist()):   # x along the ray, straight down
+        assert listener.static[name].header.frame_id == 'base_link'
+        assert translation(listener.static[name]) == pytest.approx(xyz, abs=1e-15)
+        assert rotation(listener.static[name]) == pytest.approx((0.0, math.sqrt(0.5), 0.0, math.sqrt(0.5)), abs=1e-15)
+    imu = listener.static[IMU_FRAME]
+    assert (imu.header.frame_id, translation(imu), rotation(imu)) == ('base_link', IMU_POSITION, (0.0, 0.0, 0.0, 1.0))
+    assert listener.imus and {msg.header.frame_id for msg in listener.imus} == {IMU_FRAME}
     assert contacts_later == 1 and truth_later[0] == pytest.approx(-0.5 + RobotModel().body_radius, abs=1e-3)
 
 
@@ -118,6 +138,16 @@ def test_a_swarm_prefixes_frames_and_descriptions_by_robot(epuck_sim):
         assert planar(listener.static[f'{name}/odom']) == pytest.approx(sim.start_poses[name], abs=1e-12)
         assert listener.static[f'{name}/ps3'].header.frame_id == f'{name}/base_link'
         assert listener.descriptions[f'/{name}/robot_description'] == urdf(prefix=f'{name}/')
+
+
+def translation(transform: object) -> tuple[float, float, float]:
+    t = transform.transform.translation
+    return t.x, t.y, t.z
+
+
+def rotation(transform: object) -> tuple[float, float, float, float]:
+    q = transform.transform.rotation
+    return q.x, q.y, q.z, q.w
 
 
 def _stamp(transform: object) -> float:

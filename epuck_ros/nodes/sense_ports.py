@@ -16,6 +16,7 @@ from rclpy.qos import QoSProfile
 from sensor_msgs.msg import CameraInfo, Image, Imu
 from std_msgs.msg import Float64MultiArray
 
+from epuck_ros.description import IMU_FRAME
 from epuck_ros.model import CAMERA_FOV, GROUND_SENSOR_NAMES, LIGHT_SENSOR_NAMES
 from epuck_ros.nodes.robot_ports import STAMP_FIELDS, frame_prefix, quiet_publisher, topic_prefix
 from epuck_ros.nodes.serialized import Patch, exact_cdr
@@ -97,7 +98,7 @@ class SensePorts:
         self._light = Patch(Float64MultiArray(data=[0.0] * len(LIGHT_SENSOR_NAMES)),
                             [(f'data[{i}]', 'd') for i in range(len(LIGHT_SENSOR_NAMES))])
         imu = Imu()
-        imu.header.frame_id = frames + 'base_link'
+        imu.header.frame_id = frames + IMU_FRAME
         imu.orientation_covariance[0] = -1.0   # REP 145: no orientation estimate
         self._imu = Patch(imu, IMU_FIELDS)
         self._made = True

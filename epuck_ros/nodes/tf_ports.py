@@ -12,12 +12,13 @@ from __future__ import annotations
 
 from geometry_msgs.msg import TransformStamped
 from rclpy.node import Node
-from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.qos import QoSProfile, ReliabilityPolicy
 from std_msgs.msg import String
 
 from epuck_ros.conversions import quaternion_from_yaw
 from epuck_ros.description import WHEEL_LINKS, sensor_frames, urdf, wheel_offsets
 from epuck_ros.model import RobotModel
+from epuck_ros.nodes.qos import LATCHED
 from epuck_ros.nodes.robot_ports import RobotPorts, quiet_publisher, topic_prefix
 from epuck_ros.nodes.serialized import Patch
 from epuck_ros.simulation import Simulation
@@ -27,8 +28,6 @@ try:
 except ImportError:   # a pip install without scripts/gen_tf2_msgs.sh
     TFMessage = None
 
-TF_STATIC_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
-"""tf2_ros's StaticBroadcasterQoS: late joiners get the tree."""
 _CHANGING = (('translation.x', 'translation.y', 'rotation.z', 'rotation.w'), ('rotation.y', 'rotation.w'),
              ('rotation.y', 'rotation.w'))
 _STEP_FIELDS = [field for index, paths in enumerate(_CHANGING) for field in
@@ -64,7 +63,8 @@ class TfPorts:
             static.append(_transform(world_frame, robot.odom_frame, (x, y, 0.0), _yaw(yaw)))
             static += [_transform(robot.base_frame, _prefix(robot) + frame.name, frame.xyz, frame.quaternion())
                        for frame in sensor_frames(model)]
-        quiet_publisher(node, TFMessage, '/tf_static', TF_STATIC_QOS).publish(TFMessage(transforms=static))
+        # LATCHED is tf2_ros's StaticBroadcasterQoS (depth 1, reliable, transient local): late joiners get the tree
+        quiet_publisher(node, TFMessage, '/tf_static', LATCHED).publish(TFMessage(transforms=static))
         tf_qos = QoSProfile(depth=stream_qos.depth * len(ports), reliability=ReliabilityPolicy.RELIABLE)
         self._tf_pub = quiet_publisher(node, TFMessage, '/tf', tf_qos)
         self.stream_publishers = [self._tf_pub]
