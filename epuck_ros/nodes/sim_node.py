@@ -98,9 +98,10 @@ SIM_PARAMETERS = [
 USAGE = Usage(
     'sim',
     'The e-puck simulator: steps the robots of a world and publishes, per robot, odom, ground_truth, proximity '
-    '(8 Range), ir_raw (the 8 raw IR values), joint_states and collisions, and while they have subscribers '
-    'camera/image_raw, camera/camera_info, ground_raw, light_raw and imu, plus the latched world and '
-    'world_markers and /clock; takes cmd_vel (Twist) or wheel_cmd ([left, right] rad/s) per robot; services '
+    '(8 Range), ir_raw (the 8 raw IR values), joint_states and collisions, the latched robot_description, and '
+    'while they have subscribers camera/image_raw, camera/camera_info, ground_raw, light_raw and imu, plus the '
+    'latched world, world_markers and /tf_static, and /tf and /clock; takes cmd_vel (Twist) or wheel_cmd '
+    '([left, right] rad/s) per robot; services '
     'reset (Empty) and step (Trigger, one step while paused). With several robots, robot NAME\'s topics are '
     'NAME/odom, NAME/cmd_vel, ...',
     'sim --ros-args -p real_time_factor:=0 -p seed:=4 -p robots:=5')
