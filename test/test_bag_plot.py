@@ -12,6 +12,7 @@ from pathlib import Path
 import matplotlib.pyplot as plt
 import numpy as np
 import pytest
+import yaml
 from PIL import Image
 from rclpy.serialization import serialize_message
 from std_msgs.msg import String
@@ -170,3 +171,25 @@ def test_a_step_published_twice_is_one_pose_of_the_run():
             (64_000_000, 0.002, 0.0, 0.0, 0.0, 0.0)]
     trajectory = _trajectory('/ground_truth', rows, 0)
     assert trajectory.t.tolist() == [0.0, 0.032, 0.064] and trajectory.x.tolist() == [0.0, 0.001, 0.002]
+
+
+def test_the_floor_paint_and_the_lights_are_drawn(tmp_path):
+    """The shipped line track with a light added: a pixel on the painted line is dark, the floor beside it stays
+    light, the light's marker is gold."""
+    world = yaml.safe_load((REPO / 'epuck_ros' / 'worlds' / 'line_track.yaml').read_text())
+    world['lights'] = [{'position': [0.13, 0.07, 0.07], 'intensity': 0.5}]
+    start = world['robot']['start']
+    poses = [(start[0] + x, start[1] + y, yaw) for x, y, yaw in drive([(0.5, 0.5, 1.0)])]
+    figure = figure_of(write_run(tmp_path / 'track', poses, world=world_from_dict(world)))
+    figure.canvas.draw()
+    pixels = np.asarray(figure.canvas.buffer_rgba())
+    to_display = part(figure, 'arena').transData
+
+    def rgb(x: float, y: float) -> np.ndarray:
+        column, row = to_display.transform((x, y))
+        return pixels[pixels.shape[0] - int(round(row)), int(round(column)), :3].astype(int)
+
+    on_line, beside = rgb(-0.291, 0.1389), rgb(-0.22, 0.07)   # a vertex of the oval; 9 cm inside it
+    assert on_line.max() < 128 and beside.min() > 240
+    red, green, blue = rgb(0.13, 0.07)
+    assert red > 200 and green > 150 and blue < 100   # gold
