@@ -15,7 +15,6 @@ from epuck_ros.bringup.processes import executable, interrupt
 from epuck_ros.description import IMU_FRAME, sensor_frames, urdf
 from epuck_ros.model import (GROUND_SENSOR_NAMES, GROUND_SENSOR_POSES, IMU_POSITION, SENSOR_HEIGHT, SENSOR_POSES,
                              RobotModel)
-from epuck_ros.nodes.sense_ports import SENSE_POLL
 
 tf2_msgs = pytest.importorskip('tf2_msgs.msg', reason='tf2_msgs is not installed: run scripts/gen_tf2_msgs.sh')
 
@@ -91,7 +90,10 @@ def test_base_link_in_world_is_the_ground_truth_and_sensors_are_the_models(epuck
         sim.wait_for_controller()
         listener.spin_until(lambda: 'odom' in listener.static and 'ps3' in listener.static
                             and '/robot_description' in listener.descriptions, 'the static tree and description')
-        listener.spin_for(2 * SENSE_POLL)   # the simulator looks for subscribers on its sense topics this often
+        reached = 0.0   # the simulator looks for sense subscribers every 0.5 wall s: step on until it found ours
+        while not listener.imus and reached < 1.9:   # (at least 0.1 wall s a step: 5.9 s, a dozen looks)
+            reached = sim.run_until(reached + 0.01)
+            listener.spin_for(0.1)
         now = sim.run_until(2.0)
         listener.spin_until(lambda: 'base_link' in listener.dynamic and _stamp(listener.dynamic['base_link']) >= now
                             - 1e-9, f'/tf of t={now}')
