@@ -9,6 +9,7 @@ import signal
 import socket
 import subprocess
 import sys
+import threading
 import time
 from pathlib import Path
 
@@ -18,7 +19,9 @@ from conftest import BIN_DIR
 
 from epuck_ros.bag.reader import Bag
 from epuck_ros.bag.run_summary import load_runs
+from epuck_ros.behaviours import Observation, WheelCommand
 from epuck_ros.experiments.trial import Script, Trial, controller_from, run, run_trial
+from epuck_ros.model import MAX_WHEEL_SPEED, TIME_STEP, RobotModel
 
 REPO = Path(__file__).resolve().parents[1]
 EXAMPLE = REPO / 'epuck_ros' / 'experiments' / 'examples' / 'avoid_seeds.yaml'
@@ -91,6 +94,29 @@ def test_a_failing_controller_is_a_row_with_its_error():
         raise RuntimeError('controller bug')
     (row,) = run_trial(Trial(controller_from('avoid'), duration=1), policy=broken)
     assert row['error'] == 'RuntimeError: controller bug' and row['robot'] == ''
+
+
+def test_a_policy_of_the_forward_behaviours_speeds_is_the_forward_trial():
+    """A plain Python policy gets an observation per robot and step and drives as the behaviour it imitates: the
+    same rows (a robot that met a wall too), and speed x time for a robot that met nothing."""
+    observed: list[Observation] = []
+
+    def half_speed(observation: Observation) -> WheelCommand:
+        observed.append(observation)
+        return WheelCommand.fractions(0.5, 0.5)   # what `forward` with its defaults commands
+    trial = Trial(controller_from('forward'), robots=3, seed=0, duration=3.0)
+    with_policy = run_trial(trial, policy=half_speed)
+    without_wall = [{key: value for key, value in row.items() if key != 'wall_s'} for row in with_policy]
+    assert without_wall == [{key: value for key, value in row.items() if key != 'wall_s'} for row in run_trial(trial)]
+    assert all(row['error'] == '' for row in with_policy) and {row['contacts_obstacles'] for row in with_policy} == \
+        {0, 1}   # seed 0 puts one robot before a wall
+    steps = round(with_policy[0]['sim_time'] / TIME_STEP)   # the first step goes out with the wheels still
+    for row in with_policy:
+        if row['contacts_obstacles'] == 0:
+            assert row['distance_m'] == pytest.approx(0.5 * MAX_WHEEL_SPEED * RobotModel().wheel_radius *
+                                                      TIME_STEP * (steps - 1), rel=1e-9)
+    assert len(observed) == 3 * (steps - 1) and all(len(seen.ranges) == 8 for seen in observed)
+    assert [seen.time for seen in observed[::3]] == pytest.approx([TIME_STEP * (k + 1) for k in range(steps - 1)])
 
 
 def rows_of(table: Path) -> list[dict]:
@@ -240,14 +266,47 @@ def test_a_bad_spec_is_one_line_and_exit_2_before_any_trial(tmp_path, text, mess
     assert not (tmp_path / 'out' / 'trials.csv').exists()
 
 
+class SilentListener:
+    """A TCP port that accepts connections and never says a word: no Dask scheduler, yet reachable."""
+
+    def __init__(self) -> None:
+        self.server = socket.create_server(('127.0.0.1', 0))
+        self.address = f'tcp://127.0.0.1:{self.server.getsockname()[1]}'
+        self.accepted: list[socket.socket] = []
+        self.thread = threading.Thread(target=self._accept, daemon=True)
+        self.thread.start()
+
+    def _accept(self) -> None:
+        while True:
+            try:
+                self.accepted.append(self.server.accept()[0])
+            except OSError:   # closed
+                return
+
+    def close(self) -> None:
+        self.server.shutdown(socket.SHUT_RDWR)
+        self.server.close()
+        self.thread.join(timeout=10)
+        for connection in self.accepted:
+            connection.close()
+
+
 def test_an_unreachable_scheduler_is_one_line_and_exit_2(tmp_path):
-    """Nothing listens on the port: said at once (an address that does not answer: after 5 s)."""
-    began = time.monotonic()
-    result = sweep(str(small_spec(tmp_path, count=1, duration=1)), '-o', str(tmp_path / 'out'), '--scheduler',
-                   f'tcp://127.0.0.1:{free_port()}', timeout=120)
-    assert result.returncode == 2 and 'cannot reach the Dask scheduler' in result.stderr, result.stderr
-    assert 'Traceback' not in result.stderr
-    print(f'\nunreachable scheduler reported after {time.monotonic() - began:.1f} s')
+    """Nothing listens on the port: said at once; a port that accepts but never answers as a scheduler: said within
+    the sweep's 10 s for the whole connection (an address that does not answer: after 5 s)."""
+    listener = SilentListener()
+    try:
+        for address in (f'tcp://127.0.0.1:{free_port()}', listener.address):
+            began = time.monotonic()
+            result = sweep(str(small_spec(tmp_path, count=1, duration=1)), '-o', str(tmp_path / 'out'),
+                           '--scheduler', address, timeout=120)
+            took = time.monotonic() - began
+            assert result.returncode == 2 and 'cannot reach the Dask scheduler' in result.stderr, result.stderr
+            assert result.stderr.count('\n') == 1 and 'Traceback' not in result.stderr, result.stderr
+            assert took < 20, f'{address}: reported after {took:.1f} s'   # 10 s and the start of a process
+            print(f'\n{address}: unreachable scheduler reported after {took:.1f} s')
+    finally:
+        listener.close()
 
 
 def test_sweep_help_names_the_options():
@@ -320,9 +379,9 @@ def test_three_robots_each_driven_by_a_script_over_dds_are_the_headless_trial(la
     truth = {name: test_node.collect(Odometry, f'{name}/ground_truth', 1000) for name in names}
     contacts = {name: test_node.collect(UInt32, f'{name}/collisions', QoSProfile(
         depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)) for name in names}
-    sim = launch('sim', '--ros-args', '-p', 'robots:=3', '-p', 'seed:=3', '-p', 'lockstep:=true', '-p',
-                 'lockstep_timeout:=3.0', '-p', 'real_time_factor:=0.0', '-p', 'paused:=true', '-p', 'pause_at:=8.0')
-    sim.wait_for_output('sim ready')
+    launch('sim', '--ros-args', '-p', 'robots:=3', '-p', 'seed:=3', '-p', 'lockstep:=true', '-p',
+           'lockstep_timeout:=3.0', '-p', 'real_time_factor:=0.0', '-p', 'paused:=true', '-p', 'pause_at:=8.0')
+    test_node.wait_for_simulator()
     controllers = [launch('webots_controller', str(COURSE_AVOIDANCE), '--robot', name) for name in names]
     node = test_node.node
     test_node.spin_until(lambda: all(node.count_publishers(f'{name}/wheel_cmd') > 0 and

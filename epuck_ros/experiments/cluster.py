@@ -7,10 +7,12 @@ gives the same rows and the sweep still ends with every trial exactly once.
 from __future__ import annotations
 
 import argparse
+import asyncio
 import os
 import signal
 import socket
 import threading
+import time
 from collections.abc import Callable, Iterable, Iterator
 from contextlib import contextmanager
 from typing import Any, TypeVar
@@ -20,8 +22,10 @@ T = TypeVar('T')
 
 CONNECT_TIMEOUT = 5.0
 """Seconds for a TCP connection to a scheduler's address before saying it is unreachable (refused: at once)."""
-HANDSHAKE_TIMEOUT = 30.0
-"""Seconds for a scheduler that accepted the connection to answer as one (a busy machine's can be slow)."""
+SCHEDULER_TIMEOUT = 8.0
+"""Seconds for the whole connection to a scheduler, TCP, Dask's handshake and the client's registration: a port
+that accepts but never answers as a scheduler is one line and exit 2 within 10 s of the sweep's start, not a wait
+(Dask's own handshake read has no time-out)."""
 
 
 class ClusterError(RuntimeError):
@@ -57,12 +61,13 @@ def open_client(workers: int | None, scheduler: str | None) -> Iterator[object |
         return
     from dask.distributed import Client, LocalCluster
     if scheduler is not None:
-        _probe(scheduler)
+        deadline = time.monotonic() + SCHEDULER_TIMEOUT
         try:
-            client = Client(scheduler, timeout=HANDSHAKE_TIMEOUT)
+            _probe(scheduler, deadline)
+            client = Client(scheduler, timeout=max(0.1, deadline - time.monotonic()))
         except (OSError, TimeoutError, ValueError) as error:
-            raise ClusterError(f'cannot reach the Dask scheduler {scheduler} within {HANDSHAKE_TIMEOUT:g} s: '
-                               f'{error}') from None
+            raise ClusterError(f'cannot reach the Dask scheduler {scheduler} within {SCHEDULER_TIMEOUT:g} s: '
+                               f'{str(error) or "no answer as a Dask scheduler"}') from None
         try:
             yield client
         finally:
@@ -95,9 +100,9 @@ def _without_ctrl_c() -> Iterator[None]:
         signal.signal(signal.SIGINT, handler)
 
 
-def _probe(scheduler: str) -> None:
+def _probe(scheduler: str, deadline: float) -> None:
     """Raise ClusterError at once when nothing listens at a tcp:// address (Dask's connect retries until its
-    timeout)."""
+    timeout), TimeoutError when what listens does not answer Dask's handshake before `deadline` (monotonic)."""
     parts = urlsplit(scheduler if '://' in scheduler else f'tcp://{scheduler}')
     try:
         port = parts.port
@@ -109,6 +114,14 @@ def _probe(scheduler: str) -> None:
         socket.create_connection((parts.hostname, port), timeout=CONNECT_TIMEOUT).close()
     except OSError as error:
         raise ClusterError(f'cannot reach the Dask scheduler {scheduler}: {error.strerror or error}') from None
+    asyncio.run(_handshake(f'tcp://{parts.netloc}', max(0.1, deadline - time.monotonic())))
+
+
+async def _handshake(address: str, seconds: float) -> None:
+    """Dask's comm handshake with `address`, all of it within `seconds` (asyncio.TimeoutError, else)."""
+    from distributed.comm import connect
+    comm = await asyncio.wait_for(connect(address, timeout=seconds), seconds)
+    await comm.close()
 
 
 def map_in_order(client: object | None, function: Callable[[Any], T], items: Iterable[Any],
