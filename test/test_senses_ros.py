@@ -102,6 +102,27 @@ def test_find_red_box_example_stops_at_the_red_box(launch: object, test_node: ob
     assert run.stop_controller() == 0, run.output
 
 
+def test_light_seeker_example_drives_towards_the_light(launch: object, tmp_path: Path) -> None:
+    """The Braitenberg light seeker through `bringup --controller` in lockstep, recorded (bringup resumes the run
+    only once the recorder is subscribed, and closes the bag before the simulator goes: every step is in it): it
+    starts facing away from the lit arena's light, turns until its side sensors see it (drifting away meanwhile) and
+    ends near it, as headless (test_senses.py)."""
+    from epuck_ros.bag.reader import Bag
+    from epuck_ros.bag.run_summary import load_runs
+    duration, light = 40.0, (0.25, 0.25)
+    run = launch('bringup', '--controller', str(example('light_seeker')), '--world', str(WORLDS / 'lit_arena.yaml'),
+                 '--duration', str(duration), '--real-time-factor', '0', '--no-noise',
+                 '--record', str(tmp_path / 'run'))
+    assert run.proc.wait(timeout=240) == 0, run.output()
+    with Bag(tmp_path / 'run') as bag:
+        [recorded] = load_runs(bag)
+    truth = recorded.truth
+    start, end = (math.dist(light, (truth.x[i], truth.y[i])) for i in (0, -1))
+    print(f'light_seeker: {start:.3f} m from the light at t={truth.t[0]:.3f} s, {end:.3f} m at {truth.t[-1]:.3f} s')
+    assert truth.t[-1] - truth.t[0] == pytest.approx(duration, abs=0.1)
+    assert (truth.x[0], truth.y[0]) == pytest.approx((-0.2, -0.2), abs=0.01) and end < 0.15 < start
+
+
 def test_sense_topics_carry_the_cores_readings(launch: object, test_node: object) -> None:
     """Subscribers on every sense topic make the sim compute them; the messages match the core's readings."""
     from epuck_ros.simulation import Simulation
@@ -112,8 +133,8 @@ def test_sense_topics_carry_the_cores_readings(launch: object, test_node: object
     ground = test_node.collect(Float64MultiArray, 'ground_raw', 100)
     light = test_node.collect(Float64MultiArray, 'light_raw', 100)
     imus = test_node.collect(Imu, 'imu', 100)
-    sim = launch('sim', *ros_args({'world': str(world), 'real_time_factor': 0.0, 'noise': False}))
-    sim.wait_for_output('sim ready')
+    launch('sim', *ros_args({'world': str(world), 'real_time_factor': 0.0, 'noise': False}))
+    test_node.wait_for_simulator()
     test_node.spin_until(lambda: images and infos and ground and light and imus, timeout=30.0,
                          what='the sense topics')   # no command: the robot stands still, every step reads the same
     core = Simulation(load_world(world), noise=False)
@@ -182,9 +203,9 @@ def test_senses_parameter_and_camera_size(launch: object, test_node: object) -> 
     unknown sense is one line and exit code 2."""
     images = test_node.collect(Image, 'camera/image_raw', 10)
     infos = test_node.collect(CameraInfo, 'camera/camera_info', 10)
-    sim = launch('sim', *ros_args({'real_time_factor': 0.0, 'senses': 'ground', 'camera_width': 104,
-                                   'camera_height': 78}))
-    sim.wait_for_output('sim ready')
+    launch('sim', *ros_args({'real_time_factor': 0.0, 'senses': 'ground', 'camera_width': 104,
+                             'camera_height': 78}))
+    test_node.wait_for_simulator()
     test_node.spin_until(lambda: images and infos, what='a 104 x 78 image', timeout=30.0)
     assert (images[-1].width, images[-1].height, len(images[-1].data)) == (104, 78, 104 * 78 * 3)
     focal = 52 / math.tan(CAMERA_FOV / 2)
