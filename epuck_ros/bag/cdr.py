@@ -16,7 +16,7 @@ import re
 import struct
 from dataclasses import dataclass
 
-from epuck_ros.conversions import NS_PER_SECOND, yaw_from_quaternion
+from epuck_ros.conversions import NS_PER_SECOND, nanoseconds_from_stamp, yaw_from_quaternion
 
 ENCAPSULATION = 4
 """Bytes of the CDR encapsulation header in front of every message."""
@@ -79,7 +79,7 @@ def odometry_fields(buffer: bytes, start: int, end: int | None = None) -> tuple[
         raise _cut_short('nav_msgs/Odometry')
     x, y, _, qx, qy, qz, qw = _POSE.unpack_from(buffer, pose)
     vx, _, _, _, _, wz = _TWIST.unpack_from(buffer, pose + _POSE_AND_COVARIANCE)
-    return sec * NS_PER_SECOND + nanosec, x, y, yaw_from_quaternion(qx, qy, qz, qw), vx, wz
+    return nanoseconds_from_stamp(sec, nanosec), x, y, yaw_from_quaternion(qx, qy, qz, qw), vx, wz
 
 
 def range_fields(buffer: bytes, start: int, end: int | None = None) -> tuple[int, float, bytes]:
@@ -92,7 +92,7 @@ def range_fields(buffer: bytes, start: int, end: int | None = None) -> tuple[int
     if distance_at + 4 > end:
         raise _cut_short('sensor_msgs/Range')
     (distance,) = _FLOAT.unpack_from(buffer, distance_at)
-    return sec * NS_PER_SECOND + nanosec, distance, bytes(buffer[base + 12:base + 11 + frame_length])
+    return nanoseconds_from_stamp(sec, nanosec), distance, bytes(buffer[base + 12:base + 11 + frame_length])
 
 
 def shortest_float32(value: float) -> float:
@@ -222,7 +222,7 @@ class CdrDecoder:
                 raise CdrError(f'{self.type_name}: more than {MAX_ELEMENTS:,} array elements in one message')
             message[field_name], position = self._read_array(buffer, field_type, array, position)
         if name in _TIME_TYPES:
-            return TimeValue(message['sec'] * NS_PER_SECOND + message['nanosec']), position
+            return TimeValue(nanoseconds_from_stamp(message['sec'], message['nanosec'])), position
         return message, position
 
     def _read_array(self, buffer: bytes, field_type: str, count: int, position: int) -> tuple[list, int]:
