@@ -6,9 +6,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-REQUEST_RETRY = 2.0
-"""Wall seconds after which the resume is asked again, as `bringup` does (epuck_ros.bringup.monitor.REQUEST_RETRY):
-a first request to a just-discovered service can go unanswered (seen twice in about 60 runs)."""
+from epuck_ros.bringup.monitor import REQUEST_RETRY   # the resume is asked again as `bringup` asks it
 
 
 def cpu_seconds(pid: int) -> float | None:

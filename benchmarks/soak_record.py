@@ -12,7 +12,6 @@ Run: python benchmarks/soak_record.py [--minutes 10] [--interval 30] [--syntheti
 from __future__ import annotations
 
 import argparse
-import fcntl
 import os
 import shutil
 import signal
@@ -24,24 +23,9 @@ from pathlib import Path
 
 from epuck_ros.bag.info import format_info
 from epuck_ros.bag.reader import Bag
+from epuck_ros.testing.simulator import claim_free_domain
 
 BIN = Path(sys.executable).parent
-DOMAIN_LOCK_DIR = Path('/tmp/epuck_ros_test_domains')
-
-
-def claim_domain() -> int:
-    """A ROS_DOMAIN_ID (100-140) no test run or other soak holds; held while this process lives."""
-    DOMAIN_LOCK_DIR.mkdir(exist_ok=True)
-    for domain in range(100, 141):
-        handle = open(DOMAIN_LOCK_DIR / f'{domain}.lock', 'w')
-        try:
-            fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except OSError:
-            handle.close()
-            continue
-        claim_domain.handle = handle  # type: ignore[attr-defined]  # keep the lock
-        return domain
-    raise RuntimeError('no free ROS_DOMAIN_ID between 100 and 140')
 
 
 def rss_kib(pid: int) -> int:
@@ -103,7 +87,7 @@ def main() -> None:
                         help='bag compression (default zstd: 10 min at full speed is GBs uncompressed)')
     parser.add_argument('--keep', action='store_true', help='keep the bag (folder printed)')
     args = parser.parse_args()
-    domain = claim_domain()
+    domain, _claim = claim_free_domain()   # held while this process lives (domain_coordinator)
     env = dict(os.environ, ROS_DOMAIN_ID=str(domain), ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST',
                PYTHONUNBUFFERED='1')
     workdir = Path(tempfile.mkdtemp(prefix='epuck_soak_record_'))
