@@ -326,3 +326,25 @@ def test_the_sense_examples_do_their_jobs_headless():
     finder = headless_row('find_red_box.py', 'coloured_objects.yaml', 20.0)
     red = load_world(WORLDS / 'coloured_objects.yaml').boxes[0]
     assert np.hypot(finder['final_x'] - red.x, finder['final_y'] - red.y) < 0.2
+
+
+def test_the_shim_camera_takes_the_size_of_the_images_it_is_given():
+    """A simulation with a 104 x 78 camera, headless: the link says that size, and a Camera built with the e-puck's
+    52 x 39 hands out the 104 x 78 images it samples (getWidth/getHeight, the BGRA buffer) as they are."""
+    from types import SimpleNamespace
+
+    from epuck_ros.model import CAMERA_FOV, CAMERA_HEIGHT, CAMERA_NEAR, CAMERA_WIDTH
+    from epuck_ros.simulation import Simulation
+    from epuck_ros.webots.devices import Camera as ShimCamera
+    from epuck_ros.webots.headless import CoreLink
+    sim = Simulation(load_world(WORLDS / 'coloured_objects.yaml'), noise=False)
+    sim.senses.set_camera_size(104, 78)
+    link = CoreLink(SimpleNamespace(sim=sim), 0)
+    link.want('camera')
+    assert link.camera_size == (104, 78)
+    camera = ShimCamera('camera', lambda: 0, CAMERA_WIDTH, CAMERA_HEIGHT, CAMERA_FOV, CAMERA_NEAR)
+    camera.enable(32)
+    image = sim.senses.readings_of(0)['camera']
+    camera.sample(32_000_000, image)
+    assert (camera.getWidth(), camera.getHeight(), len(camera.getImage())) == (104, 78, 104 * 78 * 4)
+    assert camera.getImageArray()[103][77] == image[77, 103].tolist()

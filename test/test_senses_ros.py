@@ -214,3 +214,38 @@ def test_senses_parameter_and_camera_size(launch: object, test_node: object) -> 
     assert wrong.proc.wait(timeout=30) == 2
     assert wrong.output().strip().splitlines()[-1] == \
         "sim: cannot start: senses: unknown sense 'smell' (senses: camera, ground, light, imu)"
+
+
+CAMERA_SIZE_SCRIPT = """
+from controller import Camera, Robot
+robot = Robot()
+camera = robot.getDevice('camera')
+camera.enable(32)
+while robot.step(32) != -1:
+    image = camera.getImage()
+    if image is not None:
+        width, height = camera.getWidth(), camera.getHeight()
+        array = camera.getImageArray()
+        red = Camera.imageGetRed(image, width, width - 1, height - 1) == array[width - 1][height - 1][0]
+        print(f'camera {width} x {height}: {len(image)} bytes, {len(array)} x {len(array[0])}, {red}', flush=True)
+        break
+while robot.step(32) != -1:
+    pass
+"""
+
+
+def test_a_controllers_camera_has_the_sims_camera_size(launch: object, test_node: object, tmp_path: Path) -> None:
+    """With the sim's camera_width/height at 104 x 78, a Webots controller's camera hands out 104 x 78 images and
+    says so (getWidth/getHeight, the BGRA buffer, the image array), as its camera_info does."""
+    script = tmp_path / 'camera_size.py'
+    script.write_text(CAMERA_SIZE_SCRIPT)
+    run = ControllerRun(launch, test_node, script, 0.5, sim_params={'camera_width': 104, 'camera_height': 78})
+    run.finish()
+    assert 'camera 104 x 78: 32448 bytes, 104 x 78, True' in run.output, run.output
+    assert run.stop_controller() == 0, run.output
+    from epuck_ros.webots.link import SimLink
+    link = SimLink('camera_size_probe', '', lambda: False)   # what a Robot can build its camera with
+    try:
+        assert link.connect() == pytest.approx(0.032) and link.camera_size == (104, 78)
+    finally:
+        link.close()

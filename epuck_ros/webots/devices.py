@@ -348,7 +348,12 @@ class Camera(SampledSensor):
         self._bgra: bytes | None = None
 
     def _keep(self, value: object) -> np.ndarray:
-        rgb = np.asarray(value, dtype=np.uint8).reshape(self._height, self._width, 3)
+        """The image as the simulator made it, (height, width, 3): its size is the camera's from then on (the sim's
+        camera_width and camera_height may differ from the size the robot was built with)."""
+        rgb = np.asarray(value, dtype=np.uint8)
+        if rgb.ndim != 3:
+            rgb = rgb.reshape(self._height, self._width, 3)
+        self._height, self._width = rgb.shape[:2]
         self._bgra = None   # made on demand: a script may only read getImageArray
         return rgb
 

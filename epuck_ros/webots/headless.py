@@ -134,6 +134,12 @@ class CoreLink:
     def connect(self) -> float:
         return self._stage.sim.time_step
 
+    @property
+    def camera_size(self) -> tuple[int, int]:
+        """(width, height) of the core's camera images, as SimLink.camera_size over ROS."""
+        width, height = self._stage.sim.senses.camera_size
+        return width, height
+
     def first_step(self) -> StepData | None:
         return self._step_after(-1)
 

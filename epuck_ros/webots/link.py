@@ -19,6 +19,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
+from rcl_interfaces.msg import ParameterType, ParameterValue
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter_client import AsyncParameterClient
@@ -29,6 +30,7 @@ from sensor_msgs.msg import Image, Imu, JointState
 from std_msgs.msg import Float64MultiArray, Int32MultiArray
 
 from epuck_ros.conversions import nanoseconds_from_stamp
+from epuck_ros.model import CAMERA_HEIGHT, CAMERA_WIDTH
 from epuck_ros.nodes.ack_window import COMMAND_QOS
 from epuck_ros.nodes.robot_ports import JOINT_NAMES
 from epuck_ros.nodes.sense_ports import SENSE_TOPICS
@@ -46,6 +48,13 @@ PARAMETER_RETRY = 5.0
 """Wall seconds after which the request for the simulator's time_step is sent again."""
 ROBOT_CHOICE_GRACE = 3.0
 """Wall seconds the simulator's other robots may be in the graph without ours before `--robot` is refused."""
+
+
+def _camera_size(values: list[ParameterValue]) -> tuple[int, int]:
+    """The simulator's camera_width and camera_height parameters; the e-puck's own size if it has none."""
+    if len(values) == 2 and all(v.type == ParameterType.PARAMETER_INTEGER and v.integer_value > 0 for v in values):
+        return values[0].integer_value, values[1].integer_value
+    return CAMERA_WIDTH, CAMERA_HEIGHT
 
 
 class LinkError(RuntimeError):
@@ -128,6 +137,9 @@ class SimLink:
         self._feeds: dict[str, _SenseFeed] = {}
         self._subscriptions_of_senses: list = []
         self._led_publisher = None
+        self.camera_size = (CAMERA_WIDTH, CAMERA_HEIGHT)
+        """(width, height) of the simulator's camera images, known once `connect` has returned: a Camera built
+        with it answers getWidth/getHeight right before its first image too (it takes the size of each image)."""
 
     # --- callbacks --------------------------------------------------------------------------------------------
 
@@ -207,16 +219,27 @@ class SimLink:
         client = AsyncParameterClient(self.node, sources[0])
         if not self._wait(client.services_are_ready, f'the parameter services of {sources[0]}'):
             return None
-        future = client.get_parameters(['time_step'])
-        while not self._wait(future.done, f'{sources[0]} to answer', timeout=PARAMETER_RETRY):
-            if self._stop_waiting():
-                return None
-            future = client.get_parameters(['time_step'])  # a busy simulator may have lost the request
-        values = future.result().values
+        values = self._parameters(client, ['time_step'], sources[0])
+        if values is None:
+            return None
         value = values[0].double_value if values else 0.0
         if not value > 0.0:
             raise LinkError(f'{sources[0]} publishes /clock but has no time_step parameter: is it epuck_ros\'s sim?')
+        # Asked apart: a node that lacks one of the names asked for answers none of them.
+        sizes = self._parameters(client, ['camera_width', 'camera_height'], sources[0])
+        if sizes is None:
+            return None
+        self.camera_size = _camera_size(sizes)
         return value
+
+    def _parameters(self, client: AsyncParameterClient, names: list[str], source: str) -> list | None:
+        """The values of `names` on `source` (an empty list if it lacks one); None if told to stop first."""
+        future = client.get_parameters(names)
+        while not self._wait(future.done, f'{source} to answer', timeout=PARAMETER_RETRY):
+            if self._stop_waiting():
+                return None
+            future = client.get_parameters(names)  # a busy simulator may have lost the request
+        return list(future.result().values)
 
     def _clock_sources(self) -> list[str]:
         """Full names of the nodes publishing /clock (the graph knows an endpoint before its node's name)."""
