@@ -37,8 +37,14 @@ README_SCREENSHOT = Path(__file__).resolve().parents[1] / 'docs' / 'images' / 'v
 """Rewritten only when EPUCK_ROS_UPDATE_SCREENSHOT=1: a test run must not change tracked files."""
 THREE_ROBOTS = """
 arena: {size: [1.0, 0.8]}
-boxes: [{position: [-0.3, 0.2], size: [0.1, 0.1], yaw: 0.4}]
-cylinders: [{position: [0.25, -0.2], radius: 0.05}]
+boxes: [{position: [-0.3, 0.2], size: [0.1, 0.1], yaw: 0.4, color: [0.85, 0.2, 0.15]}]
+cylinders: [{position: [0.25, -0.2], radius: 0.05, color: [0.2, 0.35, 0.85]}]
+floor:
+  color: [0.96, 0.96, 0.93]
+  paint:
+    - {polyline: [[-0.45, -0.25], [-0.1, -0.25], [0.1, -0.05], [0.4, -0.05]], width: 0.02, color: [0.1, 0.1, 0.1]}
+    - {disc: [0.3, 0.25], radius: 0.06, color: [1.0, 0.85, 0.2]}
+lights: [{position: [0.3, 0.25, 0.07], intensity: 0.5}]
 robots:
   - {name: epuck0, start: [-0.3, -0.34, 0.0]}
   - {name: epuck1, start: [0.0, 0.1, 1.5708]}

@@ -207,7 +207,7 @@ function drawPaint(paint, sizeX, sizeY) {
 
 // A point light: a gold star with a dark edge, a fixed size on screen.
 function drawLight(light, scale) {
-  const outer = 11 / scale;
+  const outer = 15 / scale;
   ctx.beginPath();
   for (let i = 0; i < 10; i++) {
     const radius = i % 2 ? outer * 0.45 : outer;
@@ -217,8 +217,8 @@ function drawLight(light, scale) {
   ctx.closePath();
   ctx.fillStyle = 'gold';
   ctx.fill();
-  ctx.strokeStyle = '#4d4d4d';
-  ctx.lineWidth = 1.2 / scale;
+  ctx.strokeStyle = '#333';
+  ctx.lineWidth = 1.8 / scale;   // dark enough to show on the yellow paint a light often has under it
   ctx.lineJoin = 'miter';
   ctx.stroke();
 }
