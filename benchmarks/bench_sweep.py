@@ -10,7 +10,8 @@ Measured in one run on this machine:
   workers (start-up of the cluster excluded: it is paid once per sweep): trials per second, the speed-up of 2
   workers over 1, and Dask's overhead per trial against the in-process sweep.
 
-Run (ROS_DOMAIN_ID of your own): python benchmarks/bench_sweep.py [--seconds 60] [--trials 200]
+Run (ROS_DOMAIN_ID of your own): python benchmarks/bench_sweep.py [--seconds 60] [--trials 200]; `--sweep-only`
+runs only the avoid sweeps (in this process, 1 and 2 Dask workers), which give Dask's overhead per trial.
 """
 from __future__ import annotations
 
@@ -22,7 +23,6 @@ import subprocess
 import sys
 import time
 from collections.abc import Callable
-from dataclasses import replace
 from pathlib import Path
 
 from epuck_ros.experiments.cluster import open_client
@@ -83,38 +83,56 @@ def main() -> None:
     parser.add_argument('--seconds', type=float, default=60.0, help='simulated seconds per trial (default 60)')
     parser.add_argument('--trials', type=int, default=200, help='trials of the sweep (default 200)')
     parser.add_argument('--rounds', type=int, default=3, help='rounds of the sweeps, best kept (default 3)')
+    parser.add_argument('--sweep-only', action='store_true',
+                        help='only the avoid sweeps (in this process, 1 and 2 Dask workers): Dask\'s overhead')
     args = parser.parse_args()
     print(f'load average at the start: {os.getloadavg()[0]:.1f} ({os.cpu_count()} cores)')
-    trial = Trial(controller_from('avoid'), duration=args.seconds, seed=0)
-    run_trial(trial)   # imports and caches warm
-    ros, ros_cpu = best_of(2, lambda: bringup_trial(args.seconds))
+    run_trial(Trial(controller_from('avoid'), duration=args.seconds, seed=0))   # imports and caches warm
+    if not args.sweep_only:
+        single_trials(args.seconds)
+    avoid_sweeps(args.trials, args.seconds, args.rounds)
+    if not args.sweep_only:
+        script_sweeps(args.trials // 4, args.seconds, args.rounds)
+    print(f'load average at the end: {os.getloadavg()[0]:.1f}')
+
+
+def single_trials(seconds: float) -> None:
+    """One avoid trial and one script trial, through `bringup` and headless."""
+    trial = Trial(controller_from('avoid'), duration=seconds, seed=0)
+    ros, ros_cpu = best_of(2, lambda: bringup_trial(seconds))
     headless, headless_cpu = best_of(3, lambda: run_trial(trial))
-    print(f'one {args.seconds:g} s avoid trial: bringup {ros:.2f} s wall, {ros_cpu:.2f} s CPU (start-up included, '
+    print(f'one {seconds:g} s avoid trial: bringup {ros:.2f} s wall, {ros_cpu:.2f} s CPU (start-up included, '
           f'all its processes); headless {headless * 1000:.1f} ms wall, {headless_cpu * 1000:.1f} ms CPU: '
           f'{ros / headless:.0f}x faster per trial ({ros_cpu / headless_cpu:.0f}x less CPU); headless runs at '
-          f'{args.seconds / headless:.0f}x real time on one core')
-    script = Trial(Script(str(COURSE_AVOIDANCE)), duration=args.seconds, seed=0)
-    script_ros, script_ros_cpu = best_of(2, lambda: bringup_trial(args.seconds, '--controller',
+          f'{seconds / headless:.0f}x real time on one core')
+    script = Trial(Script(str(COURSE_AVOIDANCE)), duration=seconds, seed=0)
+    script_ros, script_ros_cpu = best_of(2, lambda: bringup_trial(seconds, '--controller',
                                                                   str(COURSE_AVOIDANCE)))
     in_process, in_process_cpu = best_of(5, lambda: run(script))
     isolated, isolated_cpu = best_of(5, lambda: run_trial(script))
-    print(f'the course\'s obstacle_avoidance.py for {args.seconds:g} s: bringup --controller {script_ros:.2f} s '
+    print(f'the course\'s obstacle_avoidance.py for {seconds:g} s: bringup --controller {script_ros:.2f} s '
           f'wall, {script_ros_cpu:.2f} s CPU; headless in this process {in_process * 1000:.1f} ms wall '
-          f'({args.seconds / in_process:.0f}x real time), {in_process_cpu * 1000:.1f} ms CPU '
-          f'({args.seconds / in_process_cpu:.0f}x); as a sweep runs it, in a forked child, {isolated * 1000:.1f} ms '
-          f'wall ({args.seconds / isolated:.0f}x real time, {script_ros / isolated:.0f}x faster than bringup), '
-          f'{isolated_cpu * 1000:.1f} ms CPU ({args.seconds / isolated_cpu:.0f}x)')
-    trials = [Trial(controller_from('avoid'), duration=args.seconds, seed=seed, index=seed)
-              for seed in range(args.trials)]
-    alone, one, two = best_rates(trials, (0, 1, 2), args.rounds)
-    print(f'{args.trials} avoid trials: in this process {alone:.1f} trials/s; local Dask, 1 worker {one:.1f} '
+          f'({seconds / in_process:.0f}x real time), {in_process_cpu * 1000:.1f} ms CPU '
+          f'({seconds / in_process_cpu:.0f}x); as a sweep runs it, in a forked child, {isolated * 1000:.1f} ms '
+          f'wall ({seconds / isolated:.0f}x real time, {script_ros / isolated:.0f}x faster than bringup), '
+          f'{isolated_cpu * 1000:.1f} ms CPU ({seconds / isolated_cpu:.0f}x)')
+
+
+def avoid_sweeps(count: int, seconds: float, rounds: int) -> None:
+    """`count` avoid trials in this process and on 1 and 2 local Dask workers: the rates, Dask's overhead."""
+    trials = [Trial(controller_from('avoid'), duration=seconds, seed=seed, index=seed) for seed in range(count)]
+    alone, one, two = best_rates(trials, (0, 1, 2), rounds)
+    print(f'{count} avoid trials: in this process {alone:.1f} trials/s; local Dask, 1 worker {one:.1f} '
           f'trials/s, 2 workers {two:.1f} trials/s ({two / one:.2f}x of 1 worker); Dask overhead per trial '
           f'{(1 / one - 1 / alone) * 1000:.2f} ms ({(alone / one - 1) * 100:.1f} % of a trial in this process)')
-    scripts = [replace(script, seed=seed, index=seed) for seed in range(args.trials // 4)]
-    alone, two = best_rates(scripts, (0, 2), args.rounds)
+
+
+def script_sweeps(count: int, seconds: float, rounds: int) -> None:
+    """`count` obstacle_avoidance.py trials in this process and on 2 local Dask workers."""
+    scripts = [Trial(Script(str(COURSE_AVOIDANCE)), duration=seconds, seed=seed, index=seed) for seed in range(count)]
+    alone, two = best_rates(scripts, (0, 2), rounds)
     print(f'{len(scripts)} obstacle_avoidance.py trials (each in a forked child): in this process {alone:.1f} '
           f'trials/s, local Dask of 2 workers {two:.1f} trials/s ({two / alone:.2f}x)')
-    print(f'load average at the end: {os.getloadavg()[0]:.1f}')
 
 
 if __name__ == '__main__':
