@@ -221,6 +221,7 @@ from controller import Camera, Robot
 robot = Robot()
 camera = robot.getDevice('camera')
 camera.enable(32)
+print(f'enabled {camera.getWidth()} x {camera.getHeight()}', flush=True)
 while robot.step(32) != -1:
     image = camera.getImage()
     if image is not None:
@@ -241,7 +242,8 @@ def test_a_controllers_camera_has_the_sims_camera_size(launch: object, test_node
     script.write_text(CAMERA_SIZE_SCRIPT)
     run = ControllerRun(launch, test_node, script, 0.5, sim_params={'camera_width': 104, 'camera_height': 78})
     run.finish()
-    assert 'camera 104 x 78: 32448 bytes, 104 x 78, True' in run.output, run.output
+    assert 'enabled 104 x 78' in run.output and 'camera 104 x 78: 32448 bytes, 104 x 78, True' in run.output, \
+        run.output
     assert run.stop_controller() == 0, run.output
     from epuck_ros.webots.link import SimLink
     link = SimLink('camera_size_probe', '', lambda: False)   # what a Robot can build its camera with

@@ -30,7 +30,7 @@ import rclpy
 from rclpy.signals import SignalHandlerOptions
 
 from epuck_ros.model import (
-    ACCELEROMETER_LOOKUP_TABLE, CAMERA_FOV, CAMERA_HEIGHT, CAMERA_NEAR, CAMERA_WIDTH, GROUND_LOOKUP_TABLE,
+    ACCELEROMETER_LOOKUP_TABLE, CAMERA_FOV, CAMERA_NEAR, GROUND_LOOKUP_TABLE,
     GROUND_SENSOR_NAMES, GYRO_LOOKUP_TABLE, LIGHT_LOOKUP_TABLE, LIGHT_SENSOR_NAMES, SENSOR_NAMES, RobotModel)
 from epuck_ros.nodes.dds_profile import use_package_profile
 from epuck_ros.nodes.spinning import end_process
@@ -156,7 +156,7 @@ class Robot:
         self._distance_sensors = [DistanceSensor(name, now, model.ir_table, model.ir_aperture)
                                   for name in SENSOR_NAMES]
         self._leds = [LED(name) for name in LED_NAMES]
-        self._camera = Camera('camera', now, CAMERA_WIDTH, CAMERA_HEIGHT, CAMERA_FOV, CAMERA_NEAR)
+        self._camera = Camera('camera', now, *self._link.camera_size, CAMERA_FOV, CAMERA_NEAR)   # the sim's size
         self._ground_sensors = [DistanceSensor(name, now, GROUND_LOOKUP_TABLE, 0.0) for name in GROUND_SENSOR_NAMES]
         self._light_sensors = [LightSensor(name, now, LIGHT_LOOKUP_TABLE) for name in LIGHT_SENSOR_NAMES]
         self._accelerometer = Accelerometer('accelerometer', now, ACCELEROMETER_LOOKUP_TABLE)
