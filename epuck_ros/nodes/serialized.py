@@ -24,6 +24,7 @@ from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
+from rosbags.serde import SerdeError
 from rosbags.typesys import Stores, get_typestore
 
 _LITTLE_ENDIAN_CDR = b'\x00\x01'
@@ -91,6 +92,7 @@ class Patch:
 
 
 _TYPESTORE = get_typestore(Stores.ROS2_JAZZY)
+_FLOAT64_ARRAY = 'std_msgs/msg/Float64MultiArray'
 _DTYPES = {'double': np.float64, 'float': np.float32, 'int8': np.int8, 'uint8': np.uint8, 'octet': np.uint8,
            'int16': np.int16, 'uint16': np.uint16, 'int32': np.int32, 'uint32': np.uint32, 'int64': np.int64,
            'uint64': np.uint64, 'boolean': np.bool_, 'char': np.uint8}
@@ -151,49 +153,15 @@ def _resolve(msg: Any, path: str) -> tuple[Any, str, int | None]:
 
 def float64_values(data: bytes) -> tuple[float, ...] | None:
     """The numbers of a serialised std_msgs/Float64MultiArray, None if the bytes are not one (a publisher may send
-    any bytes). Read here, never by rclpy: its C deserialiser prints a line to stderr for each bad message, which
-    a publisher of bad bytes would turn into a flood (the caller's throttled warning is all they should cost)."""
+    any bytes). One with a layout, or big-endian, is read by rosbags, never by rclpy: rclpy's C deserialiser prints
+    a line to stderr for each bad message, which a publisher of bad bytes would turn into a flood (the caller's
+    throttled warning is all they should cost). rosbags reads XCDR1, the encoding ROS 2 Jazzy's middlewares send
+    for this type; XCDR2 is refused like any other bytes that are no Float64MultiArray."""
     if data[:2] == _LITTLE_ENDIAN_CDR and len(data) >= _ARRAY_DATA:
         _, dims, _, count = _ARRAY_HEAD.unpack_from(data)
         if dims == 0 and len(data) >= _ARRAY_DATA + 8 * count:
             return struct.unpack_from(f'<{count}d', data, _ARRAY_DATA)
     try:
-        return _CdrReader(data).float64_array()
-    except ValueError:   # no Float64MultiArray in an encoding we read
+        return tuple(float(value) for value in _TYPESTORE.deserialize_cdr(data, _FLOAT64_ARRAY).data)
+    except SerdeError:
         return None
-
-
-class _CdrReader:
-    """Reads CDR from `data`, every length checked against what is left: ValueError, never a read past the end.
-
-    The encodings rclpy reads for a plain ROS type: XCDR1 (kind 0, 1), where an 8-byte value is 8-aligned, and
-    XCDR2 plain (kind 6, 7), where alignment stops at 4; bit 0 of the kind is little-endian. Offsets count from
-    after the 4-byte encapsulation header."""
-
-    def __init__(self, data: bytes) -> None:
-        if len(data) < 4 or data[0] != 0 or data[1] not in (0, 1, 6, 7):
-            raise ValueError('not a CDR encapsulation this reader knows')
-        self._data, self._position = memoryview(data)[4:], 0
-        self._order = '<' if data[1] & 1 else '>'
-        self._max_alignment = 8 if data[1] < 6 else 4
-
-    def _take(self, size: int, alignment: int) -> int:
-        """The offset of the next `size` bytes aligned to `alignment`, now read."""
-        start = -(-self._position // alignment) * alignment
-        if start + size > len(self._data):
-            raise ValueError('a length runs past the end of the buffer')
-        self._position = start + size
-        return start
-
-    def uint32(self) -> int:
-        return struct.unpack_from(self._order + 'I', self._data, self._take(4, 4))[0]
-
-    def float64_array(self) -> tuple[float, ...]:
-        """Float64MultiArray: layout (dims: label string, size, stride; data_offset), then data."""
-        for _ in range(self.uint32()):
-            self._take(self.uint32(), 1)   # the label with its NUL
-            self._take(8, 4)                # size, stride
-        self.uint32()                       # data_offset
-        count = self.uint32()
-        start = self._take(8 * count, min(8, self._max_alignment)) if count else self._position
-        return struct.unpack_from(f'{self._order}{count}d', self._data, start)
