@@ -8,6 +8,10 @@ its work (a summary, a closed bag, a picture, a CSV). Nothing is timed: the budg
 
 The one documented exception: `scripts/test.sh` would run this very suite again; it runs with `--collect-only`
 (it still sets up, sources the environment and must collect the tests).
+
+The commands run in README order in one scratch checkout, as a reader would type them: one may read what an earlier
+one wrote (`bag summary bags/headless_avoid` after the run that records it), so scripts/test.sh keeps a test file in
+one process (`--dist loadfile`).
 """
 from __future__ import annotations
 
