@@ -150,6 +150,23 @@ def test_in_process_and_on_a_local_cluster_give_the_same_rows(tmp_path):
     assert float(first['final_x']) == float(repr(float(first['final_x']))) and first['error'] == ''
 
 
+def _cores_of_every_thread() -> list[int]:
+    return sorted({core for thread in os.listdir('/proc/self/task') for core in os.sched_getaffinity(int(thread))})
+
+
+@pytest.mark.skipif(not hasattr(os, 'sched_setaffinity'), reason='thread placement is Linux only')
+def test_a_local_cluster_keeps_each_worker_on_a_core_of_its_own():
+    """Else a trial's GIL releases wake the worker's event loop on another core, and the trial pays for it
+    (experiments/placement.py)."""
+    from epuck_ros.experiments.cluster import open_client
+    cores = sorted(os.sched_getaffinity(0))
+    with open_client(2, None) as client:
+        placed = client.run(_cores_of_every_thread)
+        names = client.run(lambda dask_worker: dask_worker.name)
+    by_name = {names[address]: cores_of_worker for address, cores_of_worker in placed.items()}
+    assert by_name == {0: [cores[0]], 1: [cores[1 % len(cores)]]}
+
+
 def free_port() -> int:
     with socket.socket() as probe:
         probe.bind(('127.0.0.1', 0))

@@ -19,6 +19,8 @@ from typing import Any, TypeVar
 from urllib.parse import urlsplit
 
 T = TypeVar('T')
+PIN_LOCAL_WORKERS = True
+"""Whether a local cluster keeps each worker process on a core of its own (`placement.OneCorePerWorker`)."""
 
 CONNECT_TIMEOUT = 5.0
 """Seconds for a TCP connection to a scheduler's address before saying it is unreachable (refused: at once)."""
@@ -80,6 +82,9 @@ def open_client(workers: int | None, scheduler: str | None) -> Iterator[object |
                                dashboard_address=':0', silence_logs=50)
     client = Client(cluster)
     try:
+        if PIN_LOCAL_WORKERS:   # else a trial takes more CPU in a worker (placement.py says why)
+            from epuck_ros.experiments.placement import OneCorePerWorker
+            client.register_plugin(OneCorePerWorker(), name='epuck_ros-one-core-per-worker')
         yield client
     finally:
         with _without_ctrl_c():   # a close cut short by Ctrl-C left the worker processes running
