@@ -33,6 +33,9 @@ class Observation:
 FREE_READING_SIGMAS = 3.0
 """A raw reading within this many noise standard deviations of the far end of the lookup table is "nothing seen"."""
 _EPUCK_TABLE = LookupTable(IR_LOOKUP_TABLE)
+_EPUCK_SEEN_ABOVE = float(IR_LOOKUP_TABLE[-1, 1] * (1.0 + FREE_READING_SIGMAS * IR_LOOKUP_TABLE[-1, 2]))
+"""The e-puck's raw value above which a sensor saw something (`ranges_from_raw`), a plain float: compared eight
+times a tick."""
 
 
 def ranges_from_raw(raw: ArrayLike, table: np.ndarray = IR_LOOKUP_TABLE) -> tuple[float, ...]:
@@ -42,9 +45,11 @@ def ranges_from_raw(raw: ArrayLike, table: np.ndarray = IR_LOOKUP_TABLE) -> tupl
     (1 + 4.9 % noise). A reading up to FREE_READING_SIGMAS standard deviations above that (raw 77.1, 0.0673 m)
     counts as nothing seen, so a free sensor reads inf as on the simulator's `proximity` topic, and the course's
     threshold (raw 80, 0.0665 m) keeps its meaning; beyond it the inverse table as the simulator's own ranges."""
+    if table is IR_LOOKUP_TABLE:   # the e-puck's, prepared once
+        return tuple(_EPUCK_TABLE.ranges_of([float(value) for value in raw], _EPUCK_SEEN_ABOVE))
     _, far_raw, far_noise = table[-1]
-    lookup = _EPUCK_TABLE if table is IR_LOOKUP_TABLE else LookupTable(table)  # the e-puck's prepared once
-    return tuple(lookup.ranges_of([float(value) for value in raw], far_raw * (1.0 + FREE_READING_SIGMAS * far_noise)))
+    return tuple(LookupTable(table).ranges_of([float(value) for value in raw],
+                                              far_raw * (1.0 + FREE_READING_SIGMAS * far_noise)))
 
 
 @dataclass(frozen=True)
@@ -150,12 +155,13 @@ class Behaviour(ABC):
         """Seconds between the last two ticks (0 until there were two): timed states end on the nearest tick."""
 
     def update(self, obs: Observation) -> WheelCommand:
-        missing = [name for name, needed, value in (('odom', self.needs_odom, obs.odom),
-                                                    ('proximity', self.needs_proximity, obs.ranges))
-                   if needed and value is None]
-        self.waiting_for = ' and '.join(missing)
-        if missing:
+        if (self.needs_odom and obs.odom is None) or (self.needs_proximity and obs.ranges is None):
+            missing = [name for name, needed, value in (('odom', self.needs_odom, obs.odom),
+                                                        ('proximity', self.needs_proximity, obs.ranges))
+                       if needed and value is None]
+            self.waiting_for = ' and '.join(missing)
             return STOP
+        self.waiting_for = ''   # every tick once all is heard: no list built (a headless trial ticks fast)
         if self._last_time is not None:
             self.period = obs.time - self._last_time
         self._last_time = obs.time

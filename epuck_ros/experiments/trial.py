@@ -24,8 +24,7 @@ from typing import TYPE_CHECKING, Any
 from epuck_ros.bag.tally import RunTally
 from epuck_ros.behaviours import BEHAVIOURS, Behaviour, Observation, WheelCommand
 from epuck_ros.behaviours.base import ranges_from_raw
-from epuck_ros.conversions import (nanoseconds_from_stamp, quaternion_from_yaw, stamp_from_seconds,
-                                   yaw_from_quaternion)
+from epuck_ros.conversions import quaternion_from_yaw, yaw_from_quaternion
 from epuck_ros.experiments.isolation import ChildFailed, call_in_child
 from epuck_ros.lockstep import Lockstep
 from epuck_ros.model import TIME_STEP, RobotModel
@@ -147,20 +146,24 @@ def run(trial: Trial, policy: Policy | None = None,
     world = trial.load_world()
     sim = Simulation(world, RobotModel(), time_step=TIME_STEP, seed=trial.seed, noise=trial.noise)
     several = len(world.robots) > 1
-    tally = RunTally([name if several else '' for name in sim.names], world)
+    labels = [name if several else '' for name in sim.names]
+    """Each robot's name in the tally (one robot: '', as `bag summary` names a run's only robot)."""
+    tally = RunTally(labels, world)
+    duration = trial.duration
 
     def over() -> bool:   # the simulator pauses on the first step at or after the duration
-        return sim.time + 1e-9 >= trial.duration
+        return sim.time + 1e-9 >= duration
 
     def publish(resend: bool) -> None:
         sim.step()
-        _published(sim, tally, several, each_step)
+        _published(sim, tally, labels, each_step)
 
     stage = trial.controller.stage(sim, over) if isinstance(trial.controller, Script) and policy is None else None
     controllers = stage.seats if stage is not None else [policy or trial.controller.make() for _ in sim.names]
-    # What each controller's node subscribes (a plain policy gets everything).
-    needs_odom = [getattr(controller, 'needs_odom', True) for controller in controllers]
-    needs_ranges = [getattr(controller, 'needs_proximity', True) for controller in controllers]
+    # What each controller's node subscribes (a plain policy gets everything), and how each is asked: looked up
+    # once, not at every step (this loop runs once per robot per step, beside a core that is itself fast).
+    robots = [(robot, _answerer(controller), getattr(controller, 'needs_odom', True),
+               getattr(controller, 'needs_proximity', True)) for robot, controller in enumerate(controllers)]
     # Stepped as the sim node steps, through a Lockstep that waits for every robot (each has its controller). The
     # scripts answer from their own threads, and the thread of a step's last answer takes the next step itself.
     lockstep = stage.lockstep_for(publish) if stage is not None else Lockstep(len(sim.names), publish, timeout=0.0)
@@ -169,10 +172,10 @@ def run(trial: Trial, policy: Policy | None = None,
         lockstep.step()   # the first step goes out with no command: the wheels are still
         while not over():
             now = _stamp_seconds(sim.time)
-            for robot, controller in enumerate(controllers):
-                odom = _odometry_as_received(sim.odom_pose[robot]) if needs_odom[robot] else None
-                ranges = ranges_from_raw(sim.ir_raw[robot].tolist()) if needs_ranges[robot] else None
-                command = _update(controller, Observation(now, odom, ranges))
+            for robot, update, needs_odom, needs_ranges in robots:
+                odom = _odometry_as_received(sim.odom_pose[robot]) if needs_odom else None
+                ranges = ranges_from_raw(sim.ir_raw[robot].tolist()) if needs_ranges else None
+                command = update(Observation(now, odom, ranges))
                 if command is not None:   # None: a script that answers from its thread
                     sim.command_wheels(robot, command.left, command.right)
                     lockstep.answer(robot)
@@ -191,18 +194,20 @@ def run(trial: Trial, policy: Policy | None = None,
     return sim, tally
 
 
-def _update(controller: Behaviour | Policy | ScriptSeat, observation: Observation) -> WheelCommand | None:
-    return controller.update(observation) if hasattr(controller, 'update') else controller(observation)
+def _answerer(controller: Behaviour | Policy | ScriptSeat) -> Callable[[Observation], WheelCommand | None]:
+    """How a controller is asked for its command: a behaviour's or a seat's `update`, or the policy itself."""
+    return controller.update if hasattr(controller, 'update') else controller
 
 
-def _published(sim: Simulation, tally: RunTally, several: bool, each_step: Callable[[Simulation], None] | None
-               ) -> None:
-    """A step as the simulator publishes it: its ground truth (stamped with the step) into the tally."""
+def _published(sim: Simulation, tally: RunTally, labels: Sequence[str],
+               each_step: Callable[[Simulation], None] | None) -> None:
+    """A step as the simulator publishes it: its ground truth (stamped with the step) into the tally, each robot
+    under its `labels` entry."""
     if each_step is not None:
         each_step(sim)
-    stamp = nanoseconds_from_stamp(*stamp_from_seconds(sim.time))
-    for name, (x, y, _) in zip(sim.names, sim.true_pose.tolist()):
-        tally.add(name if several else '', stamp, x, y)
+    stamp = round(sim.time * 1e9)   # nanoseconds_from_stamp(*stamp_from_seconds(sim.time)), the same integer
+    for label, (x, y, _) in zip(labels, sim.true_pose.tolist()):
+        tally.add(label, stamp, x, y)
 
 
 def _stamp_seconds(seconds: float) -> float:
