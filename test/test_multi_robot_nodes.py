@@ -17,11 +17,12 @@ from rcl_interfaces.msg import Parameter as ParameterMsg, ParameterType, Paramet
 from rcl_interfaces.srv import SetParameters
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rosgraph_msgs.msg import Clock
-from sensor_msgs.msg import JointState, Range
+from sensor_msgs.msg import CameraInfo, Imu, JointState, Range
 from std_msgs.msg import Float64MultiArray, String
 from std_srvs.srv import Trigger
 
 from epuck_ros.nodes.ack_window import history_steps
+from epuck_ros.nodes.sense_ports import SENSE_TOPICS_ON_DEMAND_FROM
 
 STEP = 0.032
 HALF_SPEED = 3.14
@@ -346,3 +347,32 @@ def test_a_swarm_simulator_stops_at_once_while_starting_and_when_running(launch,
     test_node.wait_for_simulator(timeout=120)
     running.proc.send_signal(signal.SIGTERM)
     assert running.proc.wait(timeout=60) == 0, running.output()
+
+
+def test_a_swarm_offers_a_sense_topic_once_it_has_a_subscriber(launch, test_node, tmp_path):
+    """From SENSE_TOPICS_ON_DEMAND_FROM robots the sense topics' publishers are made on demand: none at start, the
+    topic's once a subscriber to it is in the graph; the sense is then computed and published each step, and every
+    other robot's stays without a publisher."""
+    world = tmp_path / 'big.yaml'
+    world.write_text('arena: {size: [10.0, 10.0]}\n')
+    robots = SENSE_TOPICS_ON_DEMAND_FROM
+    launch('sim', *ros_args({'world': str(world), 'robots': robots, 'paused': True, 'noise': False}))
+    test_node.wait_for_simulator(timeout=120)
+    node = test_node.node
+    assert node.count_publishers('/epuck7/odom') == 1
+    assert all(node.count_publishers(f'/epuck7/{topic}') == 0
+               for topic in ('imu', 'camera/image_raw', 'camera/camera_info', 'ground_raw', 'light_raw'))
+    imus, imu_sub = subscribe(test_node, Imu, '/epuck7/imu')
+    infos, info_sub = subscribe(test_node, CameraInfo, '/epuck7/camera/camera_info')
+    test_node.spin_until(lambda: imu_sub.get_publisher_count() and info_sub.get_publisher_count(), timeout=30,
+                         what='the sim to offer the topics subscribed to')
+    client = node.create_client(Trigger, '/step')
+    assert client.wait_for_service(timeout_sec=20.0)
+    future = client.call_async(Trigger.Request())
+    test_node.spin_until(future.done, what='the step service')
+    assert future.result().success
+    test_node.spin_until(lambda: imus and infos, what='the step\'s imu and camera_info')
+    assert seconds(imus[0].header.stamp) == pytest.approx(STEP) and imus[0].header.frame_id == 'epuck7/imu'
+    assert imus[0].linear_acceleration.z == pytest.approx(9.81)
+    assert infos[0].header.frame_id == 'epuck7/camera'
+    assert node.count_publishers('/epuck8/imu') == 0 and node.count_publishers('/epuck7/ground_raw') == 0

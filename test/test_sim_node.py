@@ -333,3 +333,35 @@ def test_another_middleware_gets_one_warning(monkeypatch):
     monkeypatch.setattr(rclpy, 'get_rmw_implementation_identifier', lambda: 'rmw_cyclonedds_cpp')
     warn_if_not_fast_dds(Logger())
     assert len(said) == 1 and 'middleware rmw_cyclonedds_cpp: epuck_ros is tuned for rmw_fastrtps_cpp' in said[0]
+
+
+def test_the_simulator_profile_is_the_package_profile_without_local_matching(monkeypatch):
+    """fastdds_sim_profiles.xml is fastdds_profiles.xml plus fastdds.ignore_local_endpoints (the file says why): any
+    other difference would make the simulator's DDS behave unlike its peers'. It is the simulator's unless the user
+    chose a profile; the package's, which `bringup` passes to its children, is no choice of the user's."""
+    import os
+    import xml.etree.ElementTree as ET
+
+    from epuck_ros.nodes.dds_profile import PROFILES_FILE, PROFILES_VARIABLE
+    from epuck_ros.nodes.sim_node import SIM_PROFILES_FILE, use_simulator_profile
+
+    def settings(path: Path) -> list[tuple[str, str]]:
+        tree = ET.parse(path)
+        return [(element.tag, (element.text or '').strip()) for element in tree.iter()] + \
+            [(element.tag, str(sorted(element.attrib.items()))) for element in tree.iter() if element.attrib]
+
+    ignore = [('{http://www.eprosima.com/XMLSchemas/fastRTPS_Profiles}' + tag, text) for tag, text in [
+        ('propertiesPolicy', ''), ('properties', ''), ('property', ''), ('name', 'fastdds.ignore_local_endpoints'),
+        ('value', 'true')]]
+    sim = settings(SIM_PROFILES_FILE)
+    start = sim.index(ignore[0])
+    assert sim[start:start + len(ignore)] == ignore
+    assert sim[:start] + sim[start + len(ignore):] == settings(PROFILES_FILE)
+    for chosen, used in [(None, SIM_PROFILES_FILE), (str(PROFILES_FILE), SIM_PROFILES_FILE),
+                         ('/home/me/my_profile.xml', Path('/home/me/my_profile.xml'))]:
+        if chosen is None:
+            monkeypatch.delenv(PROFILES_VARIABLE, raising=False)
+        else:
+            monkeypatch.setenv(PROFILES_VARIABLE, chosen)
+        use_simulator_profile()
+        assert Path(os.environ[PROFILES_VARIABLE]) == used

@@ -23,7 +23,7 @@ from std_msgs.msg import Float64MultiArray, UInt32
 from epuck_ros.conversions import quaternion_from_yaw
 from epuck_ros.description import JOINT_NAMES
 from epuck_ros.model import SENSOR_NAMES, RobotModel
-from epuck_ros.nodes.serialized import Patch, float64_values
+from epuck_ros.nodes.serialized import PatchCache, float64_values
 from epuck_ros.simulation import Simulation
 
 WORLD_FRAME = 'world'
@@ -62,7 +62,10 @@ class RobotPorts:
 
     def __init__(self, node: Node, index: int, name: str, several: bool, stream_qos: QoSProfile,
                  latched_qos: QoSProfile, on_command: CommandHandler, frames_prefix: str = '',
-                 cmd_vel_stamped: bool = False, model: RobotModel = RobotModel()) -> None:
+                 cmd_vel_stamped: bool = False, model: RobotModel = RobotModel(),
+                 patches: PatchCache | None = None) -> None:
+        """`patches`: shared by the robots of a node, so that each robot's messages are located from the first
+        robot's of the same layout (`PatchCache`)."""
         self.index, self.name = index, name
         topics = topic_prefix(name, several)
         frames = frame_prefix(name, several, frames_prefix)
@@ -70,7 +73,7 @@ class RobotPorts:
         world_frame = frames_prefix + WORLD_FRAME  # shared by all robots, as are the world's markers
         self._on_command = on_command
         self._logger = node.get_logger()
-        self._make_messages(frames, world_frame, model)
+        self._make_messages(frames, world_frame, model, patches or PatchCache())
 
         self._odom_pub = quiet_publisher(node, Odometry, topics + 'odom', stream_qos)
         self._truth_pub = quiet_publisher(node, Odometry, topics + 'ground_truth', stream_qos)
@@ -89,18 +92,20 @@ class RobotPorts:
         self._wheels_sub = node.create_subscription(Float64MultiArray, topics + 'wheel_cmd', self._wheels, 10,
                                                     raw=True)
 
-    def _make_messages(self, frames: str, world_frame: str, model: RobotModel) -> None:
-        """Each step message is serialised once; a step only patches its numbers in (see `serialized`)."""
+    def _make_messages(self, frames: str, world_frame: str, model: RobotModel, patches: PatchCache) -> None:
+        """Each step message is serialised once; a step only patches its numbers in (see `serialized`). A robot's
+        frame ids are as long as another's when their names are: the layout of their messages."""
+        layout = len(frames)
         odom = Odometry()
         odom.header.frame_id = self.odom_frame
         odom.child_frame_id = self.base_frame
         odom.pose.covariance = _diagonal(POSE_COVARIANCE)
         odom.twist.covariance = _diagonal(TWIST_COVARIANCE)
-        self._odom = Patch(odom, ODOMETRY_FIELDS)
+        self._odom = patches.patch(odom, ODOMETRY_FIELDS, ('odom', layout))
         truth = Odometry()
         truth.header.frame_id = world_frame
         truth.child_frame_id = self.base_frame
-        self._truth = Patch(truth, ODOMETRY_FIELDS)
+        self._truth = patches.patch(truth, ODOMETRY_FIELDS, ('truth', layout))
         self._ranges = []
         for sensor in SENSOR_NAMES:
             msg = Range()
@@ -109,12 +114,12 @@ class RobotPorts:
             msg.field_of_view = model.ir_aperture
             msg.min_range = 0.0
             msg.max_range = model.ir_range
-            self._ranges.append(Patch(msg, STAMP_FIELDS + [('range', 'f')]))
+            self._ranges.append(patches.patch(msg, STAMP_FIELDS + [('range', 'f')], layout))
         joints = JointState(name=JOINT_NAMES, position=[0.0, 0.0], velocity=[0.0, 0.0])
-        self._joints = Patch(joints, STAMP_FIELDS + [('position[0]', 'd'), ('position[1]', 'd'),
-                                                     ('velocity[0]', 'd'), ('velocity[1]', 'd')])
-        self._raw = Patch(Float64MultiArray(data=[0.0] * len(SENSOR_NAMES)),
-                          [(f'data[{i}]', 'd') for i in range(len(SENSOR_NAMES))])
+        self._joints = patches.patch(joints, STAMP_FIELDS + [('position[0]', 'd'), ('position[1]', 'd'),
+                                                             ('velocity[0]', 'd'), ('velocity[1]', 'd')], None)
+        self._raw = patches.patch(Float64MultiArray(data=[0.0] * len(SENSOR_NAMES)),
+                                  [(f'data[{i}]', 'd') for i in range(len(SENSOR_NAMES))], None)
 
     # --- commands ---------------------------------------------------------------------------------------
 

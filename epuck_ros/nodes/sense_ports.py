@@ -2,6 +2,8 @@
 imu (design.md, "Senses"); each sense is computed only while it is wanted.
 
 Wanted means a subscriber on its topic (so an echo, RViz or a recorder just works), or the `senses` parameter.
+From SENSE_TOPICS_ON_DEMAND_FROM robots a topic's publisher is made only once a subscriber to it is in the graph
+(`SensePorts`).
 The node looks at the subscriber counts every SENSE_POLL wall seconds (`update_wants`), not every step: a swarm's
 thousands of topics would cost more than its steps. A sense newly wanted is read at once from the current state,
 so the next step's messages carry it. Messages are serialised once and patched each step (`serialized`), the
@@ -12,6 +14,7 @@ from __future__ import annotations
 from collections.abc import Callable
 
 from rclpy.node import Node
+from rclpy.publisher import Publisher
 from rclpy.qos import QoSProfile
 from sensor_msgs.msg import CameraInfo, Image, Imu
 from std_msgs.msg import Float64MultiArray
@@ -33,6 +36,14 @@ SENSE_POLL = 0.5
 """Wall seconds between two looks at which sense topics have subscribers."""
 SENSE_TOPICS = {'camera': 'camera/image_raw', 'ground': 'ground_raw', 'light': 'light_raw', 'imu': 'imu'}
 """Each sense and the topic whose subscribers want it."""
+SENSE_TOPICS_ON_DEMAND_FROM = 200
+"""Robots from which the simulator makes a sense topic's publisher only once the topic has a reader
+(`SensePorts`' on_demand): below, their publishers cost little at start and every topic is in the graph."""
+_CAMERA_INFO = 'camera_info'
+_PUBLISHED = {**SENSE_TOPICS, _CAMERA_INFO: 'camera/camera_info'}
+"""Every sense topic of a robot by kind (the camera has two); `_TYPES`: their message types."""
+_TYPES = {'camera': Image, _CAMERA_INFO: CameraInfo, 'ground': Float64MultiArray, 'light': Float64MultiArray,
+          'imu': Imu}
 IMU_FIELDS = STAMP_FIELDS + [(f'{vector}.{axis}', 'd') for vector in ('angular_velocity', 'linear_acceleration')
                              for axis in 'xyz']
 
@@ -57,27 +68,42 @@ class ImagePatch:
 
 
 class SensePorts:
-    """The sense topics of robot `index`."""
+    """The sense topics of robot `index`.
+
+    `on_demand`: each topic's publisher is made only once a subscriber to it is in the graph (`offer`, which the
+    node calls), not at start. A swarm's thousands of sense publishers were the largest part of its start-up and of
+    its memory, for topics hardly any of its robots ever has a reader of; the price is that a topic without a reader
+    is not in the graph (`ros2 topic list`, RViz's list by topic, a recorder of all topics do not see it), so a
+    reader names its type. The node uses it from SENSE_TOPICS_ON_DEMAND_FROM robots."""
 
     def __init__(self, node: Node, index: int, name: str, several: bool, stream_qos: QoSProfile,
-                 sim: Simulation, frames_prefix: str = '') -> None:
+                 sim: Simulation, frames_prefix: str = '', on_demand: bool = False) -> None:
         self.index = index
         topics = topic_prefix(name, several)
         frames = frame_prefix(name, several, frames_prefix)
         width, height = sim.senses.camera_size
-        self._image_pub = quiet_publisher(node, Image, topics + SENSE_TOPICS['camera'], stream_qos)
-        self._info_pub = quiet_publisher(node, CameraInfo, topics + 'camera/camera_info', stream_qos)
-        self._ground_pub = quiet_publisher(node, Float64MultiArray, topics + SENSE_TOPICS['ground'], stream_qos)
-        self._light_pub = quiet_publisher(node, Float64MultiArray, topics + SENSE_TOPICS['light'], stream_qos)
-        self._imu_pub = quiet_publisher(node, Imu, topics + SENSE_TOPICS['imu'], stream_qos)
-        self._publishers = {'camera': self._image_pub, 'ground': self._ground_pub, 'light': self._light_pub,
-                            'imu': self._imu_pub}
+        self._node, self._qos = node, stream_qos
+        self.topics = {kind: topics + topic for kind, topic in _PUBLISHED.items()}
+        """Each of its topics (relative to the node's namespace) by kind: SENSE_TOPICS' and 'camera_info'."""
+        self._publishers: dict[str, Publisher | None] = dict.fromkeys(_PUBLISHED)
+        if not on_demand:
+            for kind in _PUBLISHED:
+                self.offer(kind)
         self._frames, self._size = frames, (width, height)
         self._made = False
         self.subscribed = {kind: False for kind in SENSE_TOPICS}
         self._info_subscribed = False
         self.publishing = False
         """Some sense topic of this robot has a subscriber: the node calls `publish` after each step."""
+
+    def offers(self, kind: str) -> bool:
+        """Whether the topic of `kind` has its publisher."""
+        return self._publishers[kind] is not None
+
+    def offer(self, kind: str) -> None:
+        """The publisher of the topic of `kind` (a key of `topics`), made if it is not yet."""
+        if self._publishers[kind] is None:
+            self._publishers[kind] = quiet_publisher(self._node, _TYPES[kind], self.topics[kind], self._qos)
 
     def _make_messages(self) -> None:
         """The messages, serialised once, when a sense of this robot is first wanted (a swarm's robots mostly never
@@ -105,27 +131,29 @@ class SensePorts:
 
     def update_wants(self, want: Callable[[str, int, bool], None], forced: frozenset[str]) -> None:
         """Tell the simulation which of this robot's senses are wanted now (`forced`: by the parameter)."""
-        for kind, publisher in self._publishers.items():
-            subscribed = publisher.get_subscription_count() > 0
+        for kind in SENSE_TOPICS:
+            publisher = self._publishers[kind]
+            subscribed = publisher is not None and publisher.get_subscription_count() > 0
             if subscribed != self.subscribed[kind]:
                 self.subscribed[kind] = subscribed
                 want(kind, self.index, subscribed or kind in forced)
-        self._info_subscribed = self._info_pub.get_subscription_count() > 0
+        info = self._publishers[_CAMERA_INFO]
+        self._info_subscribed = info is not None and info.get_subscription_count() > 0
         self.publishing = self._info_subscribed or any(self.subscribed.values())
         if self.publishing and not self._made:
             self._make_messages()
 
     def publish(self, sim: Simulation, stamp: tuple[int, int]) -> None:
         """This robot's sense messages for the senses with subscribers (their readings are those of this step)."""
-        robot, senses, subscribed = self.index, sim.senses, self.subscribed
+        robot, senses, subscribed, publishers = self.index, sim.senses, self.subscribed, self._publishers
         if subscribed['camera'] and senses.images is not None:
-            self._image_pub.publish(self._image.bytes(stamp, senses.images[robot].tobytes()))
+            publishers['camera'].publish(self._image.bytes(stamp, senses.images[robot].tobytes()))
         if self._info_subscribed:
-            self._info_pub.publish(self._info.bytes(stamp))
+            publishers[_CAMERA_INFO].publish(self._info.bytes(stamp))
         if subscribed['ground']:
-            self._ground_pub.publish(self._ground.bytes(senses.ground_raw[robot].tolist()))
+            publishers['ground'].publish(self._ground.bytes(senses.ground_raw[robot].tolist()))
         if subscribed['light']:
-            self._light_pub.publish(self._light.bytes(senses.light_raw[robot].tolist()))
+            publishers['light'].publish(self._light.bytes(senses.light_raw[robot].tolist()))
         if subscribed['imu']:
             rates = rates_from_gyro_values(senses.gyro[robot]).tolist()
-            self._imu_pub.publish(self._imu.bytes((*stamp, *rates, *senses.accelerometer[robot].tolist())))
+            publishers['imu'].publish(self._imu.bytes((*stamp, *rates, *senses.accelerometer[robot].tolist())))

@@ -20,7 +20,7 @@ numbers, on both sides of every lockstep round trip (`ir_raw`, `wheel_cmd`).
 from __future__ import annotations
 
 import struct
-from collections.abc import Sequence
+from collections.abc import Hashable, Sequence
 from typing import Any
 
 import numpy as np
@@ -68,19 +68,26 @@ class Patch:
 
     def like(self, msg: Any) -> Patch:
         """The same fields in `msg`, a message of the same type with the same layout: another robot's, its frame ids
-        as long. Two serialisations instead of one per field; ValueError if its fields lie elsewhere."""
+        as long. One serialisation instead of one per field; ValueError if its fields lie elsewhere.
+
+        `msg` is serialised with the markers in its fields: its bytes are the patch's if each field's marker lies at
+        the field's offset (the marked bytes are then the new template with the markers patched in), and the new
+        template is those bytes with the message's own values patched back."""
         saved = [_get(msg, path) for path in self._paths]
         for path, marker in zip(self._paths, self._markers):
             _set(msg, path, marker)
-        marked = exact_cdr(msg)
-        for path, value in zip(self._paths, saved):
-            _set(msg, path, value)
+        try:
+            marked = exact_cdr(msg)
+        finally:
+            for path, value in zip(self._paths, saved):
+                _set(msg, path, value)
         patch = object.__new__(Patch)
         patch._paths, patch._markers, patch._struct, patch._slices = self._paths, self._markers, self._struct, \
             self._slices
-        patch._template = exact_cdr(msg)
-        if len(patch._template) != len(self._template) or patch.bytes(self._markers) != marked:
+        patch._template = marked
+        if len(marked) != len(self._template) or patch.bytes(self._markers) != marked:
             raise ValueError(f'{type(msg).__name__} is not laid out as the patch\'s message')
+        patch._template = patch.bytes(saved)
         return patch
 
     def bytes(self, values: Sequence[float | int]) -> bytes:
@@ -89,6 +96,28 @@ class Patch:
         for start, end, first, last in self._slices:
             buffer[start:end] = packed[first:last]
         return bytes(buffer)
+
+
+class PatchCache:
+    """Patches of many messages of a few layouts (a swarm's robots send the same messages, their frame ids as long
+    for names as long): the first message of each layout is located field by field (`Patch`), the others from it
+    (`Patch.like`), one serialisation each instead of one per field."""
+
+    def __init__(self) -> None:
+        self._first: dict[Hashable, Patch] = {}
+
+    def patch(self, msg: Any, fields: Sequence[tuple[str, str]], layout: Hashable) -> Patch:
+        """`Patch(msg, fields)`; `layout` tells messages of one type laid out alike (the length of their frame ids).
+        A wrong `layout` costs time, never a wrong patch: `like` checks, and a message it refuses gets its own."""
+        key = (type(msg), tuple(fields), layout)
+        first = self._first.get(key)
+        if first is None:
+            first = self._first[key] = Patch(msg, fields)
+            return first
+        try:
+            return first.like(msg)
+        except ValueError:
+            return Patch(msg, fields)
 
 
 _TYPESTORE = get_typestore(Stores.ROS2_JAZZY)

@@ -17,6 +17,7 @@ import threading
 import time
 from collections import Counter
 from collections.abc import Callable
+from pathlib import Path
 
 import rclpy
 import yaml
@@ -37,14 +38,14 @@ from epuck_ros.lockstep import OWN_RATE_AFTER, OWN_RATE_WAIT, Lockstep
 from epuck_ros.markers import world_markers
 from epuck_ros.model import TIME_STEP, RobotModel
 from epuck_ros.nodes.ack_window import AckWindow, history_steps, window_steps
-from epuck_ros.nodes.dds_profile import use_package_profile, warn_if_not_fast_dds
+from epuck_ros.nodes.dds_profile import PROFILES_FILE, PROFILES_VARIABLE, use_package_profile, warn_if_not_fast_dds
 from epuck_ros.nodes.domain_watch import DISCOVERY_WINDOW, DomainWatch
 from epuck_ros.nodes.pacing import Controls, Pacer, Settings
 from epuck_ros.nodes.params import ParamSpec, Usage, command_line_value, declare_parameters, prepare_arguments
 from epuck_ros.nodes.qos import LATCHED
 from epuck_ros.nodes.robot_ports import JOINT_NAMES, WARN_PERIOD, WORLD_FRAME, RobotPorts, quiet_publisher
-from epuck_ros.nodes.sense_ports import SENSE_POLL, SENSE_TOPICS, SenseError, SensePorts
-from epuck_ros.nodes.serialized import Patch
+from epuck_ros.nodes.sense_ports import SENSE_POLL, SENSE_TOPICS, SENSE_TOPICS_ON_DEMAND_FROM, SenseError, SensePorts
+from epuck_ros.nodes.serialized import Patch, PatchCache
 from epuck_ros.nodes.spinning import end_process, handle_shutdown_signals, shutdown_requested, spin_until_shutdown
 from epuck_ros.nodes.tf_ports import TfPorts
 from epuck_ros.simulation import CommandError, Simulation, StepEvents
@@ -166,12 +167,20 @@ class SimNode(Node):
         history = history_steps(len(world.robots))
         stream = QoSProfile(depth=history, reliability=ReliabilityPolicy.RELIABLE)
         self.ports = self._make_ports(values, stream)
-        self.sense_ports = [SensePorts(self, index, name, len(self.ports) > 1, stream, self._sim,
-                                       values['frame_prefix']) for index, name in enumerate(self._sim.names)]
+        on_demand = len(self.ports) >= SENSE_TOPICS_ON_DEMAND_FROM
+        self.sense_ports = []
+        for index, name in enumerate(self._sim.names):
+            _stop_if_asked()
+            self.sense_ports.append(SensePorts(self, index, name, len(self.ports) > 1, stream, self._sim,
+                                               values['frame_prefix'], on_demand))
+        self._unoffered = {self.resolve_topic_name(topic): (ports, kind) for ports in self.sense_ports
+                           for kind, topic in ports.topics.items() if not ports.offers(kind)}
+        """The sense topics without a publisher yet (`SensePorts`' on_demand), by their full names."""
         self._sensing: list[SensePorts] = []
         """The robots with a subscriber on some sense topic: their sense messages are published after each step."""
         self._sense_turn = 0
         self.create_timer(SENSE_POLL, self._update_sense_wants)
+        _stop_if_asked()
         self._tf = TfPorts(self, self.ports, self._sim, len(self.ports) > 1, stream, LATCHED,
                            values['frame_prefix'] + WORLD_FRAME)
         self._publish_world(world, values['frame_prefix'])
@@ -202,11 +211,11 @@ class SimNode(Node):
     def _make_ports(self, values: dict, stream: QoSProfile) -> list[RobotPorts]:
         several = len(self._sim.names) > 1
         ports = []
+        patches = PatchCache()
         for index, name in enumerate(self._sim.names):
-            if shutdown_requested():   # Ctrl-C while a swarm's ports are made (seconds for a big one): stop now
-                raise StartInterrupted()
+            _stop_if_asked()
             ports.append(RobotPorts(self, index, name, several, stream, LATCHED, self._on_command,
-                                    values['frame_prefix'], values['cmd_vel_stamped']))
+                                    values['frame_prefix'], values['cmd_vel_stamped'], patches=patches))
         return ports
 
     def _publish_world(self, world: World, frame_prefix: str) -> None:
@@ -370,9 +379,20 @@ class SimNode(Node):
 
     def _update_sense_wants(self) -> None:
         """Senses follow their topics' subscribers (see sense_ports): every robot every SENSE_POLL wall seconds."""
+        self._offer_read_sense_topics()
         with self._lock:
             for ports in self.sense_ports:
                 self._update_wants_of(ports)
+
+    def _offer_read_sense_topics(self) -> None:
+        """The publisher of each sense topic not offered yet that a subscriber has appeared on: one look at the
+        graph's topics (a topic with only a subscriber is in it) instead of one question per topic."""
+        if not self._unoffered:
+            return
+        for topic, _ in self.get_topic_names_and_types():
+            if topic in self._unoffered and self.count_subscribers(topic):
+                ports, kind = self._unoffered.pop(topic)
+                ports.offer(kind)
 
     def _poll_sense_wants(self) -> None:
         """One robot a step too (under the lock), in turn: at real_time_factor 0 the wall-clock poll alone would
@@ -454,6 +474,13 @@ class StartInterrupted(Exception):
     """Ctrl-C or SIGTERM came while the node was still being built."""
 
 
+def _stop_if_asked() -> None:
+    """Between two robots' ports and before each phase of the start-up (seconds each for a big swarm): Ctrl-C or
+    SIGTERM stops it now, not once the node is built."""
+    if shutdown_requested():
+        raise StartInterrupted()
+
+
 DESTROY_UP_TO = 50
 """Robots up to which the node's entities are destroyed one by one at exit, as the anchors do; beyond, the process
 ends without it (a swarm's thousands of publishers and subscriptions take many seconds to destroy one by one, and
@@ -461,9 +488,21 @@ SIGTERM must end it at once: test_multi_robot_nodes' swarm stop test): the other
 lease of the package's DDS profile."""
 
 
+SIM_PROFILES_FILE = Path(__file__).with_name('fastdds_sim_profiles.xml')
+"""The simulator's Fast DDS profile: the package's, plus no matching of its own endpoints (the file says why)."""
+
+
+def use_simulator_profile() -> None:
+    """The simulator's Fast DDS profile, unless the user chose one (the package's, which `bringup` sets for its
+    children, is no choice of theirs); call before `rclpy.init`."""
+    if os.environ.get(PROFILES_VARIABLE) in (None, '', str(PROFILES_FILE)) and SIM_PROFILES_FILE.is_file():
+        os.environ[PROFILES_VARIABLE] = str(SIM_PROFILES_FILE)
+
+
 def main(args: list[str] | None = None) -> None:
     started = time.monotonic()
     argv = prepare_arguments(args, SIM_PARAMETERS, USAGE)
+    use_simulator_profile()
     use_package_profile()
     os.environ.setdefault('RMW_FASTRTPS_PUBLICATION_MODE', publication_mode(argv))
     handle_shutdown_signals()  # from now on: a signal during start-up ends the node cleanly once it is built
