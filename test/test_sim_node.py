@@ -342,8 +342,7 @@ def test_the_simulator_profile_is_the_package_profile_without_local_matching(mon
     import os
     import xml.etree.ElementTree as ET
 
-    from epuck_ros.nodes.dds_profile import PROFILES_FILE, PROFILES_VARIABLE
-    from epuck_ros.nodes.sim_node import SIM_PROFILES_FILE, use_simulator_profile
+    from epuck_ros.nodes.dds_profile import PROFILES_FILE, PROFILES_VARIABLE, SIM_PROFILES_FILE, use_simulator_profile
 
     def settings(path: Path) -> list[tuple[str, str]]:
         tree = ET.parse(path)

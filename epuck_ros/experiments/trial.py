@@ -169,29 +169,36 @@ def run(trial: Trial, policy: Policy | None = None,
     lockstep = stage.lockstep_for(publish) if stage is not None else Lockstep(len(sim.names), publish, timeout=0.0)
     lockstep.claim()
     try:
-        lockstep.step()   # the first step goes out with no command: the wheels are still
-        while not over():
-            now = _stamp_seconds(sim.time)
-            for robot, update, needs_odom, needs_ranges in robots:
-                odom = _odometry_as_received(sim.odom_pose[robot]) if needs_odom else None
-                ranges = ranges_from_raw(sim.ir_raw[robot].tolist()) if needs_ranges else None
-                command = update(Observation(now, odom, ranges))
-                if command is not None:   # None: a script that answers from its thread
-                    sim.command_wheels(robot, command.left, command.right)
-                    lockstep.answer(robot)
-            if not lockstep.await_answers():   # every robot answered (the scripts' threads may have stepped on)
-                raise RuntimeError('lockstep: a robot did not answer its step')
-            if stage is not None:
-                stage.check()   # a script that failed ends the trial before the next step
-                if over():   # the scripts' threads took the steps to the end (lent), and answered the last
-                    break
-            lockstep.step()
+        _step_to_end(sim, lockstep, robots, over, stage)
     finally:   # a script's step() returns -1
         if stage is not None:
             stage.close()
     if stage is not None:   # a script may fail after the end, too
         stage.check()
     return sim, tally
+
+
+def _step_to_end(sim: Simulation, lockstep: Lockstep, robots: list[tuple[int, Callable, bool, bool]],
+                 over: Callable[[], bool], stage: Any) -> None:
+    """The first step with the wheels still, then each step's answers and the next step until `over()`: every robot
+    answers each step (a script from its own thread, which may take the next steps itself: the lent claim)."""
+    lockstep.step()
+    while not over():
+        now = _stamp_seconds(sim.time)
+        for robot, update, needs_odom, needs_ranges in robots:
+            odom = _odometry_as_received(sim.odom_pose[robot]) if needs_odom else None
+            ranges = ranges_from_raw(sim.ir_raw[robot].tolist()) if needs_ranges else None
+            command = update(Observation(now, odom, ranges))
+            if command is not None:   # None: a script that answers from its thread
+                sim.command_wheels(robot, command.left, command.right)
+                lockstep.answer(robot)
+        if not lockstep.await_answers():   # every robot answered (the scripts' threads may have stepped on)
+            raise RuntimeError('lockstep: a robot did not answer its step')
+        if stage is not None:
+            stage.check()   # a script that failed ends the trial before the next step
+            if over():   # the scripts' threads took the steps to the end (lent), and answered the last
+                break
+        lockstep.step()
 
 
 def _answerer(controller: Behaviour | Policy | ScriptSeat) -> Callable[[Observation], WheelCommand | None]:

@@ -157,3 +157,58 @@ class SensePorts:
         if subscribed['imu']:
             rates = rates_from_gyro_values(senses.gyro[robot]).tolist()
             publishers['imu'].publish(self._imu.bytes((*stamp, *rates, *senses.accelerometer[robot].tolist())))
+
+
+class SenseFeeds:
+    """Every robot's `SensePorts` on the node, and which of them publish: the senses follow their topics' readers.
+
+    `update_all` runs every SENSE_POLL wall seconds, `update_next` (one robot, in turn) after each step; both under
+    the caller's lock, since the loop thread publishes. `offer_read_topics` makes the publishers of on-demand topics
+    a reader appeared on, outside that lock (it asks the graph)."""
+
+    def __init__(self, node: Node, sim: Simulation, stream_qos: QoSProfile, frames_prefix: str,
+                 forced: frozenset[str], before_each: Callable[[], None]) -> None:
+        """`forced`: the senses the `senses` parameter asks for; `before_each` runs before each robot's ports are
+        made (a swarm's take seconds: a stop request is honoured there)."""
+        several, on_demand = len(sim.names) > 1, len(sim.names) >= SENSE_TOPICS_ON_DEMAND_FROM
+        self.ports: list[SensePorts] = []
+        for index, name in enumerate(sim.names):
+            before_each()
+            self.ports.append(SensePorts(node, index, name, several, stream_qos, sim, frames_prefix, on_demand))
+        self._node, self._sim, self._forced = node, sim, forced
+        self._unoffered = {node.resolve_topic_name(topic): (ports, kind) for ports in self.ports
+                           for kind, topic in ports.topics.items() if not ports.offers(kind)}
+        """The sense topics without a publisher yet (on demand), by their full names."""
+        self._publishing: list[SensePorts] = []
+        """The robots with a reader on some sense topic: their sense messages are published after each step."""
+        self._turn = 0
+
+    def publish(self, stamp: tuple[int, int]) -> None:
+        for ports in self._publishing:
+            ports.publish(self._sim, stamp)
+
+    def offer_read_topics(self) -> None:
+        """The publisher of each on-demand topic a reader has appeared on: one look at the graph's topics (a topic
+        with only a reader is in it) instead of one question per topic."""
+        if not self._unoffered:
+            return
+        for topic, _ in self._node.get_topic_names_and_types():
+            if topic in self._unoffered and self._node.count_subscribers(topic):
+                ports, kind = self._unoffered.pop(topic)
+                ports.offer(kind)
+
+    def update_all(self) -> None:
+        for ports in self.ports:
+            self._update(ports)
+
+    def update_next(self) -> None:
+        """One robot, in turn: at real_time_factor 0 the wall-clock poll alone would leave a controller that just
+        enabled a sense without readings for hundreds of steps."""
+        self._turn = (self._turn + 1) % len(self.ports)
+        self._update(self.ports[self._turn])
+
+    def _update(self, ports: SensePorts) -> None:
+        was = ports.publishing
+        ports.update_wants(lambda kind, robot, wanted: self._sim.senses.want(kind, [robot], wanted), self._forced)
+        if ports.publishing != was:
+            self._publishing = [ports for ports in self.ports if ports.publishing]

@@ -17,7 +17,6 @@ import threading
 import time
 from collections import Counter
 from collections.abc import Callable
-from pathlib import Path
 
 import rclpy
 import yaml
@@ -38,13 +37,13 @@ from epuck_ros.lockstep import OWN_RATE_AFTER, OWN_RATE_WAIT, Lockstep
 from epuck_ros.markers import world_markers
 from epuck_ros.model import TIME_STEP, RobotModel
 from epuck_ros.nodes.ack_window import AckWindow, history_steps, window_steps
-from epuck_ros.nodes.dds_profile import PROFILES_FILE, PROFILES_VARIABLE, use_package_profile, warn_if_not_fast_dds
+from epuck_ros.nodes.dds_profile import use_package_profile, use_simulator_profile, warn_if_not_fast_dds
 from epuck_ros.nodes.domain_watch import DISCOVERY_WINDOW, DomainWatch
 from epuck_ros.nodes.pacing import Controls, Pacer, Settings
 from epuck_ros.nodes.params import ParamSpec, Usage, command_line_value, declare_parameters, prepare_arguments
 from epuck_ros.nodes.qos import LATCHED
 from epuck_ros.nodes.robot_ports import JOINT_NAMES, WARN_PERIOD, WORLD_FRAME, RobotPorts, quiet_publisher
-from epuck_ros.nodes.sense_ports import SENSE_POLL, SENSE_TOPICS, SENSE_TOPICS_ON_DEMAND_FROM, SenseError, SensePorts
+from epuck_ros.nodes.sense_ports import SENSE_POLL, SENSE_TOPICS, SenseError, SenseFeeds
 from epuck_ros.nodes.serialized import Patch, PatchCache
 from epuck_ros.nodes.spinning import end_process, handle_shutdown_signals, shutdown_requested, spin_until_shutdown
 from epuck_ros.nodes.tf_ports import TfPorts
@@ -167,18 +166,7 @@ class SimNode(Node):
         history = history_steps(len(world.robots))
         stream = QoSProfile(depth=history, reliability=ReliabilityPolicy.RELIABLE)
         self.ports = self._make_ports(values, stream)
-        on_demand = len(self.ports) >= SENSE_TOPICS_ON_DEMAND_FROM
-        self.sense_ports = []
-        for index, name in enumerate(self._sim.names):
-            _stop_if_asked()
-            self.sense_ports.append(SensePorts(self, index, name, len(self.ports) > 1, stream, self._sim,
-                                               values['frame_prefix'], on_demand))
-        self._unoffered = {self.resolve_topic_name(topic): (ports, kind) for ports in self.sense_ports
-                           for kind, topic in ports.topics.items() if not ports.offers(kind)}
-        """The sense topics without a publisher yet (`SensePorts`' on_demand), by their full names."""
-        self._sensing: list[SensePorts] = []
-        """The robots with a subscriber on some sense topic: their sense messages are published after each step."""
-        self._sense_turn = 0
+        self._senses = SenseFeeds(self, self._sim, stream, values['frame_prefix'], self._forced_senses, _stop_if_asked)
         self.create_timer(SENSE_POLL, self._update_sense_wants)
         _stop_if_asked()
         self._tf = TfPorts(self, self.ports, self._sim, len(self.ports) > 1, stream, LATCHED,
@@ -371,41 +359,16 @@ class SimNode(Node):
         stamp = stamp_from_seconds(self._sim.time)
         for ports in self.ports:
             ports.publish(self._sim, stamp)
-        for senses in self._sensing:
-            senses.publish(self._sim, stamp)
+        self._senses.publish(stamp)
         self._tf.publish(self._sim, stamp)
         self._clock_pub.publish(self._clock_message.bytes(stamp))
-        self._poll_sense_wants()
+        self._senses.update_next()
 
     def _update_sense_wants(self) -> None:
         """Senses follow their topics' subscribers (see sense_ports): every robot every SENSE_POLL wall seconds."""
-        self._offer_read_sense_topics()
+        self._senses.offer_read_topics()
         with self._lock:
-            for ports in self.sense_ports:
-                self._update_wants_of(ports)
-
-    def _offer_read_sense_topics(self) -> None:
-        """The publisher of each sense topic not offered yet that a subscriber has appeared on: one look at the
-        graph's topics (a topic with only a subscriber is in it) instead of one question per topic."""
-        if not self._unoffered:
-            return
-        for topic, _ in self.get_topic_names_and_types():
-            if topic in self._unoffered and self.count_subscribers(topic):
-                ports, kind = self._unoffered.pop(topic)
-                ports.offer(kind)
-
-    def _poll_sense_wants(self) -> None:
-        """One robot a step too (under the lock), in turn: at real_time_factor 0 the wall-clock poll alone would
-        leave a controller that just enabled a sense without readings for hundreds of steps."""
-        self._sense_turn = (self._sense_turn + 1) % len(self.sense_ports)
-        self._update_wants_of(self.sense_ports[self._sense_turn])
-
-    def _update_wants_of(self, ports: SensePorts) -> None:
-        was = ports.publishing
-        ports.update_wants(lambda kind, robot, wanted: self._sim.senses.want(kind, [robot], wanted),
-                           self._forced_senses)
-        if ports.publishing != was:
-            self._sensing = [ports for ports in self.sense_ports if ports.publishing]
+            self._senses.update_all()
 
     def _after_step(self, events: StepEvents, now_sim: float) -> None:
         names = self._sim.names
@@ -486,17 +449,6 @@ DESTROY_UP_TO = 50
 ends without it (a swarm's thousands of publishers and subscriptions take many seconds to destroy one by one, and
 SIGTERM must end it at once: test_multi_robot_nodes' swarm stop test): the other participants drop ours after the
 lease of the package's DDS profile."""
-
-
-SIM_PROFILES_FILE = Path(__file__).with_name('fastdds_sim_profiles.xml')
-"""The simulator's Fast DDS profile: the package's, plus no matching of its own endpoints (the file says why)."""
-
-
-def use_simulator_profile() -> None:
-    """The simulator's Fast DDS profile, unless the user chose one (the package's, which `bringup` sets for its
-    children, is no choice of theirs); call before `rclpy.init`."""
-    if os.environ.get(PROFILES_VARIABLE) in (None, '', str(PROFILES_FILE)) and SIM_PROFILES_FILE.is_file():
-        os.environ[PROFILES_VARIABLE] = str(SIM_PROFILES_FILE)
 
 
 def main(args: list[str] | None = None) -> None:
