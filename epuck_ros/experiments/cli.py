@@ -53,18 +53,6 @@ def main(argv: list[str] | None = None) -> None:
         sweep(args)
     except KeyboardInterrupt:   # before the trials (the table, replaced whole, is never left half written)
         print('\n[sweep] interrupted', file=sys.stderr)
-    finally:
-        _stop_resource_tracker()
-
-
-def _stop_resource_tracker() -> None:
-    """End multiprocessing's resource tracker (started for a local cluster's workers) before this process ends: it
-    waits for our end of its pipe to close and so outlived the sweep by a moment, a stray process for whoever
-    looks right after. Python offers no public call for it; without the private one the tracker ends by itself."""
-    from multiprocessing import resource_tracker
-    stop = getattr(resource_tracker._resource_tracker, '_stop', None)
-    if stop is not None:
-        stop()
 
 
 def sweep(args: argparse.Namespace) -> None:

@@ -90,6 +90,18 @@ def open_client(workers: int | None, scheduler: str | None) -> Iterator[object |
         with _without_ctrl_c():   # a close cut short by Ctrl-C left the worker processes running
             client.close()
             cluster.close()
+        _stop_resource_tracker()
+
+
+def _stop_resource_tracker() -> None:
+    """End multiprocessing's resource tracker, started for the local cluster's workers: it waits for our end of its
+    pipe to close, so it outlived a sweep by a moment and stayed for as long as any other caller lived (a stray
+    process for whoever looks). Python offers no public call for it; without the private one it ends with this
+    process. A later cluster starts a new one."""
+    from multiprocessing import resource_tracker
+    stop = getattr(resource_tracker._resource_tracker, '_stop', None)
+    if stop is not None:
+        stop()
 
 
 @contextmanager
