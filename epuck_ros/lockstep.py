@@ -1,8 +1,9 @@
 """Lockstep: step a simulation only once every driven robot answered the last step — without ROS.
 
 One `Lockstep` holds all of it: which robots the current step waits for (those with a controller, else any
-answer), which answered, the timeout, the controllers found to answer at their own rate, and the re-sent first
-step. The sim node and the headless trials (`experiments/trial.py`) both step through it, so they step the same way.
+answer), which answered, the timeout, the controllers found to answer at their own rate, the re-sent first
+step, and how many controllers must be connected before the first step. The sim node and the headless trials
+(`experiments/trial.py`) both step through it, so they step the same way.
 
 Who may step: only the thread that holds the claim (`claim()`; the sim's loop thread, the trial's only thread), and
 while it waits for answers (`await_answers`), the thread that delivers a step's last answer, for that one step, if
@@ -28,6 +29,8 @@ answers this step's /clock tick (a round trip is well under a millisecond), shor
 cost little."""
 GRAPH_POLL = 0.05
 """Wall seconds between two looks at which robots have a controller while lockstep waits for answers."""
+CONTROLLERS_REPORT = 5.0
+"""Wall seconds between two reports of a first step still waiting for its controllers (`await_controllers`)."""
 
 StepFunction = Callable[[bool], None]
 """Takes one step and publishes it; with True, publishes the last step again instead (a re-sent first step)."""
@@ -78,6 +81,8 @@ class Lockstep:
         """The holder waits for the current step's answers (`await_answers`)."""
         self._deadline = self._own_rate_deadline = 0.0
         self._resends = 0
+        self._required = 0
+        """Controllers to be connected before the next step (`require_controllers`); 0 once they were."""
         self._closed = False
 
     # --- the holder's side ------------------------------------------------------------------------------
@@ -86,6 +91,29 @@ class Lockstep:
         """The calling thread becomes the one that steps."""
         with self._changed:
             self._holder = threading.get_ident()
+
+    def await_controllers(self, keep_waiting: Callable[[], bool],
+                          report: Callable[[int, Sequence[int]], None]) -> bool:
+        """Before a step: until as many robots have a controller as `require_controllers` asked (True), or until
+        `keep_waiting()` turns false or lockstep closes (False). `report(required, driven)` every CONTROLLERS_REPORT.
+
+        The graph cannot tell a controller on its way: whoever starts the controllers and resumes the simulation
+        saw them in its own view of the graph, which runs ahead of the simulator's matching by up to a discovery
+        round (seconds under load). Stepping meanwhile would start the late ones a few steps behind."""
+        last_report = time.monotonic()
+        with self._changed:
+            while self._required:
+                driven = list(self._driven())
+                if len(driven) >= self._required:
+                    self._required = 0
+                    break
+                if self._closed or not keep_waiting():
+                    return False
+                if time.monotonic() - last_report >= CONTROLLERS_REPORT:
+                    last_report = time.monotonic()
+                    report(self._required, driven)
+                self._changed.wait(GRAPH_POLL)
+            return not self._closed
 
     def step(self, resend: bool = False) -> None:
         """Take one step, or send the last one again, by the claim's holder; its answers are awaited from now on."""
@@ -117,6 +145,12 @@ class Lockstep:
                 self._parked = False
             return self._after_timeout()
 
+    def require_controllers(self, count: int) -> None:
+        """No step (from any thread) until `count` robots have a controller; once they had, no such wait again."""
+        with self._changed:
+            self._required = count
+            self._changed.notify_all()
+
     def close(self) -> None:
         """Stop waiting for answers (the simulation is ending)."""
         with self._changed:
@@ -133,7 +167,7 @@ class Lockstep:
             self._awaited.discard(robot)
             if self._awaited or not self._parked:
                 return   # more answers to come, or nobody waits for them yet
-            if self._closed or not self._lend():
+            if self._closed or self._required or not self._lend():
                 self._changed.notify()
                 return
             self._take_answers()

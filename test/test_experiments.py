@@ -406,7 +406,9 @@ def test_three_robots_each_driven_by_a_script_over_dds_are_the_headless_trial(la
                          timeout=60.0, what='three controllers')
     client = AsyncParameterClient(node, 'sim')
     assert client.wait_for_services(20.0)
-    test_node.spin_until(client.set_parameters([Parameter('paused', value=False)]).done, what='the resume')
+    # The simulator's first step waits until it has matched the three controllers this node sees.
+    test_node.spin_until(client.set_parameters([Parameter('lockstep_controllers', value=3),
+                                                Parameter('paused', value=False)]).done, what='the resume')
     last = 8_000_000_000   # ns: the simulator pauses itself there
     test_node.spin_until(lambda: all(received and stamp_ns(received[-1]) >= last for received in truth.values()),
                          timeout=120.0, what='8 simulated s')

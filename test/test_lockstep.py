@@ -7,6 +7,7 @@ import threading
 
 import pytest
 
+import epuck_ros.lockstep as lockstep_module
 from epuck_ros.lockstep import LOCKSTEP_START_RESENDS, OWN_RATE_AFTER, Lockstep, StepClaimError
 
 SHORT = 0.02
@@ -164,6 +165,56 @@ def test_a_resend_publishes_the_same_step_again_and_says_so():
     assert step.await_answers()
     assert resent == [1]
     assert [(count, resend) for count, resend, _ in sim.steps] == [(1, False), (1, True)]
+
+
+def test_the_first_step_waits_until_the_required_controllers_are_connected(monkeypatch):
+    """Whoever resumes saw the controllers before the simulator's matching did: stepping at once would start the
+    late ones a few steps behind."""
+    monkeypatch.setattr(lockstep_module, 'CONTROLLERS_REPORT', 0.0)
+    connected: list[int] = []
+    reports: list[tuple[int, list[int]]] = []
+    step, sim = lockstep(robots=3, driven=lambda: list(connected))
+    step.require_controllers(2)
+
+    def connect() -> None:
+        while not reports:    # reported while still short of controllers
+            threading.Event().wait(SHORT)
+        connected.extend([0, 2])
+
+    connecting = in_thread(connect)
+    assert step.await_controllers(lambda: True, lambda required, driven: reports.append((required, list(driven))))
+    connecting.join()
+    assert reports[0] == (2, [])
+    connected.clear()             # met once: a controller that leaves later holds no step up
+    assert step.await_controllers(lambda: True, lambda *_: pytest.fail('no wait once met'))
+    assert sim.steps == []        # waiting never steps
+
+
+def test_a_wait_for_controllers_ends_when_asked_or_closed():
+    step, _ = lockstep(robots=1, driven=lambda: [])
+    step.require_controllers(1)
+    assert not step.await_controllers(lambda: False, lambda *_: None)   # paused meanwhile, say
+    threading.Timer(SHORT, step.close).start()
+    assert not step.await_controllers(lambda: True, lambda *_: None)
+
+
+def test_no_step_is_lent_while_controllers_are_required():
+    """A last answer never takes the next step in its thread while the simulator still waits for controllers."""
+    waiting = threading.Event()   # as in the lending test: the holder is parked once the answer gets the lock
+    sim = Sim()
+    step = Lockstep(2, sim, LONG, driven=lambda: waiting.set() or [0], lend=lambda: True)
+    step.claim()
+    step.step()
+    step.require_controllers(2)
+
+    def answer() -> None:
+        waiting.wait()
+        step.answer(0)
+
+    answers = in_thread(answer)
+    assert step.await_answers()
+    answers.join()
+    assert [(count, thread) for count, _, thread in sim.steps] == [(1, 'MainThread')]
 
 
 def test_close_ends_a_wait_without_answers():

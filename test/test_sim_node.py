@@ -204,6 +204,20 @@ def test_lockstep_advances_one_step_per_command(launch, test_node):
     assert [b - a for a, b in zip(times, times[1:])] == pytest.approx([STEP] * 4, abs=1e-9)
 
 
+def test_lockstep_takes_no_step_before_it_sees_the_controllers_it_was_told_of(launch, test_node):
+    """`lockstep_controllers` 1: no step while nobody commands (without it, one every lockstep_timeout), and it
+    says so; once it matches a wheel_cmd publisher, it steps."""
+    log = test_node.watch_log()
+    start_sim(launch, test_node, lockstep=True, lockstep_timeout=0.05, real_time_factor=0.0, lockstep_controllers=1)
+    clocks = test_node.collect(Clock, '/clock', 100)
+    test_node.wait_for_log(log, 'lockstep: waiting for 1 controller before the first step')
+    assert clocks == []
+    pub = test_node.node.create_publisher(Float64MultiArray, 'wheel_cmd', 10)
+    test_node.spin_until(lambda: clocks, what='the first step, once the sim has matched our wheel_cmd publisher')
+    pub.publish(wheel_cmd(1.0, 1.0))
+    test_node.spin_until(lambda: len(clocks) > 1, what='the step answering the command')
+
+
 def test_help_describes_every_parameter_and_starts_nothing(launch):
     sim = launch('sim', '--help')
     assert sim.proc.wait(timeout=20) == 0

@@ -143,7 +143,8 @@ class ControllerRun:
         test_node.wait_for_simulator()
         self.controller = launch('webots_controller', str(script), *(['--robot', robot] if robot else []))
         node = test_node.node
-        # In the graph = connected enough: the sim re-sends an unanswered first step, so a late match costs no step.
+        # In the graph here; the sim's first step waits until it has matched the controller too (_resume), and it
+        # re-sends that step until answered, so a late match costs no step.
         test_node.spin_until(lambda: node.count_publishers(prefix + 'wheel_cmd') > 0 and
                              node.count_subscribers(prefix + 'ir_raw') > 0
                              or self.controller.proc.poll() is not None, timeout=30.0, what='the controller')
@@ -153,7 +154,7 @@ class ControllerRun:
     def _resume(self) -> None:
         client = AsyncParameterClient(self.test_node.node, 'sim')
         assert client.wait_for_services(20.0)
-        future = client.set_parameters([Parameter('paused', value=False)])
+        future = client.set_parameters([Parameter('lockstep_controllers', value=1), Parameter('paused', value=False)])
         self.test_node.spin_until(future.done, what='sim to resume')
 
     def sim_time(self) -> float:

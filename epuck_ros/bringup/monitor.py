@@ -239,11 +239,13 @@ class RunMonitor:
     def node_exists(self, name: str) -> bool:
         return any(n == name for n, _ in self.node.get_node_names_and_namespaces())
 
-    def set_paused(self, paused: bool, timeout: float) -> bool:
-        """Set the simulator's `paused` parameter, asking again every REQUEST_RETRY; True once it said yes."""
+    def set_paused(self, paused: bool, timeout: float, controllers: int = 0) -> bool:
+        """Set the simulator's `paused` parameter, asking again every REQUEST_RETRY; True once it said yes. With
+        `controllers`, a lockstep simulator's first step waits until it sees that many (`lockstep_controllers`)."""
         deadline = time.monotonic() + timeout
+        wanted = [Parameter('lockstep_controllers', value=controllers)] if controllers else []
         while True:
-            future = self._parameters.set_parameters([Parameter('paused', value=paused)])
+            future = self._parameters.set_parameters(wanted + [Parameter('paused', value=paused)])
             self._executor.spin_until_future_complete(
                 future, timeout_sec=max(0.0, min(REQUEST_RETRY, deadline - time.monotonic())))
             if future.done():

@@ -25,8 +25,9 @@ READY_TIMEOUT = 60.0
 """Wall seconds for every process to show up connected in the graph (a loaded machine takes a few)."""
 SETTLE_TIME = 0.5
 """Without lockstep only: wall seconds between seeing the controllers in the graph and resuming, for the
-simulator's publishers to match them (the graph does not show matching). In lockstep the simulator re-sends
-its first step until every controller has answered, so no wait is needed there."""
+simulator's publishers to match them (the graph does not show matching). In lockstep the simulator's first step
+waits until it sees as many controllers as `bringup` saw (`lockstep_controllers`), and it re-sends that step
+until every controller has answered, so no wait is needed there."""
 CATCH_UP_TIMEOUT = 5.0
 """Wall seconds the end of a run waits for ground-truth samples still on their way."""
 PAUSE_TIMEOUT = 5.0
@@ -210,7 +211,9 @@ class Supervisor:
         self.watch(lambda: time.monotonic() >= self.monitor.created + watched, READY_TIMEOUT, lambda: '')
         self.refuse_other_simulators()
         self.resumed_at = time.monotonic()  # the request's: the simulator may step before its answer is back
-        if not self.monitor.set_paused(False, READY_TIMEOUT):
+        # In lockstep, the controllers this process sees: the simulator's first step waits until it sees them too.
+        seen = sum(1 for robot in self.monitor.world.names if self.monitor.controllers(robot)) if args.lockstep else 0
+        if not self.monitor.set_paused(False, READY_TIMEOUT, controllers=seen):
             raise RunFailed('the simulator did not accept paused:=false')
         robots = self.monitor.world.names
         pace = f'real-time factor {args.real_time_factor:g}' if args.real_time_factor else 'as fast as possible'

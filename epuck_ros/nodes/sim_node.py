@@ -15,8 +15,7 @@ import os
 import sys
 import threading
 import time
-from collections import Counter
-from collections.abc import Callable
+from collections.abc import Sequence
 
 import rclpy
 import yaml
@@ -42,6 +41,7 @@ from epuck_ros.nodes.domain_watch import DISCOVERY_WINDOW, DomainWatch
 from epuck_ros.nodes.pacing import Controls, Pacer, Settings
 from epuck_ros.nodes.params import ParamSpec, Usage, command_line_value, declare_parameters, prepare_arguments
 from epuck_ros.nodes.qos import LATCHED
+from epuck_ros.nodes.repeated import RepeatedCondition
 from epuck_ros.nodes.robot_ports import JOINT_NAMES, WARN_PERIOD, WORLD_FRAME, RobotPorts, quiet_publisher
 from epuck_ros.nodes.sense_ports import SENSE_POLL, SENSE_TOPICS, SenseError, SenseFeeds
 from epuck_ros.nodes.serialized import Patch, PatchCache
@@ -54,8 +54,6 @@ __all__ = ['JOINT_NAMES', 'SIM_PARAMETERS', 'SimNode', 'main']
 
 IDLE_POLL = 0.05
 """Wall seconds between two looks at the parameters while paused."""
-SUMMARY_PERIOD = 30.0
-"""Wall seconds between two summaries of a repeated condition (command time-outs)."""
 
 SIM_PARAMETERS = [
     ParamSpec('time_step', TIME_STEP, 'simulated seconds per step (Webots basicTimeStep is 32 ms)', (0.001, 1.0),
@@ -70,6 +68,9 @@ SIM_PARAMETERS = [
                                  'whatever the load of the machine', read_only=True),
     ParamSpec('lockstep_timeout', 1.0, 'wall seconds a lockstep simulation waits for the answers before stepping '
                                        'anyway', (0.001, 60.0), read_only=True),
+    ParamSpec('lockstep_controllers', 0, 'in lockstep, the first step waits until this many robots have a connected '
+                                         'controller (0 = no wait): whoever starts the controllers saw them before '
+                                         'the simulator may have; bringup sets it as it resumes', (0, 100000)),
     ParamSpec('discovery_window', DISCOVERY_WINDOW, 'wall seconds from the start during which the simulator looks for '
                                                     'another simulator on the ROS domain before its first step; '
                                                     'bringup, which has watched the domain since before it started '
@@ -105,33 +106,6 @@ USAGE = Usage(
     'reset (Empty) and step (Trigger, one step while paused). With several robots, robot NAME\'s topics are '
     'NAME/odom, NAME/cmd_vel, ...',
     'sim --ros-args -p real_time_factor:=0 -p seed:=4 -p robots:=5')
-
-
-class RepeatedCondition:
-    """A condition that may happen thousands of times (a robot's command time-out): logged the first time for each
-    robot, then counted, with a summary every `SUMMARY_PERIOD` wall seconds and at the end."""
-
-    def __init__(self, log: Callable[[str], None], what: str) -> None:
-        self._log, self._what = log, what
-        self._counts: Counter[str] = Counter()
-        self._unreported: Counter[str] = Counter()
-        self._last_summary = time.monotonic()
-
-    def happened(self, robot: str, first_message: str) -> None:
-        if not self._counts[robot]:
-            self._log(f'{first_message} (further ones are counted, not logged)')
-        else:
-            self._unreported[robot] += 1
-        self._counts[robot] += 1
-        if self._unreported and time.monotonic() - self._last_summary > SUMMARY_PERIOD:
-            self.summarise()
-
-    def summarise(self) -> None:
-        if self._unreported:
-            counts = ', '.join(f'{robot} {count}' for robot, count in sorted(self._unreported.items()))
-            self._log(f'{self._what} {sum(self._unreported.values())} more times ({counts})')
-        self._unreported.clear()
-        self._last_summary = time.monotonic()
 
 
 class SimNode(Node):
@@ -180,6 +154,7 @@ class SimNode(Node):
         self._acks = AckWindow(self._stream_publishers, window_steps(history), self._on_ack_stall, self._kept_all)
         self._lockstep = Lockstep(len(self.ports), self._take_step, self._lockstep_timeout, driven=self._driven,
                                   lend=self._lend_on_answers, on_own_rate=self._on_own_rate, on_resend=self._on_resend)
+        self._lockstep.require_controllers(values['lockstep_controllers'])
         warn_if_not_fast_dds(self.get_logger())
         self._say_ready(world, values)
 
@@ -258,6 +233,8 @@ class SimNode(Node):
             if param.name == 'cmd_timeout':
                 with self._lock:
                     self._sim.cmd_timeout = param.value
+            elif param.name == 'lockstep_controllers':
+                self._lockstep.require_controllers(param.value)
 
     def _on_command(self, robot: int, topic: str, kind: str, first: float, second: float) -> None:
         apply = self._sim.command_wheels if kind == 'wheels' else self._sim.command_twist
@@ -328,6 +305,8 @@ class SimNode(Node):
                 self._acks.restart(self._sim.steps)
                 self._controls.wait_while_idle(IDLE_POLL)
                 continue
+            if self._lockstep_on and not self._lockstep.await_controllers(self._stepping, self._report_controllers):
+                continue
             self._lockstep.step(resend)
             resend = self._lockstep_on and not self._lockstep.await_answers()
             self._acks.published(self._sim.steps)
@@ -389,6 +368,14 @@ class SimNode(Node):
     def _driven(self) -> list[int]:
         """The robots with a controller (a matched publisher on wheel_cmd or cmd_vel): lockstep waits for them."""
         return [ports.index for ports in self.ports if ports.has_controller()]
+
+    def _stepping(self) -> bool:
+        return self._running.is_set() and not self._controls.idle()
+
+    def _report_controllers(self, required: int, driven: Sequence[int]) -> None:
+        connected = ', '.join(self._sim.names[robot] for robot in driven) or 'none'
+        self.get_logger().info(f'lockstep: waiting for {required} controller{"s" * (required != 1)} before the first '
+                               f'step (lockstep_controllers); connected: {connected}')
 
     def _on_resend(self) -> None:
         self.get_logger().info(f'lockstep: no answer to t={self._sim.time:.3f} s yet, sending it again')

@@ -48,6 +48,8 @@ class SimulatorUnderTest:
         self._lock = threading.Lock()
         self._clock = 0.0
         self._truth: dict[str, tuple[float, float, float, float]] = {}
+        self._controlled: set[str] = set()
+        """The robots `wait_for_controller` saw driven: the first `run_until` waits until the simulator sees them."""
         self._context = None
         self._thread: threading.Thread | None = None
         self.process: subprocess.Popen | None = None
@@ -74,6 +76,7 @@ class SimulatorUnderTest:
         topics = {name: [self._topic(name, 'wheel_cmd'), self._topic(name, 'cmd_vel')] for name in robots}
         self._wait(lambda: all(any(self._node.count_publishers(t) for t in pair) for pair in topics.values()),
                    timeout, f'no controller publishes the commands of {", ".join(robots)}')
+        self._controlled.update(robots)
 
     def run_until(self, t: float, timeout: float = 120.0) -> float:
         """Run simulated time forward to the first step at or after `t` seconds and pause there; returns that time.
@@ -82,8 +85,10 @@ class SimulatorUnderTest:
         from rclpy.parameter import Parameter
         if t <= self.time + 1e-9:
             return self.time
+        # Before the first step: the controllers seen here, which the simulator may not have matched yet.
+        first = [Parameter('lockstep_controllers', value=len(self._controlled))] if self.time == 0.0 else []
         result = self._call(self._parameters.set_parameters(
-            [Parameter('pause_at', value=float(t)), Parameter('paused', value=False)]), timeout)
+            first + [Parameter('pause_at', value=float(t)), Parameter('paused', value=False)]), timeout)
         refused = [r.reason for r in result.results if not r.successful]
         if refused:
             raise ValueError(f'the simulator refused to run to t={t}: {"; ".join(refused)}')
