@@ -105,6 +105,20 @@ def test_a_controller_script_runs_as_webots_or_as_rclpy(tmp_path):
     assert plan.controller_command == [sys.executable, str(own.resolve())]
 
 
+def test_a_webots_script_on_several_robots_runs_once_per_robot(tmp_path):
+    """As Webots runs a controller on each robot (and a headless trial one copy per robot); --robot picks one."""
+    script = tmp_path / 'webots_style.py'
+    script.write_text('from controller import Robot\nrobot = Robot()\n')
+    _, plan = parse_args(['--controller', str(script), '--robots', '3'])
+    assert (plan.script_robots, plan.robots_to_drive) == (('epuck0', 'epuck1', 'epuck2'), 'all')
+    world = tmp_path / 'two.yaml'
+    world.write_text('robots:\n  - {name: alpha, start: [0.2, 0, 0]}\n  - {name: beta, start: [-0.2, 0, 0]}\n')
+    _, plan = parse_args(['--controller', str(script), '--world', str(world)])
+    assert plan.script_robots == ('alpha', 'beta')
+    _, plan = parse_args(['--controller', str(script), '--world', str(world), '--robot', 'beta'])
+    assert (plan.script_robots, plan.robots_to_drive) == ((), ('beta',))
+
+
 @pytest.mark.parametrize('argv, message', [
     (['dance'], 'invalid choice'),
     (['avoid', '--duration', '-3'], '--duration'),

@@ -30,18 +30,32 @@ COURSE_AVOIDANCE = REPO / 'test' / 'data' / 'course_controllers' / 'obstacle_avo
 STEP_TOPICS = ('/clock', '/ground_truth', '/odom', '/ir_raw', '/joint_states', '/proximity', '/collisions')
 
 
-@pytest.mark.parametrize('robots', [0, 3])
-def test_a_headless_trial_is_the_lockstep_bringup_run_to_the_bit(launch, tmp_path, robots):
-    """Every ground-truth pose of a recorded `bringup avoid --lockstep --real-time-factor 0` run equals the
-    headless trial's, bit for bit (noise on, obstacles met)."""
+def headless_poses(trial: Trial) -> tuple[np.ndarray, object]:
+    """Every step's true poses (steps, robots, 3) of a headless trial run in this process, and its result. A
+    script's shim sits on sys.path while it runs, as for a library user: taken off again here."""
+    poses: list[np.ndarray] = []
+    path_before = list(sys.path)
+    try:
+        result, _ = run(trial, each_step=lambda sim: poses.append(sim.true_pose.copy()))
+    finally:
+        sys.path[:] = path_before
+        for module in [name for name in sys.modules if name == 'controller' or name.startswith('controller.')]:
+            del sys.modules[module]
+    return np.array(poses), result
+
+
+@pytest.mark.parametrize('controller, robots', [('avoid', 0), ('avoid', 3), ('script', 3)])
+def test_a_headless_trial_is_the_lockstep_bringup_run_to_the_bit(launch, tmp_path, controller, robots):
+    """Every ground-truth pose of a recorded `bringup avoid --lockstep --real-time-factor 0` run (or `bringup
+    --controller` with the course's obstacle_avoidance.py, one webots_controller per robot) equals the headless
+    trial's, bit for bit (noise on, obstacles met)."""
     bag = tmp_path / 'ros'
-    run_ros = launch('bringup', 'avoid', '--duration', '12', '--real-time-factor', '0', '--seed', '3', '--lockstep',
+    chosen = ['avoid'] if controller == 'avoid' else ['--controller', str(COURSE_AVOIDANCE)]
+    run_ros = launch('bringup', *chosen, '--duration', '12', '--real-time-factor', '0', '--seed', '3', '--lockstep',
                      *(['--robots', str(robots)] if robots else []), '--record', str(bag))
     assert run_ros.proc.wait(timeout=180) == 0, run_ros.output()
-    poses: list[np.ndarray] = []
-    run(Trial(controller_from('avoid'), robots=robots, seed=3, duration=12), each_step=lambda sim: poses.append(
-        sim.true_pose.copy()))
-    headless = np.array(poses)
+    trial_controller = controller_from('avoid') if controller == 'avoid' else Script(str(COURSE_AVOIDANCE))
+    headless, _ = headless_poses(Trial(trial_controller, robots=robots, seed=3, duration=12))
     with Bag(bag) as reader:
         runs = load_runs(reader)
     assert len(runs) == max(robots, 1)
@@ -386,7 +400,8 @@ def stamp_ns(msg: object) -> int:
 def test_three_robots_each_driven_by_a_script_over_dds_are_the_headless_trial(launch, test_node):
     """`sim` with 3 robots in lockstep and one `webots_controller --robot NAME` process per robot, all running the
     course's obstacle_avoidance.py: every robot's ground truth and contact count equal the headless 3-robot
-    script trial's (a thread per robot in one process), to the bit."""
+    script trial's (a thread per robot in one process), to the bit. lockstep_timeout 10 s: on a loaded machine a
+    step the sim passed because the three controllers waited seconds for the CPU would make the runs differ."""
     from nav_msgs.msg import Odometry
     from rclpy.parameter import Parameter
     from rclpy.parameter_client import AsyncParameterClient
@@ -396,8 +411,8 @@ def test_three_robots_each_driven_by_a_script_over_dds_are_the_headless_trial(la
     truth = {name: test_node.collect(Odometry, f'{name}/ground_truth', 1000) for name in names}
     contacts = {name: test_node.collect(UInt32, f'{name}/collisions', QoSProfile(
         depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)) for name in names}
-    launch('sim', '--ros-args', '-p', 'robots:=3', '-p', 'seed:=3', '-p', 'lockstep:=true', '-p',
-           'lockstep_timeout:=3.0', '-p', 'real_time_factor:=0.0', '-p', 'paused:=true', '-p', 'pause_at:=8.0')
+    sim = launch('sim', '--ros-args', '-p', 'robots:=3', '-p', 'seed:=3', '-p', 'lockstep:=true', '-p',
+                 'lockstep_timeout:=10.0', '-p', 'real_time_factor:=0.0', '-p', 'paused:=true', '-p', 'pause_at:=8.0')
     test_node.wait_for_simulator()
     controllers = [launch('webots_controller', str(COURSE_AVOIDANCE), '--robot', name) for name in names]
     node = test_node.node
@@ -412,20 +427,12 @@ def test_three_robots_each_driven_by_a_script_over_dds_are_the_headless_trial(la
     last = 8_000_000_000   # ns: the simulator pauses itself there
     test_node.spin_until(lambda: all(received and stamp_ns(received[-1]) >= last for received in truth.values()),
                          timeout=120.0, what='8 simulated s')
-    poses: list[np.ndarray] = []
-    path_before = list(sys.path)
-    try:   # in this process, as a library user may: the scripts' shim then sits on sys.path until we take it off
-        headless, _ = run(Trial(Script(str(COURSE_AVOIDANCE)), robots=3, seed=3, duration=8.0),
-                          each_step=lambda sim: poses.append(sim.true_pose.copy()))
-    finally:
-        sys.path[:] = path_before
-        for module in [name for name in sys.modules if name == 'controller' or name.startswith('controller.')]:
-            del sys.modules[module]
+    poses, headless = headless_poses(Trial(Script(str(COURSE_AVOIDANCE)), robots=3, seed=3, duration=8.0))
     assert list(headless.names) == names
     for index, name in enumerate(names):
         steps = {stamp_ns(msg): (msg.pose.pose.position.x, msg.pose.pose.position.y) for msg in truth[name]}
         over_dds = np.array([steps[stamp] for stamp in sorted(steps)])   # a first step re-sent in lockstep: once
-        assert np.array_equal(over_dds, np.array(poses)[:, index, :2]), name
+        assert np.array_equal(over_dds, poses[:, index, :2]), f'{name}\n{sim.output()[-4000:]}'
         assert contacts[name][-1].data == int(headless.collisions[index]), name
     assert sum(int(count) for count in headless.collisions) > 0   # they met walls or each other: not a trivial run
     for controller in controllers:

@@ -18,7 +18,7 @@ from rclpy.validate_namespace import validate_namespace
 from epuck_ros.behaviours import BEHAVIOURS
 from epuck_ros.bringup import tables
 from epuck_ros.nodes.params import ParameterError, ParamSpec, check_arguments
-from epuck_ros.world import WorldError, load_world
+from epuck_ros.world import WorldError, load_world, placed_names
 
 WEBOTS_MODULE = 'controller'
 """A script importing this module is a Webots controller: it runs through `webots_controller`."""
@@ -36,6 +36,9 @@ class Plan:
     """Executable (or script) and its own arguments, without --ros-args."""
     robots_to_drive: str | tuple[str, ...]
     """'all', 'any', or the names that must have a controller connected before the run starts."""
+    script_robots: tuple[str, ...] = ()
+    """A Webots script on several robots: one webots_controller per robot named here, as Webots runs one
+    controller per robot (and as a headless trial of the script runs one copy per robot)."""
     sim_params: list[str] = field(default_factory=list)
     controller_params: list[str] = field(default_factory=list)
     view_params: list[str] = field(default_factory=list)
@@ -70,7 +73,9 @@ def build_parser() -> argparse.ArgumentParser:
                         help='run this controller script instead of a behaviour: a Webots controller (it imports '
                              '`controller`) goes through webots_controller, any other script runs as an rclpy node '
                              'with use_sim_time')
-    parser.add_argument('--robot', metavar='NAME', help='the robot a --controller script drives (several robots)')
+    parser.add_argument('--robot', metavar='NAME',
+                        help='the robot a --controller script drives (several robots); without it a Webots script '
+                             'runs once per robot, as in Webots')
     parser.add_argument('--robots', type=int, metavar='N',
                         help='simulate N robots placed clear of everything (seeded); the behaviour drives them all')
     parser.add_argument('--duration', type=float, default=0.0,
@@ -129,11 +134,9 @@ def make_plan(args: argparse.Namespace) -> Plan:
     if args.robot and names and args.robot not in names:
         raise ValueError(f'--robot {args.robot}: no such robot (robots: {", ".join(names)})')
     several = len(names) > 1 or (args.robots or 1) > 1
-    if several and args.controller and not args.robot and _is_webots(Path(args.controller)):
-        raise ValueError('--robot NAME: a Webots controller drives one robot; say which'
-                         + (f' (robots: {", ".join(names)})' if names else ''))
-
     plan = _controller_plan(args, several)
+    if several and plan.controller_kind == 'webots' and not args.robot:
+        plan.script_robots = placed_names(args.robots) if args.robots else names
     if args.controller and args.robot:
         plan.robots_to_drive = (args.robot,)
     sim_specs = tables.sim_parameters()
@@ -174,7 +177,7 @@ def _controller_plan(args: argparse.Namespace, several: bool) -> Plan:
     script = Path(args.controller)
     if _is_webots(script):
         command = ['webots_controller', str(script.resolve()), *(['--robot', args.robot] if args.robot else [])]
-        return Plan(script.name, 'webots', command, 'any')
+        return Plan(script.name, 'webots', command, 'all' if several and not args.robot else 'any')
     return Plan(script.name, 'rclpy', [sys.executable, str(script.resolve())], 'any')
 
 

@@ -86,7 +86,11 @@ class Supervisor:
         if plan.controller_kind != 'rclpy':
             command[0] = executable(command[0])
         robot_ns = self.args.robot if plan.controller_kind == 'rclpy' and self.args.robot else ''
-        start('controller', plan.controller, [*command, *self.ros_args(plan.controller_params, namespace=robot_ns)])
+        for robot in plan.script_robots:
+            start('controller', f'{robot}:{plan.controller}',
+                  [*command, '--robot', robot, *self.ros_args(plan.controller_params)])
+        if not plan.script_robots:
+            start('controller', plan.controller, [*command, *self.ros_args(plan.controller_params, namespace=robot_ns)])
         if self.args.view:
             start('view', 'view', [executable('view'), *self.ros_args(plan.view_params)])
 

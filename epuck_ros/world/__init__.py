@@ -13,8 +13,8 @@ from epuck_ros.world.data import (ONE_ROBOT, ROBOT_NAME, ROBOT_NAME_MAX, Box, Cy
 from epuck_ros.world.geometry import CONTACT_TOLERANCE, ray_circle
 from epuck_ros.world.loading import (MAX_FILE_BYTES, MAX_MAGNITUDE, MAX_NESTING, load_world, world_from_dict,
                                      world_from_yaml)
-from epuck_ros.world.placement import ROBOT_GAP, place_robots
+from epuck_ros.world.placement import ROBOT_GAP, place_robots, placed_names
 
 __all__ = ['CONTACT_TOLERANCE', 'MAX_FILE_BYTES', 'MAX_MAGNITUDE', 'MAX_NESTING', 'ONE_ROBOT', 'ROBOT_GAP',
            'ROBOT_NAME', 'ROBOT_NAME_MAX', 'Box', 'Cylinder', 'RobotStart', 'World', 'WorldError', 'default_world',
-           'load_world', 'place_robots', 'ray_circle', 'world_from_dict', 'world_from_yaml']
+           'load_world', 'place_robots', 'placed_names', 'ray_circle', 'world_from_dict', 'world_from_yaml']

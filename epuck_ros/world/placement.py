@@ -14,6 +14,11 @@ ROBOT_GAP = 0.01
 """m between the bodies of robots placed by `place_robots`, so none starts touching another."""
 
 
+def placed_names(count: int) -> tuple[str, ...]:
+    """The names of `count` robots placed by `place_robots` (`sim -p robots:=N`), in order."""
+    return tuple(f'epuck{i}' for i in range(count))
+
+
 def place_robots(world: World, count: int, seed: int, model: RobotModel = RobotModel()) -> World:
     """`world` with `count` robots named epuck0.. placed clear of walls, obstacles and each other; seeded.
 
@@ -46,5 +51,5 @@ def place_robots(world: World, count: int, seed: int, model: RobotModel = RobotM
     offset = jitter * np.sqrt(rng.uniform(0.0, 1.0, size=count))
     chosen = chosen + offset[:, None] * np.column_stack([np.cos(angle), np.sin(angle)])
     yaw = rng.uniform(-math.pi, math.pi, size=count)
-    return world.with_robots(RobotStart(f'epuck{i}', x, y, heading)
-                             for i, ((x, y), heading) in enumerate(zip(chosen.tolist(), yaw.tolist())))
+    return world.with_robots(RobotStart(name, x, y, heading)
+                             for name, (x, y), heading in zip(placed_names(count), chosen.tolist(), yaw.tolist()))
