@@ -139,6 +139,9 @@ def start_lockstep_sim(launch, test_node, world: str, **params):
 
 def run(test_node, clients: LockstepClients, steps: int) -> None:
     test_node.spin_until(clients.ready, what='the clients and the sim to match')
+    # Matched as the clients see it; the sim's first step waits until it has matched them too.
+    set_parameter(test_node, 'lockstep_controllers',
+                  ParameterValue(type=ParameterType.PARAMETER_INTEGER, integer_value=len(clients.publishers)))
     set_parameter(test_node, 'paused', boolean(False))
     test_node.spin_until(lambda: len(clients.clocks) >= steps and
                          all(len(t) >= steps for t in clients.truth.values()), timeout=120, what=f'{steps} steps')
