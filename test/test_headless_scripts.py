@@ -67,3 +67,18 @@ def test_a_step_failing_in_a_script_thread_is_the_trial_error(tmp_path: Path, cl
 
     with pytest.raises(OSError, match='disk full'):
         run(Trial(Script(str(script)), duration=2.0), each_step=fail_at_step_five)
+
+
+def test_copies_of_a_script_run_as_main_and_leave_this_process_main_alone(tmp_path: Path,
+                                                                          clean_imports: None) -> None:
+    """Each robot's copy runs as `python SCRIPT.py` would (`__name__ == '__main__'`), in a thread of this process,
+    and this process's own __main__ stays what it was (a script left in its place made multiprocessing's spawned
+    children, a local Dask cluster's workers, run that script)."""
+    script = tmp_path / 'main_only.py'
+    script.write_text("if __name__ == '__main__':\n" + ''.join(f'    {line}\n' for line in
+                                                               FORWARD_THEN_RETURN.splitlines()))
+    main_before = sys.modules['__main__']
+    for _ in range(3):
+        sim, _ = run(Trial(Script(str(script)), robots=3, seed=1, duration=0.5, noise=False))
+        assert sys.modules['__main__'] is main_before
+    assert sim.odom_pose[:, 0].all()   # every copy drove: each ran as __main__

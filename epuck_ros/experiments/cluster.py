@@ -77,9 +77,13 @@ def open_client(workers: int | None, scheduler: str | None) -> Iterator[object |
         return
     # The worker processes start with Ctrl-C ignored (inherited): Ctrl-C in the terminal reaches the whole process
     # group, and it is the caller's to handle (it closes the cluster); each worker printed a KeyboardInterrupt.
-    with _without_ctrl_c():
-        cluster = LocalCluster(n_workers=workers or default_workers(), threads_per_worker=1, processes=True,
-                               dashboard_address=':0', silence_logs=50)
+    try:
+        with _without_ctrl_c():
+            cluster = LocalCluster(n_workers=workers or default_workers(), threads_per_worker=1, processes=True,
+                                   dashboard_address=':0', silence_logs=50)
+    except BaseException:
+        _stop_resource_tracker()   # a cluster whose workers failed to start leaves it running as well
+        raise
     client = Client(cluster)
     try:
         if PIN_LOCAL_WORKERS:   # else a trial takes more CPU in a worker (placement.py says why)

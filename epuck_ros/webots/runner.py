@@ -8,8 +8,8 @@ raises, 2 for a bad command line or a robot the simulator does not have.
 """
 from __future__ import annotations
 
+import builtins
 import re
-import runpy
 import sys
 import traceback
 from pathlib import Path
@@ -76,10 +76,10 @@ def fail(message: str) -> None:
 def run_script(path: Path, script_args: list[str]) -> tuple[int, str]:
     """Run the script as __main__: its exit code (1 and its traceback when it raises), and one line saying what
     went wrong ('' when nothing did)."""
-    sys.path[:0] = [str(SHIM_DIR), str(path.parent)]
+    sys.path[:0] = [folder for folder in (str(SHIM_DIR), str(path.parent)) if folder not in sys.path]
     sys.argv = [str(path), *script_args]
     try:
-        runpy.run_path(str(path), run_name='__main__')
+        _run_as_main(path)
     except KeyboardInterrupt:
         return 0, ''
     except SystemExit as end:
@@ -99,8 +99,20 @@ def run_script(path: Path, script_args: list[str]) -> tuple[int, str]:
     return 0, ''
 
 
+def _run_as_main(path: Path) -> None:
+    """The script's code in a namespace of its own called __main__, as `python SCRIPT.py` runs it.
+
+    Not runpy.run_path: it puts the script in sys.modules['__main__'] for the run and puts back what it found
+    there, and the copies of a script that a headless trial runs at once, one thread per robot, put them back in
+    the wrong order, leaving a script as the process's __main__ (multiprocessing's spawned children, Dask's
+    workers, then ran that script instead of the program that started them)."""
+    code = compile(path.read_bytes(), str(path), 'exec')
+    exec(code, {'__name__': '__main__', '__file__': str(path), '__builtins__': builtins,  # noqa: S102 - its purpose
+                '__package__': None, '__spec__': None, '__loader__': None, '__cached__': None})
+
+
 def _from_script(tb: TracebackType | None, path: Path) -> TracebackType | None:
-    """The traceback from the script's own frame on: the runner's and runpy's frames say nothing to its author."""
+    """The traceback from the script's own frame on: the runner's frames say nothing to its author."""
     frame = tb
     while frame is not None and Path(frame.tb_frame.f_code.co_filename) != path:
         frame = frame.tb_next
