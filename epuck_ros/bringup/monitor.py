@@ -33,6 +33,7 @@ from epuck_ros.world import World, WorldError, world_from_dict
 
 SIM_NODE = 'sim'
 RECORDER_NODE = 'recorder'
+VIEW_NODE = 'view'
 COMMAND_TOPICS = ('wheel_cmd', 'cmd_vel')
 REQUEST_RETRY = 2.0
 """Wall seconds after which a parameter request to the simulator is sent again (setting `paused` twice is harmless):
@@ -236,8 +237,10 @@ class RunMonitor:
                     found.append((info.node_name, info.node_namespace))
         return found
 
-    def node_exists(self, name: str) -> bool:
-        return any(n == name for n, _ in self.node.get_node_names_and_namespaces())
+    def view_serving(self) -> bool:
+        """The view subscribes to `world` once its page is served: its node alone is in the graph earlier (a page
+        opened at the printed address as soon as bringup printed it was refused on a loaded machine)."""
+        return any(info.node_name == VIEW_NODE for info in self.node.get_subscriptions_info_by_topic('world'))
 
     def set_paused(self, paused: bool, timeout: float, controllers: int = 0) -> bool:
         """Set the simulator's `paused` parameter, asking again every REQUEST_RETRY; True once it said yes. With

@@ -169,7 +169,7 @@ class Supervisor:
             return False
         if self.plan.record_dir is not None and not monitor.recorder_subscribed():
             return False
-        if self.args.view and not monitor.node_exists('view'):
+        if self.args.view and not monitor.view_serving():
             return False
         robots = monitor.world.names
         wanted = self.plan.robots_to_drive
@@ -189,7 +189,7 @@ class Supervisor:
             return 'the simulator did not come up'
         if self.plan.record_dir is not None and not monitor.recorder_subscribed():
             return 'the recorder did not subscribe to the simulator\'s topics'
-        if self.args.view and not monitor.node_exists('view'):
+        if self.args.view and not monitor.view_serving():
             return 'the view did not come up'
         return f'{self.plan.controller} did not connect to every robot it drives (no wheel_cmd/cmd_vel publisher)'
 

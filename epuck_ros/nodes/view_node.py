@@ -111,7 +111,6 @@ class ViewNode(Node):
         self._settings_read = False
         self._step = self.create_client(Trigger, 'step')
         self._reset = self.create_client(Empty, 'reset')
-        self.create_subscription(String, 'world', self._on_world, LATCHED)
 
         host, port = values['host'], values['port']
         try:
@@ -122,6 +121,8 @@ class ViewNode(Node):
             raise CannotServe(f'cannot serve on {host}:{port}: {error.strerror or error}{busy}') from None
         self._server_thread = threading.Thread(target=self.server.serve_forever, name='view_http', daemon=True)
         self._server_thread.start()
+        # Last: the graph shows this subscription only once the page is served (bringup's readiness of the view).
+        self.create_subscription(String, 'world', self._on_world, LATCHED)
         if not is_loopback(host):
             self.get_logger().warning(
                 f'serving on {host}: anyone who can reach this machine can pause, reset and drive the simulation')
