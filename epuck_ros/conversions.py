@@ -12,9 +12,14 @@ import math
 NS_PER_SECOND = 1_000_000_000
 
 
+def nanoseconds_from_seconds(seconds: float) -> int:
+    """A time in seconds as integer nanoseconds, to the nearest one (a step's stamp as one integer)."""
+    return round(seconds * 1e9)
+
+
 def stamp_from_seconds(seconds: float) -> tuple[int, int]:
     """(sec, nanosec) of a time in seconds, to the nearest nanosecond."""
-    return divmod(round(seconds * 1e9), NS_PER_SECOND)
+    return divmod(nanoseconds_from_seconds(seconds), NS_PER_SECOND)
 
 
 def stamp_from_nanoseconds(nanoseconds: int) -> tuple[int, int]:

@@ -24,7 +24,7 @@ from std_msgs.msg import String
 
 from epuck_ros.bag.cdr import odometry_fields
 from epuck_ros.bag.tally import RunTally
-from epuck_ros.conversions import seconds_from_stamp
+from epuck_ros.conversions import nanoseconds_from_seconds, seconds_from_stamp
 from epuck_ros.nodes.announcements import ANNOUNCEMENT_QOS, SIMULATORS_TOPIC, Announcement, parse_announcement
 from epuck_ros.nodes.dds_profile import use_package_profile, warn_if_not_fast_dds
 from epuck_ros.nodes.qos import LATCHED
@@ -173,7 +173,7 @@ class RunMonitor:
 
     def catch_up(self, timeout: float) -> None:
         """Take the samples still on their way: until every robot's truth reached the last `/clock` (bounded)."""
-        last = round(self.sim_time * 1e9)
+        last = nanoseconds_from_seconds(self.sim_time)
         deadline = time.monotonic() + timeout
         while any(not track.stamps or max(track.stamps) < last for track in self.tracks.values()) and \
                 time.monotonic() < deadline:

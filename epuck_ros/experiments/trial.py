@@ -24,7 +24,7 @@ from typing import TYPE_CHECKING, Any
 from epuck_ros.bag.tally import RunTally
 from epuck_ros.behaviours import BEHAVIOURS, Behaviour, Observation, WheelCommand
 from epuck_ros.behaviours.base import ranges_from_raw
-from epuck_ros.conversions import quaternion_from_yaw, yaw_from_quaternion
+from epuck_ros.conversions import nanoseconds_from_seconds, quaternion_from_yaw, yaw_from_quaternion
 from epuck_ros.experiments.isolation import ChildFailed, call_in_child
 from epuck_ros.lockstep import Lockstep
 from epuck_ros.model import TIME_STEP, RobotModel
@@ -212,14 +212,14 @@ def _published(sim: Simulation, tally: RunTally, labels: Sequence[str],
     under its `labels` entry."""
     if each_step is not None:
         each_step(sim)
-    stamp = round(sim.time * 1e9)   # nanoseconds_from_stamp(*stamp_from_seconds(sim.time)), the same integer
+    stamp = nanoseconds_from_seconds(sim.time)   # the integer of the step's stamp, without the (sec, nanosec) pair
     for label, (x, y, _) in zip(labels, sim.true_pose.tolist()):
         tally.add(label, stamp, x, y)
 
 
 def _stamp_seconds(seconds: float) -> float:
     """A time as a controller receives it: a (sec, nanosec) stamp, back in seconds."""
-    return round(seconds * 1e9) * 1e-9
+    return nanoseconds_from_seconds(seconds) * 1e-9
 
 
 def _odometry_as_received(pose: Sequence[float]) -> tuple[float, float, float]:
