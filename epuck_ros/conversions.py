@@ -1,7 +1,9 @@
 """How ROS messages carry time and heading, converted in one place: stamps <-> seconds, yaw <-> quaternion.
 
 A stamp is (sec, nanosec) as builtin_interfaces/Time holds it; nanoseconds since the epoch (or since the
-simulation's start) are the exact form used to compare stamps. A planar pose's orientation is a rotation
+simulation's start) are the exact form used to compare stamps. A message without a header (the Float64MultiArray
+of `ir_raw`, `ground_raw`, `light_raw` and a stamped `wheel_cmd`) names its step in its layout: one dimension
+describing the data, labelled `stamp=SEC.NANOSEC` (`stamp_label`), which readers of `data` never see. A planar pose's orientation is a rotation
 about z, so its quaternion is (0, 0, sin(yaw / 2), cos(yaw / 2)). No ROS imports: the core, the bag code and
 the nodes all use these.
 """
@@ -30,6 +32,24 @@ def stamp_from_nanoseconds(nanoseconds: int) -> tuple[int, int]:
 def nanoseconds_from_stamp(sec: int, nanosec: int) -> int:
     """A stamp as whole nanoseconds: exact, so two stamps compare equal when they are."""
     return sec * NS_PER_SECOND + nanosec
+
+
+STAMP_LABEL_PREFIX = 'stamp='
+
+
+def stamp_label(sec: int, nanosec: int) -> str:
+    """The label that names a step in a Float64MultiArray's layout: `stamp=12.032000000` (nanosec in 9 digits)."""
+    return f'{STAMP_LABEL_PREFIX}{sec}.{nanosec:09d}'
+
+
+def stamp_from_label(label: str) -> tuple[int, int] | None:
+    """The (sec, nanosec) a `stamp_label` names; None for any other label (an array that names no step)."""
+    if not label.startswith(STAMP_LABEL_PREFIX):
+        return None
+    sec, dot, nanosec = label[len(STAMP_LABEL_PREFIX):].partition('.')
+    if not dot or len(nanosec) != 9 or not sec.isdigit() or not nanosec.isdigit():
+        return None
+    return int(sec), int(nanosec)
 
 
 def seconds_from_stamp(sec: int, nanosec: int) -> float:
