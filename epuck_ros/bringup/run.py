@@ -216,7 +216,7 @@ class Supervisor:
         self.refuse_other_simulators()
         self.resumed_at = time.monotonic()  # the request's: the simulator may step before its answer is back
         # In lockstep, the controllers this process sees: the simulator's first step waits until it sees them too.
-        seen = sum(1 for robot in self.monitor.world.names if self.monitor.controllers(robot)) if args.lockstep else 0
+        seen = sum(1 for robot in self.monitor.world.names if self.monitor.controllers(robot)) if args.lockstep else None
         if not self.monitor.set_paused(False, READY_TIMEOUT, controllers=seen):
             raise RunFailed('the simulator did not accept paused:=false')
         robots = self.monitor.world.names
@@ -269,6 +269,9 @@ def report(supervisor: Supervisor, sim_time: float, wall_time: float) -> list[st
     if stall >= STALL_NOTE:
         head.append(f'[bringup] note: simulated time stood still for {stall:.1f} s wall at t={at:.3f} s (lockstep '
                     f'waiting for a controller\'s answer, or a busy machine: see the lines above)')
+    integrity = monitor.integrity
+    head.append(f'[bringup] {integrity.message}' if integrity is not None else
+                '[bringup] reproducible: unknown (the simulator\'s lockstep_status never came)')
     if plan.record_dir is not None:
         try:
             figures, motions = summary.from_bag(plan.record_dir)

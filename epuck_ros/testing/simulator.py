@@ -19,6 +19,7 @@ from collections.abc import Callable, Mapping
 from typing import IO, Any
 
 from epuck_ros.conversions import seconds_from_stamp, yaw_from_quaternion
+from epuck_ros.integrity import STATUS_TOPIC, Integrity, integrity_from
 
 POLL = 0.05
 """Wall seconds between two looks at the graph or the simulator's parameters while waiting."""
@@ -107,16 +108,32 @@ class SimulatorUnderTest:
         return self.start_poses[name] if stamped is None else stamped[1:]
 
     def contacts(self, robot: str | int | None = None, timeout: float = 30.0) -> int:
-        """The number of the robot's contacts with obstacles or robots so far (None: the first robot).
-
-        Read from a new subscription to its latched `collisions`: the simulator publishes a count after the step's
-        `/clock`, so a subscription kept from the start could still have it on its way."""
+        """The number of the robot's contacts with obstacles or robots so far (None: the first robot), from its
+        latched `collisions`."""
         from std_msgs.msg import UInt32
-        received: list[int] = []
-        subscription = self._node.create_subscription(UInt32, self._topic(self._name(robot), 'collisions'),
-                                                      lambda msg: received.append(msg.data), self._latched)
+        name = self._name(robot)
+        return self._latest(UInt32, self._topic(name, 'collisions'), timeout, f'no collision count of {name}').data
+
+    @property
+    def reproducible(self) -> bool:
+        """Whether the run so far is reproducible: every step answered, by name, by every driven robot's controller
+        (the simulator's `lockstep_status`); `integrity()` says why not."""
+        return self.integrity().reproducible
+
+    def integrity(self, timeout: float = 30.0) -> Integrity:
+        """The simulator's verdict on the run so far (epuck_ros/integrity.py): reproducible, or why not and since
+        when."""
+        from diagnostic_msgs.msg import DiagnosticStatus
+        status = self._latest(DiagnosticStatus, '/' + STATUS_TOPIC, timeout, 'no lockstep_status from the simulator')
+        return integrity_from(status.message, {value.key: value.value for value in status.values})
+
+    def _latest(self, msg_type: type, topic: str, timeout: float, what: str) -> Any:
+        """The latest message of a latched topic, from a new subscription: the simulator publishes such a topic after
+        the step's `/clock`, so a subscription kept from the start could still have it on its way."""
+        received: list[Any] = []
+        subscription = self._node.create_subscription(msg_type, topic, received.append, self._latched)
         try:
-            self._wait(lambda: bool(received), timeout, f'no collision count of {self._name(robot)}')
+            self._wait(lambda: bool(received), timeout, what)
         finally:
             self._node.destroy_subscription(subscription)
         return received[-1]
