@@ -110,7 +110,11 @@ def test_reset_puts_the_robot_back_and_zeroes_odometry(launch, test_node):
     home = truth[-1].pose.pose.position
     pub.publish(wheel_cmd(HALF_SPEED, 0.3 * MAX_WHEEL_SPEED))
     test_node.spin_until(lambda: odom and odom[-1].pose.pose.position.x > 0.02, what='the robot to move')
-    assert joints[-1].position[0] > 0.5 and joints[-1].velocity[0] == pytest.approx(HALF_SPEED)
+    # The joint states of that very step (the newest may be later: cmd_timeout may have stopped the wheels since)
+    moved = next(stamp_seconds(msg) for msg in odom if msg.pose.pose.position.x > 0.02)
+    test_node.spin_until(lambda: any(stamp_seconds(msg) == moved for msg in joints), what='joint_states of that step')
+    then = next(msg for msg in joints if stamp_seconds(msg) == moved)
+    assert then.position[0] > 0.5 and then.velocity[0] == pytest.approx(HALF_SPEED)
     client = test_node.node.create_client(Empty, 'reset')
     assert client.wait_for_service(timeout_sec=10.0)
     future = client.call_async(Empty.Request())

@@ -216,7 +216,8 @@ class Supervisor:
         self.refuse_other_simulators()
         self.resumed_at = time.monotonic()  # the request's: the simulator may step before its answer is back
         # In lockstep, the controllers this process sees: the simulator's first step waits until it sees them too.
-        seen = sum(1 for robot in self.monitor.world.names if self.monitor.controllers(robot)) if args.lockstep else None
+        seen = sum(1 for robot in self.monitor.world.names if self.monitor.controllers(robot)) \
+            if args.lockstep else None
         if not self.monitor.set_paused(False, READY_TIMEOUT, controllers=seen):
             raise RunFailed('the simulator did not accept paused:=false')
         robots = self.monitor.world.names
