@@ -262,9 +262,10 @@ class SimNode(Node):
                     refused = str(error)
         if refused:
             self.get_logger().warning(f'{topic} refused: {refused}', throttle_duration_sec=WARN_PERIOD)
-        if verdict is Answer.BESIDE and not self._controls.settings.paused:
-            self._break(f'a command that names no step drove {self._sim.names[robot]} beside its lockstep controller '
-                        f'(another publisher on {topic}, or the controller stopping)')
+        if verdict is Answer.BESIDE:
+            if not self._controls.settings.paused:   # paused, it drives nothing before whoever resumes
+                self._break(f'a command that names no step drove {self._sim.names[robot]} beside its lockstep '
+                            f'controller (another publisher on {topic}, or the controller stopping)')
         elif verdict is not None and verdict not in (Answer.REPEATED, Answer.FUTURE):
             # The step's last answer may take the next step here, in this thread (`_lend_on_answers`): handing the
             # step to the loop thread was one more thread wake-up per lockstep round trip.
