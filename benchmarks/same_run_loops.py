@@ -24,7 +24,8 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / 'test'))
 from same_run import bringup_truth, difference, example_cases, headless_truth  # noqa: E402
 
-THREE_SCRIPT_TEST = 'test/test_experiments.py::test_three_robots_each_driven_by_a_script_over_dds_are_the_headless_trial'
+THREE_SCRIPT_TEST = ('test/test_experiments.py::'
+                     'test_three_robots_each_driven_by_a_script_over_dds_are_the_headless_trial')
 
 
 def busy_loops(count: int) -> list[subprocess.Popen]:

@@ -49,8 +49,9 @@ def test_run_until_refuses_what_it_cannot_do_and_leaves_the_simulation_as_it_was
 
 def test_a_stopped_simulator_says_so_at_once(sim):
     sim.stop()
-    for call in (lambda: sim.run_until(1.0), sim.contacts, sim.ground_truth, sim.wait_for_controller,
-                 lambda: sim.reproducible):
+    calls = (lambda: sim.run_until(1.0), sim.contacts, sim.ground_truth, sim.wait_for_controller,
+             lambda: sim.reproducible)
+    for call in calls:
         began = time.monotonic()
         with pytest.raises(RuntimeError, match='was stopped'):
             call()
