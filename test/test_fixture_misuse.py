@@ -58,8 +58,10 @@ def test_a_stopped_simulator_says_so_at_once(sim):
         assert time.monotonic() - began < 5.0   # not a wait for a simulator that is gone
 
 
-@pytest.mark.parametrize('arguments, error', [({'robots': '3'}, TypeError), ({'seed': 1.5}, TypeError),
-                                               ({'robots': -1}, ValueError)])
+MISUSES = [({'robots': '3'}, TypeError), ({'seed': 1.5}, TypeError), ({'robots': -1}, ValueError)]
+
+
+@pytest.mark.parametrize('arguments, error', MISUSES)
 def test_bad_arguments_are_named_before_anything_starts(arguments, error):
     with pytest.raises(error, match=next(iter(arguments))):
         SimulatorUnderTest(**arguments)
