@@ -85,7 +85,7 @@ def test_a_run_answered_by_name_is_reproducible(sim):
 
 
 def test_a_run_driven_by_commands_that_name_no_step_is_not_and_says_why(sim):
-    """teleop re-sends a plain Twist 20 times a (wall) second: a controller at its own rate."""
+    """The teleop node re-sends a plain Twist 20 times a (wall) second: a controller at its own rate."""
     run_with(sim, [str(BIN_DIR / 'teleop'), '--ros-args', '-p', 'repeat_rate:=20.0'], 1.0)
     verdict = sim.integrity()
     assert not sim.reproducible and not verdict.reproducible
