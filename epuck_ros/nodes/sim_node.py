@@ -15,7 +15,6 @@ import os
 import sys
 import threading
 import time
-from collections.abc import Sequence
 
 import rclpy
 import yaml
@@ -32,14 +31,14 @@ from std_srvs.srv import Empty, Trigger
 from visualization_msgs.msg import MarkerArray
 
 from epuck_ros.conversions import nanoseconds_from_seconds, stamp_from_seconds
-from epuck_ros.integrity import HELD, NOT_LOCKSTEP, Integrity
-from epuck_ros.lockstep import OWN_RATE_WAIT, Answer, Lockstep
+from epuck_ros.integrity import HELD, NOT_LOCKSTEP
+from epuck_ros.lockstep import Answer, Lockstep
 from epuck_ros.markers import world_markers
 from epuck_ros.model import TIME_STEP, RobotModel
 from epuck_ros.nodes.ack_window import AckWindow, history_steps, window_steps
 from epuck_ros.nodes.dds_profile import use_package_profile, use_simulator_profile, warn_if_not_fast_dds
 from epuck_ros.nodes.domain_watch import DISCOVERY_WINDOW, DomainWatch
-from epuck_ros.nodes.integrity_port import IntegrityPort
+from epuck_ros.nodes.lockstep_report import LockstepReport
 from epuck_ros.nodes.pacing import Controls, Pacer, Settings
 from epuck_ros.nodes.params import ParamSpec, Usage, command_line_value, declare_parameters, prepare_arguments
 from epuck_ros.nodes.qos import LATCHED
@@ -157,10 +156,12 @@ class SimNode(Node):
         self._domain = DomainWatch(self, created, created if started is None else started, values['discovery_window'])
         self._clock_message = Patch(Clock(), [('clock.sec', 'i'), ('clock.nanosec', 'I')])
         self._acks = AckWindow(self._stream_publishers, window_steps(history), self._on_ack_stall, self._kept_all)
-        self._integrity = IntegrityPort(self, HELD if self._lockstep_on else NOT_LOCKSTEP)
+        self._report = LockstepReport(self, self._sim.names, HELD if self._lockstep_on else NOT_LOCKSTEP,
+                                      self._lockstep_timeout, lambda: self._sim.time)
+        report = self._report
         self._lockstep = Lockstep(len(self.ports), self._take_step, self._lockstep_timeout, driven=self._driven,
-                                  lend=self._lend_on_answers, on_stall=self._on_stall, on_resend=self._on_resend,
-                                  on_free=self._on_free, on_timeout=self._on_timeout)
+                                  lend=self._lend_on_answers, on_stall=report.stall, on_resend=report.resend,
+                                  on_free=report.free, on_timeout=report.timeout)
         self._lockstep.require_controllers(values['lockstep_controllers'])
         warn_if_not_fast_dds(self.get_logger())
         self._say_ready(world, values)
@@ -264,8 +265,7 @@ class SimNode(Node):
             self.get_logger().warning(f'{topic} refused: {refused}', throttle_duration_sec=WARN_PERIOD)
         if verdict is Answer.BESIDE:
             if not self._controls.settings.paused:   # paused, it drives nothing before whoever resumes
-                self._break(f'a command that names no step drove {self._sim.names[robot]} beside its lockstep '
-                            f'controller (another publisher on {topic}, or the controller stopping)')
+                self._report.beside(robot, topic)
         elif verdict is not None and verdict not in (Answer.REPEATED, Answer.FUTURE):
             # The step's last answer may take the next step here, in this thread (`_lend_on_answers`): handing the
             # step to the loop thread was one more thread wake-up per lockstep round trip.
@@ -275,7 +275,7 @@ class SimNode(Node):
         with self._lock:
             self._sim.reset()
             if not self._controls.settings.paused:
-                self._break('reset while running, at no particular step (pause first: paused:=true)')
+                self._report.broken('reset while running, at no particular step (pause first: paused:=true)')
         self.get_logger().info('reset: every robot back at its start pose, odometry zeroed')
         return response
 
@@ -329,8 +329,10 @@ class SimNode(Node):
                 self._acks.restart(self._sim.steps)
                 self._controls.wait_while_idle(IDLE_POLL)
                 continue
-            if self._lockstep_on and not self._lockstep.await_controllers(self._stepping, self._report_controllers):
+            if self._lockstep_on and not self._lockstep.await_controllers(self._stepping, self._report.controllers):
                 continue
+            if not self._sim.steps:
+                self._acks.await_readers(self.count_subscribers, self._stepping)
             self._lockstep.step(resend)
             resend = self._lockstep_on and not self._lockstep.await_answers()
             self._acks.published(self._sim.steps)
@@ -395,41 +397,6 @@ class SimNode(Node):
 
     def _stepping(self) -> bool:
         return self._running.is_set() and not self._controls.idle()
-
-    def _report_controllers(self, required: int, driven: Sequence[int]) -> None:
-        connected = ', '.join(self._sim.names[robot] for robot in driven) or 'none'
-        self.get_logger().info(f'lockstep: waiting for {required} controller{"s" * (required != 1)} before the first '
-                               f'step (lockstep_controllers); connected: {connected}')
-
-    def _on_resend(self) -> None:
-        self.get_logger().info(f'lockstep: no first answer to t={self._sim.time:.3f} s yet, sending it again')
-
-    def _on_stall(self, robots: Sequence[int], waited: float) -> None:
-        limit = f'lockstep_timeout {self._lockstep_timeout:g} s' if self._lockstep_timeout else \
-            'lockstep_timeout 0: as long as it takes'
-        self.get_logger().warning(f'lockstep: t={self._sim.time:.3f} s has waited {waited:.0f} s for the answer of '
-                                  f'{self._named(robots)} ({limit})')
-
-    def _on_timeout(self, robots: Sequence[int]) -> None:
-        self._break(f't={self._sim.time:.3f} s went on without the answer of {self._named(robots)} '
-                    f'(lockstep_timeout {self._lockstep_timeout:g} s)')
-
-    def _on_free(self, robot: int, answer: Answer) -> None:
-        """Say once why lockstep no longer waits for this robot's controller, and what to do."""
-        self._break(f'the controller of {self._sim.names[robot]} {answer.value}: it is taken to answer at its own '
-                    f'rate (each step now waits at most {OWN_RATE_WAIT * 1000:g} ms for it); a lockstep controller '
-                    f'answers each step naming it (wheel_cmd labelled stamp=SEC.NANOSEC, or TwistStamped with '
-                    f'cmd_vel_stamped:=true)')
-
-    def _break(self, reason: str) -> None:
-        """The run is no longer reproducible: said once, with the first reason, on the log and lockstep_status."""
-        if self._integrity.integrity.reproducible:
-            self.get_logger().warning(f'lockstep: not reproducible from t={self._sim.time:.3f} s: {reason}')
-            self._integrity.publish(Integrity(False, reason, self._sim.time))
-
-    def _named(self, robots: Sequence[int]) -> str:
-        names = [self._sim.names[robot] for robot in robots]
-        return ', '.join(names[:5]) + (f' and {len(names) - 5} more' if len(names) > 5 else '')
 
 
 def _world(values: dict) -> World:
