@@ -133,7 +133,7 @@ class FoxgloveBridge(Node):
         self._skipped: set[str] = set()
         self.time_ns = 0
         """The simulation's newest /clock tick: each message's log time, and the server's time."""
-        self._sent_time_ns: int | None = None
+        self._sent_time_ns = 0   # nothing to send before the first tick
         self._sent_at = 0.0
         self.create_subscription(ClockMessage, CLOCK_TOPIC, self._on_clock, CLOCK_QOS, raw=True)
         steady = Clock(clock_type=ClockType.STEADY_TIME)   # the graph and the clients, also while /clock stands
@@ -162,7 +162,8 @@ class FoxgloveBridge(Node):
         publishers are all gone (our own subscription keeps a topic in the graph)."""
         graph = dict(self.get_topic_names_and_types())
         for topic, forwarded in list(self._forwarded.items()):
-            if topic not in graph or (forwarded.subscription is not None and not self.count_publishers(topic)):
+            reading = forwarded.subscription is not None or topic == CLOCK_TOPIC
+            if topic not in graph or (reading and not self.count_publishers(topic)):
                 self._withdraw(forwarded)
         for topic, types in graph.items():
             if topic in self._forwarded or topic in self._skipped or topic_or_service_is_hidden(topic):
