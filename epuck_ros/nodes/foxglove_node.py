@@ -5,8 +5,9 @@
 A Foxglove WebSocket server (the `foxglove-sdk` package) joins the simulation on this process's ROS domain: every
 topic the graph shows with a publisher becomes a channel of the same name (message encoding `cdr`, schema
 `ros2msg` with the text a bag carries: `epuck_ros.bag.msgdefs`), robots' namespaced topics and topics that appear
-later included; a topic whose publishers are all gone is withdrawn. The messages are the CDR bytes DDS delivered
-(raw subscriptions), untouched. `/clock` is the server's time.
+later included; a topic that leaves the graph is withdrawn (so is one only the bridge's own reader kept there; one
+that another node still reads stays, as the graph shows it). The messages are the CDR bytes DDS delivered (raw
+subscriptions), untouched. `/clock` is the server's time.
 
 A topic is subscribed in ROS only while a Foxglove client subscribes to its channel, as foxglove_bridge does
 (foxglove-sdk, ros/src/foxglove_bridge): the simulator renders a camera, reads ground and light sensors and sends
