@@ -18,7 +18,7 @@ from rosbags.typesys import Stores, get_typestore
 
 from epuck_ros.bag.qos import QosProfile
 from epuck_ros.bag.writer import BagWriter
-from epuck_ros.conversions import nanoseconds_from_stamp, quaternion_from_yaw, stamp_from_seconds
+from epuck_ros.conversions import nanoseconds_from_stamp, quaternion_from_yaw, stamp_from_seconds, stamp_label
 from epuck_ros.markers import world_markers
 from epuck_ros.model import SENSOR_NAMES, RobotModel
 from epuck_ros.nodes.robot_ports import (JOINT_NAMES, POSE_COVARIANCE, TWIST_COVARIANCE, WORLD_FRAME, frame_prefix,
@@ -92,8 +92,10 @@ class TrialRecorder:
                                                                  sim.true_pose[robot], sim.true_twist[robot], False),
                         stamp)
             data = sim.ir_raw[robot].astype(np.float64)
+            step = _t('std_msgs/msg/MultiArrayDimension')(label=stamp_label(sec, nanosec), size=len(data),
+                                                          stride=len(data))   # names its step, as the sim's
             self._write('/' + topics + 'ir_raw', _t('std_msgs/msg/Float64MultiArray')(
-                layout=_t('std_msgs/msg/MultiArrayLayout')(dim=[], data_offset=0), data=data), stamp)
+                layout=_t('std_msgs/msg/MultiArrayLayout')(dim=[step], data_offset=0), data=data), stamp)
             for sensor, value in zip(SENSOR_NAMES, sim.ir_range[robot].tolist()):
                 self._write('/' + topics + 'proximity', _t('sensor_msgs/msg/Range')(
                     header=_header(time, frames + sensor), radiation_type=INFRARED,

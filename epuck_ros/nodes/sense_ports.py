@@ -5,13 +5,16 @@ Wanted means a subscriber on its topic (so an echo, RViz or a recorder just work
 From SENSE_TOPICS_ON_DEMAND_FROM robots a topic's publisher is made only once a subscriber to it is in the graph
 (`SensePorts`).
 The node looks at the subscriber counts every SENSE_POLL wall seconds (`update_wants`), not every step: a swarm's
-thousands of topics would cost more than its steps. A sense newly wanted is read at once from the current state,
-so the next step's messages carry it. Messages are serialised once and patched each step (`serialized`), the
-image's pixels copied into the tail of its CDR bytes.
+thousands of topics would cost more than its steps. A sense newly wanted is read at once from the current state and
+its message of the current step published at once: a lockstep controller that has just subscribed waits for that
+message before it answers the step, so the sense is sure to be read on the next step (the step protocol, see
+epuck_ros/lockstep.py). Every message names its step: a header's stamp, or for the raw arrays the layout's label
+(`conversions.stamp_label`). Messages are serialised once and patched each step (`serialized`), the image's pixels
+copied into the tail of its CDR bytes.
 """
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 
 from rclpy.node import Node
 from rclpy.publisher import Publisher
@@ -20,9 +23,10 @@ from sensor_msgs.msg import CameraInfo, Image, Imu
 from std_msgs.msg import Float64MultiArray
 
 from epuck_ros.description import IMU_FRAME
-from epuck_ros.model import CAMERA_FOV, GROUND_SENSOR_NAMES, LIGHT_SENSOR_NAMES
+from epuck_ros.model import CAMERA_FOV
 from epuck_ros.nodes.robot_ports import STAMP_FIELDS, frame_prefix, quiet_publisher, topic_prefix
-from epuck_ros.nodes.serialized import Patch, exact_cdr
+from epuck_ros.conversions import stamp_from_seconds
+from epuck_ros.nodes.serialized import Patch, array_bytes, exact_cdr
 from epuck_ros.sensors.camera import camera_matrix
 from epuck_ros.sensors.imu import rates_from_gyro_values
 from epuck_ros.simulation import Simulation
@@ -119,44 +123,48 @@ class SensePorts:
         info.p = [k[0], 0.0, k[2], 0.0, 0.0, k[4], k[5], 0.0, 0.0, 0.0, 1.0, 0.0]
         info.header.frame_id = frames + 'camera'
         self._info = Patch(info, STAMP_FIELDS)
-        self._ground = Patch(Float64MultiArray(data=[0.0] * len(GROUND_SENSOR_NAMES)),
-                             [(f'data[{i}]', 'd') for i in range(len(GROUND_SENSOR_NAMES))])
-        self._light = Patch(Float64MultiArray(data=[0.0] * len(LIGHT_SENSOR_NAMES)),
-                            [(f'data[{i}]', 'd') for i in range(len(LIGHT_SENSOR_NAMES))])
         imu = Imu()
         imu.header.frame_id = frames + IMU_FRAME
         imu.orientation_covariance[0] = -1.0   # REP 145: no orientation estimate
         self._imu = Patch(imu, IMU_FIELDS)
         self._made = True
 
-    def update_wants(self, want: Callable[[str, int, bool], None], forced: frozenset[str]) -> None:
-        """Tell the simulation which of this robot's senses are wanted now (`forced`: by the parameter)."""
+    def update_wants(self, want: Callable[[str, int, bool], None], forced: frozenset[str]) -> list[str]:
+        """Tell the simulation which of this robot's senses are wanted now (`forced`: by the parameter); the senses
+        that have just got a subscriber."""
+        new = []
         for kind in SENSE_TOPICS:
             publisher = self._publishers[kind]
             subscribed = publisher is not None and publisher.get_subscription_count() > 0
             if subscribed != self.subscribed[kind]:
                 self.subscribed[kind] = subscribed
                 want(kind, self.index, subscribed or kind in forced)
+                if subscribed:
+                    new.append(kind)
         info = self._publishers[_CAMERA_INFO]
         self._info_subscribed = info is not None and info.get_subscription_count() > 0
         self.publishing = self._info_subscribed or any(self.subscribed.values())
         if self.publishing and not self._made:
             self._make_messages()
+        return new
 
-    def publish(self, sim: Simulation, stamp: tuple[int, int]) -> None:
-        """This robot's sense messages for the senses with subscribers (their readings are those of this step)."""
+    def publish(self, sim: Simulation, stamp: tuple[int, int], kinds: Iterable[str] = SENSE_TOPICS) -> None:
+        """This robot's sense messages of `kinds` that have subscribers (their readings are those of this step)."""
         robot, senses, subscribed, publishers = self.index, sim.senses, self.subscribed, self._publishers
-        if subscribed['camera'] and senses.images is not None:
-            publishers['camera'].publish(self._image.bytes(stamp, senses.images[robot].tobytes()))
-        if self._info_subscribed:
+        for kind in kinds:
+            if not subscribed[kind]:
+                continue
+            if kind == 'camera' and senses.images is not None:
+                publishers['camera'].publish(self._image.bytes(stamp, senses.images[robot].tobytes()))
+            elif kind == 'ground':
+                publishers['ground'].publish(array_bytes(senses.ground_raw[robot].tolist(), stamp))
+            elif kind == 'light':
+                publishers['light'].publish(array_bytes(senses.light_raw[robot].tolist(), stamp))
+            elif kind == 'imu':
+                rates = rates_from_gyro_values(senses.gyro[robot]).tolist()
+                publishers['imu'].publish(self._imu.bytes((*stamp, *rates, *senses.accelerometer[robot].tolist())))
+        if self._info_subscribed and 'camera' in kinds:
             publishers[_CAMERA_INFO].publish(self._info.bytes(stamp))
-        if subscribed['ground']:
-            publishers['ground'].publish(self._ground.bytes(senses.ground_raw[robot].tolist()))
-        if subscribed['light']:
-            publishers['light'].publish(self._light.bytes(senses.light_raw[robot].tolist()))
-        if subscribed['imu']:
-            rates = rates_from_gyro_values(senses.gyro[robot]).tolist()
-            publishers['imu'].publish(self._imu.bytes((*stamp, *rates, *senses.accelerometer[robot].tolist())))
 
 
 class SenseFeeds:
@@ -208,7 +216,11 @@ class SenseFeeds:
         self._update(self.ports[self._turn])
 
     def _update(self, ports: SensePorts) -> None:
+        """One robot's wants; a sense just subscribed is published at once for the current step (see the module)."""
         was = ports.publishing
-        ports.update_wants(lambda kind, robot, wanted: self._sim.senses.want(kind, [robot], wanted), self._forced)
+        new = ports.update_wants(lambda kind, robot, wanted: self._sim.senses.want(kind, [robot], wanted),
+                                 self._forced)
         if ports.publishing != was:
             self._publishing = [ports for ports in self.ports if ports.publishing]
+        if new and self._sim.steps:   # no step published yet: the first one will carry it
+            ports.publish(self._sim, stamp_from_seconds(self._sim.time), new)
