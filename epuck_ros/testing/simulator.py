@@ -51,10 +51,14 @@ class SimulatorUnderTest:
         self.names: tuple[str, ...] = layout.names
         """The robots' names, in the simulator's order."""
         self.start_poses = {robot.name: robot.pose for robot in layout.robots}
+        from epuck_ros.nodes.dds_profile import PROFILES_FILE, PROFILES_VARIABLE, use_package_profile
+        use_package_profile()   # this process's participant (made below) announces itself every 0.5 s, not 3 s
         self.domain, self._domain_claim = claim_free_domain()
         self.env = {**os.environ, 'ROS_DOMAIN_ID': str(self.domain), 'ROS_AUTOMATIC_DISCOVERY_RANGE': 'LOCALHOST',
-                    **(env or {})}
-        """The environment for the test's own processes: the simulator's domain, discovery on this machine."""
+                    PROFILES_VARIABLE: os.environ.get(PROFILES_VARIABLE, str(PROFILES_FILE)), **(env or {})}
+        """The environment for the test's own processes: the simulator's domain, discovery on this machine, the
+        package's DDS profile (a node that misses the simulator's first announcement hears the next 0.5 s later,
+        not 3 s: most of the time a test took to see its node connected)."""
         self._lock = threading.Lock()
         self._clock = 0.0
         self._truth: dict[str, tuple[float, float, float, float]] = {}
