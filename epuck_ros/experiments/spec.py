@@ -23,6 +23,7 @@ from epuck_ros import untrusted_yaml
 from epuck_ros.behaviours import BEHAVIOURS, ConfigError
 from epuck_ros.behaviours.base import describe
 from epuck_ros.experiments.trial import DEFAULT_TIME_LIMIT, DEFAULT_WORLD, Controller, Script, Trial
+from epuck_ros.simulation import MAX_SEED
 from epuck_ros.world import WorldError, default_world, load_world, place_robots
 
 MAX_TRIALS = 100_000
@@ -202,7 +203,7 @@ def _seeds(fields: _Fields, value: Any) -> list[int]:
     if isinstance(value, dict):
         if set(value) != {'first', 'count'}:
             raise fields.fail('seeds', 'expected a list of seeds or {first: N, count: N}')
-        first = fields.integer(value['first'], 'seeds.first', 0, 2**63 - 1)
-        count = fields.integer(value['count'], 'seeds.count', 1, MAX_TRIALS)
+        first = fields.integer(value['first'], 'seeds.first', 0, MAX_SEED)
+        count = fields.integer(value['count'], 'seeds.count', 1, min(MAX_TRIALS, MAX_SEED - first + 1))
         return list(range(first, first + count))
-    return [fields.integer(seed, f'seeds[{i}]', 0, 2**63 - 1) for i, seed in enumerate(fields.items(value, 'seeds'))]
+    return [fields.integer(seed, f'seeds[{i}]', 0, MAX_SEED) for i, seed in enumerate(fields.items(value, 'seeds'))]
