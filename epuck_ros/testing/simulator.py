@@ -112,9 +112,11 @@ class SimulatorUnderTest:
         Read from a new subscription to its latched `collisions`: the simulator publishes a count after the step's
         `/clock`, so a subscription kept from the start could still have it on its way."""
         from std_msgs.msg import UInt32
+
+        from epuck_ros.nodes.qos import LATCHED
         received: list[int] = []
         subscription = self._node.create_subscription(UInt32, self._topic(self._name(robot), 'collisions'),
-                                                      lambda msg: received.append(msg.data), self._latched)
+                                                      lambda msg: received.append(msg.data), LATCHED)
         try:
             self._wait(lambda: bool(received), timeout, f'no collision count of {self._name(robot)}')
         finally:
@@ -165,7 +167,6 @@ class SimulatorUnderTest:
         from rclpy.executors import SingleThreadedExecutor
         from rclpy.node import Node
         from rclpy.parameter_client import AsyncParameterClient
-        from rclpy.qos import DurabilityPolicy, QoSProfile
         from rosgraph_msgs.msg import Clock
 
         self._context = Context()
@@ -173,7 +174,6 @@ class SimulatorUnderTest:
         self._node = Node(f'epuck_sim_fixture_{os.getpid()}', context=self._context)
         self._executor = SingleThreadedExecutor(context=self._context)
         self._executor.add_node(self._node)
-        self._latched = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
         self._node.create_subscription(Clock, '/clock', self._on_clock, 10)
         for name in self.names:
             self._node.create_subscription(Odometry, self._topic(name, 'ground_truth'),
