@@ -5,10 +5,10 @@ Observation, action (an action beyond [-1, 1] is clipped to it) and reward: see 
 began), and `touching`, whether the body touches one now (what a fitness that judges time in contact needs); the
 vector form gives each as an array with Gymnasium's mask (`_contacts`, `_touching`); `reset()`'s info is empty.
 An episode starts at a random pose clear of every obstacle and is truncated after `duration` simulated seconds
-(32 ms steps); it never terminates (a contact is not an end: the fitness already pays for it). The vector form steps N worlds together in NumPy; as Gymnasium's own
-vector environments, `reset(seed=s)` seeds world i with s + i, so world i replays a lone environment reset with
-seed s + i, and a world's next episode starts on the step after its last (autoreset NEXT_STEP; all worlds end
-together).
+(32 ms steps); it never terminates (a contact is not an end: the fitness already pays for it). The vector form
+steps N worlds together in NumPy; as Gymnasium's own vector environments, `reset(seed=s)` seeds world i with s + i,
+so world i replays a lone environment reset with seed s + i, and a world's next episode starts on the step after
+its last (autoreset NEXT_STEP; all worlds end together).
 """
 from __future__ import annotations
 

@@ -10,9 +10,9 @@ of everything), eight normals for the readings at reset, eight more at each step
 Observation (float32, 10 values): the eight IR activations, (raw - far) / (near - far) clipped to [0, 1],
 far = 67.19 (nothing within 7 cm) and near = 4095 (touching), then the two wheel speeds applied in the last step as
 fractions of the maximum, in [-1, 1] (the speeds commanded: a blocked robot's wheels turn on). Action: the two wheel
-speeds (left, right) as fractions of the maximum (6.28 rad/s), in [-1, 1]; a finite value beyond is clipped to it (as
-the wheels clamp a speed beyond their maximum), NaN and infinities are refused (`check_actions`). Reward: Floreano and Mondada's fitness
-of the step, V (1 - sqrt(dv)) (1 - i) in [0, 1] (see `fitness`).
+speeds (left, right) as fractions of the maximum (6.28 rad/s), in [-1, 1]; a finite value beyond is clipped to it
+(as the wheels clamp a speed beyond their maximum), NaN and infinities are refused (`check_actions`). Reward:
+Floreano and Mondada's fitness of the step, V (1 - sqrt(dv)) (1 - i) in [0, 1] (see `fitness`).
 """
 from __future__ import annotations
 
