@@ -180,8 +180,11 @@ class BehaviourNode(Node):
         self._period_ns = round(period * 1e9)
         self._tick_timer = self.create_timer(period, self._on_tick)
         summary = ', '.join(f'{setting}={value}' for setting, value in settings.items())
-        say = self.get_logger().info if announce else self.get_logger().debug
-        say(f'{spec.summary}; {summary}, control_period={period}')
+        line = f'{spec.summary}; {summary}, control_period={period}'
+        if announce:
+            self.get_logger().info(line)
+        else:
+            self.get_logger().debug(line)
 
     def _choose_ir_topic(self) -> None:
         """`ir_raw` once it has a publisher; until then `proximity` once that has had one for FALLBACK_DELAY (a
@@ -275,8 +278,11 @@ class BehaviourNode(Node):
         command = self.behaviour.update(Observation(now, self._odom, self._ranges))
         if self.behaviour.status != self._logged_status:
             self._logged_status = self.behaviour.status
-            notable = self.behaviour.waiting_for or self.behaviour.done   # said once: the robot stands still
-            (self.get_logger().info if notable else self.get_logger().debug)(f'{self._logged_status} (t={now:.3f} s)')
+            line = f'{self._logged_status} (t={now:.3f} s)'
+            if self.behaviour.waiting_for or self.behaviour.done:   # the robot stands still: said at INFO
+                self.get_logger().info(line)
+            else:   # (two calls: rclpy refuses one call site logging at two severities)
+                self.get_logger().debug(line)
         self._publisher.publish(self._command.bytes((command.left, command.right)))
 
     def stop_robot(self) -> None:
