@@ -110,6 +110,8 @@ def build_parser() -> argparse.ArgumentParser:
                              'read only while a Foxglove panel shows it, so the camera is rendered only while an image '
                              'panel shows it (see foxglove --help)')
     parser.add_argument('--namespace', default='', help='ROS namespace of the simulation (e.g. class1)')
+    parser.add_argument('--verbose', action='store_true',
+                        help='also show the behaviour\'s state changes (cruising, turning, ...: its DEBUG lines)')
     return parser
 
 
@@ -196,7 +198,8 @@ def _robot_names(args: argparse.Namespace) -> tuple[str, ...]:
 def _controller_plan(args: argparse.Namespace, several: bool) -> Plan:
     if not args.controller:
         behaviour = args.behaviour or 'avoid'
-        return Plan(behaviour, 'behaviour', [behaviour, *(['--robots', 'all'] if several else [])],
+        verbose = ['--ros-args', '--log-level', f'{behaviour}:=debug', '--'] if args.verbose else []
+        return Plan(behaviour, 'behaviour', [behaviour, *(['--robots', 'all'] if several else []), *verbose],
                     'all')
     script = Path(args.controller)
     if _is_webots(script):

@@ -15,7 +15,7 @@ from epuck_ros.bag.reader import BagError
 from epuck_ros.bringup import summary, tables
 from epuck_ros.bringup.cli import FOXGLOVE_HOST, Plan, parse_args, ros_domain
 from epuck_ros.bringup.monitor import RunMonitor, samples_missing
-from epuck_ros.bringup.processes import Child, Children, executable
+from epuck_ros.bringup.processes import Child, Children, executable, say
 from epuck_ros.nodes.announcements import Announcement
 from epuck_ros.foxglove.address import NODE_NAME as FOXGLOVE_NODE
 
@@ -235,14 +235,14 @@ class Supervisor:
             raise RunFailed('the simulator did not accept paused:=false')
         robots = self.monitor.world.names
         pace = f'real-time factor {args.real_time_factor:g}' if args.real_time_factor else 'as fast as possible'
-        print(f'[bringup] running {plan.controller}' + (f' on {len(robots)} robots' if len(robots) > 1 else '') +
-              (f' for {args.duration:g} simulated s' if args.duration else ' until Ctrl-C') +
-              f' ({"lockstep" if args.lockstep else "no lockstep"}, {pace})', flush=True)
+        say(f'[bringup] running {plan.controller}' + (f' on {len(robots)} robots' if len(robots) > 1 else '') +
+            (f' for {args.duration:g} simulated s' if args.duration else ' until Ctrl-C') +
+            f' ({"lockstep" if args.lockstep else "no lockstep"}, {pace})')
         if plan.view_url:
-            print(f'[bringup] view: {plan.view_url}  (open it in a browser)', flush=True)
+            say(f'[bringup] view: {plan.view_url}  (open it in a browser)')
         if plan.foxglove_port:
-            print(f'[bringup] foxglove: ws://{FOXGLOVE_HOST}:{plan.foxglove_port}  (in Foxglove: Open connection, '
-                  'Foxglove WebSocket; layout: docs/foxglove_layout.json)', flush=True)
+            say(f'[bringup] foxglove: ws://{FOXGLOVE_HOST}:{plan.foxglove_port}  (in Foxglove: Open connection, '
+                'Foxglove WebSocket; layout: docs/foxglove_layout.json)')
         # The simulator pauses itself at exactly `pause_at` = duration: the run ends on that very step.
         try:
             self.watch(lambda: bool(args.duration) and self.monitor.sim_time >= args.duration - 1e-6,
@@ -317,7 +317,7 @@ def _time_step(plan: Plan) -> float:
 
 
 def run(args: argparse.Namespace, plan: Plan) -> int:
-    print(f'[bringup] {ros_domain()}', flush=True)
+    say(f'[bringup] {ros_domain()}')
     children = Children()
     supervisor = Supervisor(args, plan, children)
     for signum in (signal.SIGINT, signal.SIGTERM):
@@ -349,9 +349,9 @@ def run(args: argparse.Namespace, plan: Plan) -> int:
     for signum in (signal.SIGINT, signal.SIGTERM):  # all is stopped: a late Ctrl-C must not change the exit code
         signal.signal(signum, signal.SIG_IGN)
     for line in lines + [f'[bringup] note: {note}' for note in notes]:
-        print(line, flush=True)
+        say(line)
     for problem in ([failure] if failure else []) + problems:
-        print(f'[bringup] error: {problem}', file=sys.stderr, flush=True)
+        say(f'[bringup] error: {problem}', sys.stderr)
     return 2 if refused else 1 if failure or problems else 0
 
 

@@ -16,6 +16,7 @@ from epuck_ros.bringup import summary
 from epuck_ros.conversions import nanoseconds_from_stamp, stamp_from_seconds
 from epuck_ros.experiments.spec import MAX_DURATION, MAX_ROBOTS
 from epuck_ros.experiments.trial import DEFAULT_WORLD, Script, Trial, run
+from epuck_ros.simulation import MAX_SEED
 from epuck_ros.webots.headless import ScriptError
 from epuck_ros.world import WorldError
 
@@ -53,8 +54,8 @@ def check(parser: argparse.ArgumentParser, args: argparse.Namespace) -> Trial:
         parser.error(f'--duration must be above 0 and at most {MAX_DURATION:g} simulated seconds')
     if not 0 <= args.robots <= MAX_ROBOTS:
         parser.error(f'--robots must be from 1 to {MAX_ROBOTS}')
-    if not 0 <= args.seed < 2**63:
-        parser.error('--seed must be from 0 to 2**63 - 1')
+    if not 0 <= args.seed <= MAX_SEED:
+        parser.error(f'--seed must be from 0 to {MAX_SEED} (as bringup --seed)')
     if args.world != DEFAULT_WORLD and not Path(args.world).is_file():
         parser.error(f'--world: no such file: {args.world}')
     if args.record is not None and args.record.exists():

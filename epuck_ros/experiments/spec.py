@@ -23,7 +23,8 @@ from epuck_ros import untrusted_yaml
 from epuck_ros.behaviours import BEHAVIOURS, ConfigError
 from epuck_ros.behaviours.base import describe
 from epuck_ros.experiments.trial import DEFAULT_TIME_LIMIT, DEFAULT_WORLD, Controller, Script, Trial
-from epuck_ros.world import WorldError, default_world, load_world, place_robots
+from epuck_ros.simulation import MAX_SEED
+from epuck_ros.world import World, WorldError, default_world, load_world, place_robots
 
 MAX_TRIALS = 100_000
 """Trials in one spec at most (a typo such as `count: 1e9` would otherwise queue a billion)."""
@@ -94,7 +95,9 @@ def _trials(fields: _Fields, data: Any) -> list[Trial]:
             raise fields.fail(key, 'missing')
     controllers = [_controller(fields, item, f'controllers[{i}]')
                    for i, item in enumerate(fields.items(data['controllers'], 'controllers'))]
-    worlds = [_world(fields, item, f'worlds[{i}]')
+    # each world file read once, however often the spec names it (a 100-entry list of one file was read 100 times)
+    loaded: dict[str, World] = {DEFAULT_WORLD: default_world()}
+    worlds = [_world(fields, item, f'worlds[{i}]', loaded)
               for i, item in enumerate(fields.items(data.get('worlds', [DEFAULT_WORLD]), 'worlds'))]
     robots = [fields.integer(item, f'robots[{i}]', 0, MAX_ROBOTS)
               for i, item in enumerate(fields.items(data.get('robots', [1]), 'robots'))]
@@ -116,7 +119,7 @@ def _trials(fields: _Fields, data: Any) -> list[Trial]:
     for (label, world), robot_count in itertools.product(worlds, robots):   # placement fails before any trial
         if robot_count > 1:
             try:
-                place_robots(default_world() if world == DEFAULT_WORLD else load_world(world), robot_count, 0)
+                place_robots(loaded[world], robot_count, 0)
             except WorldError as error:
                 raise fields.fail('robots', f'{robot_count} in {label}: {error}') from None
     return [Trial(controller, world, robot_count if robot_count > 1 else 0, seed, float(duration), noise, index,
@@ -183,18 +186,20 @@ def _script(fields: _Fields, item: dict, field: str) -> Script:
     return Script(str(path), name)
 
 
-def _world(fields: _Fields, item: Any, field: str) -> tuple[str, str]:
-    """(the spec's label, the path or DEFAULT_WORLD), the world loaded once to check it."""
+def _world(fields: _Fields, item: Any, field: str, loaded: dict[str, World]) -> tuple[str, str]:
+    """(the spec's label, the path or DEFAULT_WORLD), the world loaded into `loaded` to check it, unless it is
+    there already."""
     if item == DEFAULT_WORLD:
         return DEFAULT_WORLD, DEFAULT_WORLD
     if not isinstance(item, str):
         raise fields.fail(field, f'expected {DEFAULT_WORLD!r} or a world file, '
                                  f'got {untrusted_yaml.cut(repr(item), 60)}')
     path = (fields.path.parent / item).resolve()
-    try:
-        load_world(path)
-    except WorldError as error:
-        raise fields.fail(field, str(error)) from None
+    if str(path) not in loaded:
+        try:
+            loaded[str(path)] = load_world(path)
+        except WorldError as error:
+            raise fields.fail(field, str(error)) from None
     return item, str(path)
 
 
@@ -202,7 +207,7 @@ def _seeds(fields: _Fields, value: Any) -> list[int]:
     if isinstance(value, dict):
         if set(value) != {'first', 'count'}:
             raise fields.fail('seeds', 'expected a list of seeds or {first: N, count: N}')
-        first = fields.integer(value['first'], 'seeds.first', 0, 2**63 - 1)
-        count = fields.integer(value['count'], 'seeds.count', 1, MAX_TRIALS)
+        first = fields.integer(value['first'], 'seeds.first', 0, MAX_SEED)
+        count = fields.integer(value['count'], 'seeds.count', 1, min(MAX_TRIALS, MAX_SEED - first + 1))
         return list(range(first, first + count))
-    return [fields.integer(seed, f'seeds[{i}]', 0, 2**63 - 1) for i, seed in enumerate(fields.items(value, 'seeds'))]
+    return [fields.integer(seed, f'seeds[{i}]', 0, MAX_SEED) for i, seed in enumerate(fields.items(value, 'seeds'))]

@@ -10,6 +10,11 @@ process: `avoid --robots epuck0 epuck1` (or `--robots all`, every robot of the s
 node per robot, named like the executable, in the namespace `<namespace>/<robot>`, all on one executor;
 `-p` parameters apply to every one of them.
 
+Logging: each node says its settings at start (the first node only, when one process drives several robots: they
+share them), and at INFO what leaves the robot standing (waiting for an input, the goal reached); the behaviour's
+other state changes (cruising, turning, a new side) at DEBUG, since some change every few steps:
+`--ros-args --log-level avoid:=debug` (the executable's name; `bringup --verbose`) shows them for every robot's node.
+
 The nodes spin on rclpy's EventsExecutor (experimental in Jazzy, in rclpy since 7.1.4): it queues each ready
 entity's event in C++ instead of rebuilding a wait set of every node's subscriptions, timers and parameter
 services in Python before each callback: less CPU per lockstep step than SingleThreadedExecutor
@@ -31,6 +36,7 @@ from rosgraph_msgs.msg import Clock as RosClock
 from rclpy.clock import Clock, ClockType
 from rclpy.duration import Duration
 from rclpy.exceptions import InvalidNamespaceException, ParameterException
+from rclpy.logging import LoggingSeverity
 from rclpy.experimental import EventsExecutor
 from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy
@@ -65,6 +71,8 @@ the graph shows a simulator's publishers one by one, and the `ir_raw` one may co
 STOP_ACK_TIMEOUT = 1.0
 """Wall seconds an ending process waits for its robots' last (zero) wheel commands to be acknowledged."""
 ALL_ROBOTS = 'all'
+MAX_NAMES_SHOWN = 10
+"""Robot names the start-up line lists at most (a swarm's thousands would make one line of tens of KB)."""
 
 
 class RangeAssembler:
@@ -134,8 +142,11 @@ class BehaviourNode(Node):
     `ir_raw` that names no step is taken as the node's clock says.
     """
 
-    def __init__(self, name: str, spec: BehaviourSpec, namespace: str | None = None) -> None:
+    def __init__(self, name: str, spec: BehaviourSpec, namespace: str | None = None, announce: bool = True) -> None:
+        """`announce`: say the settings at INFO (else at DEBUG: the process's other nodes have said them)."""
         super().__init__(name, cli_args=None if namespace is None else ['--ros-args', '-r', f'__ns:={namespace}'])
+        if rclpy.logging.get_logger(name).is_enabled_for(LoggingSeverity.DEBUG):
+            self.get_logger().set_level(LoggingSeverity.DEBUG)   # `--log-level avoid:=debug`: every robot's node
         settings = declare_parameters(self, parameter_specs(spec))
         period = settings.pop('control_period')
         self.behaviour = spec.make(replace(spec.defaults, **settings))
@@ -170,7 +181,11 @@ class BehaviourNode(Node):
         self._publisher = self.create_publisher(Float64MultiArray, 'wheel_cmd', COMMAND_QOS)
         self._logged_status = ''
         summary = ', '.join(f'{setting}={value}' for setting, value in settings.items())
-        self.get_logger().info(f'{spec.summary}; {summary}, control_period={period}')
+        line = f'{spec.summary}; {summary}, control_period={period}'
+        if announce:
+            self.get_logger().info(line)
+        else:
+            self.get_logger().debug(line)
 
     def _choose_ir_topic(self) -> None:
         """`ir_raw` once it has a publisher; until then `proximity` once that has had one for FALLBACK_DELAY (a
@@ -254,7 +269,11 @@ class BehaviourNode(Node):
         command = self.behaviour.update(Observation(now * 1e-9, self._odom, self._ranges))
         if self.behaviour.status != self._logged_status:
             self._logged_status = self.behaviour.status
-            self.get_logger().info(f'{self._logged_status} (t={now * 1e-9:.3f} s)')
+            line = f'{self._logged_status} (t={now * 1e-9:.3f} s)'
+            if self.behaviour.waiting_for or self.behaviour.done:   # the robot stands still: said at INFO
+                self.get_logger().info(line)
+            else:   # (two calls: rclpy refuses one call site logging at two severities)
+                self.get_logger().debug(line)
         return command
 
     def _publish(self, command: WheelCommand, step: int | None) -> None:
@@ -322,7 +341,8 @@ def _world_robots(probe: Node) -> list[str] | None:
         return None
     world = world_from_yaml(received[-1].data, source=probe.resolve_topic_name('world'))
     names = [robot.name for robot in world.robots]
-    probe.get_logger().info(f'driving {len(names)} robot(s): {" ".join(names)}')
+    shown = names if len(names) <= MAX_NAMES_SHOWN else [*names[:MAX_NAMES_SHOWN - 1], '...', names[-1]]
+    probe.get_logger().info(f'driving {len(names)} robot(s): {" ".join(shown)}')
     return names
 
 
@@ -337,7 +357,7 @@ def main(name: str, args: list[str] | None = None) -> None:
     nodes: list[BehaviourNode] = []
     try:
         for namespace in robot_namespaces(name, robots):
-            nodes.append(BehaviourNode(name, spec, namespace))
+            nodes.append(BehaviourNode(name, spec, namespace, announce=not nodes))
         if nodes and not shutdown_requested():
             spin_until_shutdown(*nodes, executor_type=EventsExecutor)
     except (ConfigError, ParameterException, InvalidNamespaceException, WorldError) as error:

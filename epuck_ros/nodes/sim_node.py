@@ -48,7 +48,7 @@ from epuck_ros.nodes.sense_ports import SENSE_POLL, SENSE_TOPICS, SenseError, Se
 from epuck_ros.nodes.serialized import Patch, PatchCache
 from epuck_ros.nodes.spinning import end_process, handle_shutdown_signals, shutdown_requested, spin_until_shutdown
 from epuck_ros.nodes.tf_ports import TfPorts
-from epuck_ros.simulation import CommandError, Simulation, StepEvents
+from epuck_ros.simulation import MAX_SEED, CommandError, Simulation, StepEvents
 from epuck_ros.world import World, WorldError, default_world, load_world, place_robots
 
 __all__ = ['JOINT_NAMES', 'SIM_PARAMETERS', 'SimNode', 'main']
@@ -82,7 +82,7 @@ SIM_PARAMETERS = [
     ParamSpec('world', '', 'path to a world YAML file; empty = the built-in 1 m x 1 m arena', read_only=True),
     ParamSpec('robots', 0, 'number of robots: 0 = those of the world; N = N robots epuck0.. placed clear of '
                            'everything, seeded by seed', (0, 100000), read_only=True),
-    ParamSpec('seed', 0, 'seed of every random draw (noise, placement): same seed, same run', (0, 2**31 - 1),
+    ParamSpec('seed', 0, 'seed of every random draw (noise, placement): same seed, same run', (0, MAX_SEED),
               read_only=True),
     ParamSpec('noise', True, 'IR sensor noise (Webots lookup table, relative Gaussian) on or off', read_only=True),
     ParamSpec('cmd_timeout', 0.5, 'simulated seconds without a command before a robot stops; 0 = never',

@@ -157,8 +157,9 @@ class SimulatorUnderTest:
     def _latest(self, msg_type: type, topic: str, timeout: float, what: str) -> Any:
         """The latest message of a latched topic, from a new subscription: the simulator publishes such a topic after
         the step's `/clock`, so a subscription kept from the start could still have it on its way."""
+        from epuck_ros.nodes.qos import LATCHED
         received: list[Any] = []
-        subscription = self._node.create_subscription(msg_type, topic, received.append, self._latched)
+        subscription = self._node.create_subscription(msg_type, topic, received.append, LATCHED)
         try:
             self._wait(lambda: bool(received), timeout, what)
         finally:
@@ -211,7 +212,6 @@ class SimulatorUnderTest:
         from rclpy.executors import SingleThreadedExecutor
         from rclpy.node import Node
         from rclpy.parameter_client import AsyncParameterClient
-        from rclpy.qos import DurabilityPolicy, QoSProfile
         from rosgraph_msgs.msg import Clock
 
         self._context = Context()
@@ -219,7 +219,6 @@ class SimulatorUnderTest:
         self._node = Node(f'epuck_sim_fixture_{os.getpid()}', context=self._context)
         self._executor = SingleThreadedExecutor(context=self._context)
         self._executor.add_node(self._node)
-        self._latched = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
         self._node.create_subscription(Clock, '/clock', self._on_clock, 10)
         for name in self.names:
             self._node.create_subscription(Odometry, self._topic(name, 'ground_truth'),

@@ -25,7 +25,7 @@ from rcl_interfaces.msg import ParameterType, ParameterValue
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter_client import AsyncParameterClient
-from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.qos import QoSProfile, ReliabilityPolicy
 import numpy as np
 from sensor_msgs.msg import Image, Imu, JointState
 from std_msgs.msg import Float64MultiArray, Int32MultiArray
@@ -33,12 +33,11 @@ from std_msgs.msg import Float64MultiArray, Int32MultiArray
 from epuck_ros.conversions import nanoseconds_from_stamp, stamp_from_nanoseconds
 from epuck_ros.model import CAMERA_HEIGHT, CAMERA_WIDTH
 from epuck_ros.nodes.ack_window import COMMAND_QOS
+from epuck_ros.nodes.qos import LATCHED
 from epuck_ros.nodes.robot_ports import JOINT_NAMES
 from epuck_ros.nodes.sense_ports import SENSE_TOPICS
 from epuck_ros.nodes.serialized import array_bytes, array_values
 from epuck_ros.sensors.imu import gyro_values
-
-LED_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
 
 QOS = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
 COMMAND_TOPIC = 'wheel_cmd'
@@ -290,7 +289,7 @@ class SimLink:
     def publish_leds(self, values: list[int]) -> None:
         """The ten LED values the script set (latched: a view started later still draws them)."""
         if self._led_publisher is None:
-            self._led_publisher = self.node.create_publisher(Int32MultiArray, self._prefix + 'leds', LED_QOS)
+            self._led_publisher = self.node.create_publisher(Int32MultiArray, self._prefix + 'leds', LATCHED)
         self._led_publisher.publish(Int32MultiArray(data=[int(v) for v in values]))
 
     def answer_and_wait(self, left: float, right: float) -> StepData | None:

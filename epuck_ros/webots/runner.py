@@ -27,6 +27,9 @@ PROGRAM = 'webots_controller'
 ROBOT_NAME = re.compile(r'[A-Za-z_][A-Za-z0-9_]*')
 SHIM_DIR = Path(__file__).resolve().parent / 'shim'
 EXAMPLES_DIR = Path(__file__).resolve().parent / 'examples'
+TRACEBACK_LIMIT = 1000
+"""The innermost frames a script's traceback shows, as Python's own report does (sys.tracebacklimit's default): a
+script that recursed a million frames deep is reported in the time Python takes, not minutes of formatting."""
 HELP = f"""usage: {PROGRAM} SCRIPT.py [ARG ...] [--robot NAME] [--ros-args ...]
        {PROGRAM} SCRIPT.py --headless [--world W] [--robots N] [--seed S] [--duration D] [--record BAG]
 
@@ -91,11 +94,10 @@ def run_script(path: Path, script_args: list[str]) -> tuple[int, str]:
         print(f'{PROGRAM}: {error}', file=sys.stderr)
         return 2, str(error)
     except BaseException as error:  # noqa: BLE001 - whatever the script raises is reported as Python would
-        where = _from_script(error.__traceback__, path)
+        where, line = _from_script(error.__traceback__, str(path))
         traceback.print_exception(type(error), error, where)
-        lines = [frame.lineno for frame in traceback.extract_tb(where) if Path(frame.filename) == path]
         return 1, untrusted_yaml.cut(f'{type(error).__name__}: {error}', 300) + \
-            (f' (line {lines[-1]} of {path.name})' if lines else '')
+            (f' (line {line} of {path.name})' if line else '')
     return 0, ''
 
 
@@ -111,12 +113,21 @@ def _run_as_main(path: Path) -> None:
                 '__package__': None, '__spec__': None, '__loader__': None, '__cached__': None})
 
 
-def _from_script(tb: TracebackType | None, path: Path) -> TracebackType | None:
-    """The traceback from the script's own frame on: the runner's frames say nothing to its author."""
-    frame = tb
-    while frame is not None and Path(frame.tb_frame.f_code.co_filename) != path:
+def _from_script(tb: TracebackType | None, path: str) -> tuple[TracebackType | None, int]:
+    """The traceback from the script's own frame on (the runner's frames say nothing to its author), at most its
+    TRACEBACK_LIMIT innermost frames, and the line of the script's innermost frame (0 if none). One walk along the
+    frames: Python's traceback module would locate every frame's columns first, even the ones it leaves out."""
+    first, line, frame, depth = None, 0, tb, 0
+    while frame is not None:
+        if frame.tb_frame.f_code.co_filename == path:
+            line = frame.tb_lineno
+            first = first or frame
+        depth += first is not None
         frame = frame.tb_next
-    return frame or tb
+    first = first or tb
+    for _ in range(depth - TRACEBACK_LIMIT):
+        first = first.tb_next
+    return first, line
 
 
 def main(argv: list[str] | None = None) -> None:
