@@ -110,8 +110,8 @@ def frame_prefix(text: str) -> str:
     `epuck3base_link`); ValueError for anything that is not ROS names separated by slashes."""
     prefix = text if not text or text.endswith('/') else text + '/'
     if not FRAME_PREFIX.fullmatch(prefix):
-        raise ValueError(f'PREFIX must be a robot name or names separated by "/" (letters, digits, _; e.g. epuck3), '
-                         f'got {text!r}')
+        raise ValueError(f'a frame prefix is a robot name, or names separated by "/" (letters, digits, _; e.g. '
+                         f'epuck3), got {text!r}')
     return prefix
 
 

@@ -184,6 +184,7 @@ def test_world_and_collision_count_are_latched(launch, test_node):
     ('time_step:=-1.0', 'time_step'),
     ('real_time_factor:=fast', 'real_time_factor'),
     ('world:=/no/such/world.yaml', '/no/such/world.yaml'),
+    ('frame_prefix:=1bad', 'frame_prefix'),
 ])
 def test_bad_parameters_are_refused_at_start(launch, param, expected):
     sim = launch('sim', '--ros-args', '-p', param)
@@ -358,8 +359,9 @@ def test_repeated_timeouts_are_logged_once_then_counted(launch, test_node):
     assert 'command time-out: wheels stopped 2 more times (epuck 2)' in output
 
 
-def test_one_robot_keeps_its_names_with_a_frame_prefix_and_the_markers_are_latched(launch, test_node):
-    start_sim(launch, test_node, frame_prefix='r1/')
+@pytest.mark.parametrize('prefix', ['r1/', 'r1'])   # a prefix gets its slash: r1/odom, not r1odom
+def test_one_robot_keeps_its_names_with_a_frame_prefix_and_the_markers_are_latched(launch, test_node, prefix):
+    start_sim(launch, test_node, frame_prefix=prefix)
     odom = test_node.collect(Odometry, 'odom')
     truth = test_node.collect(Odometry, 'ground_truth')
     ranges = test_node.collect(Range, 'proximity', 1000)

@@ -38,4 +38,4 @@ def test_the_prefix_is_the_one_the_simulator_gives_a_robot_of_a_swarm():
 def test_a_prefix_that_is_no_frame_prefix_is_refused_in_one_line(argument):
     run = subprocess.run([sys.executable, '-m', 'epuck_ros.description', argument], capture_output=True, text=True)
     assert run.returncode == 2 and run.stdout == ''
-    assert 'PREFIX must be a robot name' in run.stderr and 'Traceback' not in run.stderr
+    assert 'a frame prefix is a robot name' in run.stderr and 'Traceback' not in run.stderr

@@ -30,6 +30,7 @@ from std_msgs.msg import String
 from std_srvs.srv import Empty, Trigger
 from visualization_msgs.msg import MarkerArray
 
+from epuck_ros.description import frame_prefix
 from epuck_ros.conversions import nanoseconds_from_seconds, stamp_from_seconds
 from epuck_ros.integrity import HELD, NOT_LOCKSTEP
 from epuck_ros.lockstep import Answer, Lockstep
@@ -120,6 +121,10 @@ class SimNode(Node):
         super().__init__('sim')
         created = time.monotonic()
         values = declare_parameters(self, SIM_PARAMETERS)
+        try:   # `sim1` as `sim1/`: frames sim1/odom, not sim1odom
+            values['frame_prefix'] = frame_prefix(values['frame_prefix'])
+        except ValueError as error:
+            raise PrefixError(f'frame_prefix: {error}') from None
         self._stop_listening_to_own_clock()
         world = _world(values)
         self._sim = Simulation(world, RobotModel(), time_step=values['time_step'], seed=values['seed'],
@@ -427,6 +432,10 @@ def _senses(value: str) -> frozenset[str]:
     return words
 
 
+class PrefixError(ValueError):
+    """A `frame_prefix` that is no ROS names separated by slashes; the message says so."""
+
+
 class StartInterrupted(Exception):
     """Ctrl-C or SIGTERM came while the node was still being built."""
 
@@ -464,7 +473,7 @@ def main(args: list[str] | None = None) -> None:
         if node.refusal:
             print(f'sim: cannot start: {node.refusal}', file=sys.stderr)
             code = 2
-    except (WorldError, ParameterException, SenseError) as error:
+    except (WorldError, ParameterException, SenseError, PrefixError) as error:
         print(f'sim: cannot start: {error}', file=sys.stderr)
         code = 2
     except StartInterrupted:
