@@ -120,15 +120,8 @@ def _from_script(tb: TracebackType | None, path: Path) -> TracebackType | None:
 
 
 def main(argv: list[str] | None = None) -> None:
+    """The script over ROS (`webots_controller` without --headless: `epuck_ros.webots_controller`)."""
     argv = [PROGRAM, *(sys.argv[1:] if argv is None else argv)]
-    if '--headless' in argv[1:]:   # on the pure core in this process, no ROS (see its --help)
-        from epuck_ros.experiments.headless_cli import main as headless
-        code = 0
-        try:
-            headless([arg for arg in argv[1:] if arg != '--headless'])
-        except SystemExit as end:
-            code = end.code if isinstance(end.code, int) else 1
-        end_process(code)   # not SystemExit: a thread the script left running would keep the process alive
     if any(arg in HELP_FLAGS for arg in user_arguments(argv)):
         print(HELP)
         raise SystemExit(0)
@@ -148,7 +141,3 @@ def main(argv: list[str] | None = None) -> None:
         close()
         rclpy.try_shutdown()
     end_process(code)   # not SystemExit: a thread the script left running would keep the process alive
-
-
-if __name__ == '__main__':
-    main()
