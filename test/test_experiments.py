@@ -103,11 +103,14 @@ def test_a_headless_script_is_the_lockstep_bringup_run_and_records_the_same_bag(
     assert recorded.truth.x[-1] != recorded.truth.x[0]
 
 
-def test_a_failing_controller_is_a_row_with_its_error():
+def test_a_failing_controller_is_a_row_per_robot_with_its_error_and_the_trials_own_values():
     def broken(observation):
         raise RuntimeError('controller bug')
     (row,) = run_trial(Trial(controller_from('avoid'), duration=1), policy=broken)
-    assert row['error'] == 'RuntimeError: controller bug' and row['robot'] == ''
+    assert row['error'] == 'RuntimeError: controller bug' and (row['robot'], row['robots']) == ('epuck', 1)
+    rows = run_trial(Trial(controller_from('avoid'), robots=3, seed=4, duration=1, index=7), policy=broken)
+    assert [(row['trial'], row['robots'], row['seed'], row['robot'], row['error']) for row in rows] == \
+        [(7, 3, 4, f'epuck{i}', 'RuntimeError: controller bug') for i in range(3)]
 
 
 def test_a_policy_of_the_forward_behaviours_speeds_is_the_forward_trial():
@@ -276,7 +279,7 @@ def test_resume_runs_only_the_trials_not_written_yet(tmp_path):
      '200000 trials, more than 100000'),
     ('controllers: [avoid]\nseeds: [0]\nduration: 5\nnoisy: true\n', 'noisy: unknown key (did you mean noise?)'),
     ('controllers: [{script: my_controller.py}]\nseeds: [0]\nduration: 5\n',
-     'controllers[0].script: cannot read my_controller.py: No such file or directory'),
+     'controllers[0].script: my_controller.py: file not found'),
     ('controllers: [avoid, {script: broken.py}]\nseeds: [0]\nduration: 5\n',
      'controllers[1].script: broken.py is not valid Python: '),
     ('controllers: [{script: broken.py, args: 1}]\nseeds: [0]\nduration: 5\n', 'controllers[0].args: unknown key'),
