@@ -151,7 +151,7 @@ def finished_table(tmp_path_factory: pytest.TempPathFactory) -> str:
 
 
 def resume_case(tmp_path: Path, table: str) -> tuple[Path, Path]:
-    """RESUMABLE's spec and an output folder holding `table`."""
+    """An output folder holding `table`, and the spec RESUMABLE beside it."""
     spec, out = tmp_path / 'spec.yaml', tmp_path / 'out'
     spec.write_text(RESUMABLE)
     out.mkdir()
