@@ -25,7 +25,7 @@ def test_an_interrupted_evolution_keeps_the_generations_that_ran(tmp_path, numbe
     process = subprocess.Popen([str(BIN_DIR / 'evolve'), '-o', str(out), '--generations', str(ASKED), *SETTINGS],
                                stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
     fitness = out / 'fitness.csv'
-    deadline = time.monotonic() + 180
+    deadline = time.monotonic() + 120
     while not (fitness.exists() and len(fitness.read_text().splitlines()) >= 3):   # two generations written
         assert process.poll() is None, process.communicate()
         assert time.monotonic() < deadline, 'no generation was written while evolve ran'

@@ -17,9 +17,6 @@ from pathlib import Path
 import pytest
 from conftest import BIN_DIR
 
-from epuck_ros.experiments import cli, record_budget
-from epuck_ros.experiments.cli import Progress
-
 SWEEP, EVOLVE, CONTROLLER = (str(BIN_DIR / name) for name in ('sweep', 'evolve', 'webots_controller'))
 EXAMPLE_SCRIPT = Path(__file__).resolve().parents[1] / 'epuck_ros' / 'webots' / 'examples' / 'avoid_obstacles.py'
 WAITS = '''import os, time
@@ -130,6 +127,7 @@ def test_scripts_and_worlds_are_named_by_their_own_names_unique_in_the_sweep(tmp
 def test_the_eta_comes_from_the_trials_done_not_from_the_start_up():
     """Item 5: the first ETA said 61 s for a 12 s job (the cluster's start-up counted as trials' time): now the
     mean wall time of the trials done, times the trials left, over the trials that run at once."""
+    from epuck_ros.experiments.cli import Progress
     clock = iter([60.0, 61.0, 62.0]).__next__   # a minute of start-up before the first trial ended
     progress = Progress(12, 2, clock)
     progress.show([{'error': '', 'wall_s': '1.0'}])
@@ -214,7 +212,7 @@ def test_a_second_sweep_or_evolve_into_a_busy_folder_is_refused_and_the_first_lo
                              stderr=subprocess.PIPE, text=True)
     try:
         wait_for(lambda: (tmp_path / 'started').exists(), first)
-        line = one_line(sweep(str(spec), '-o', str(out), '--workers', '0', '--resume'))
+        line = one_line(sweep(str(spec), '-o', str(out), '--workers', '0', '--resume', timeout=120))
         assert 'another sweep or evolve is writing there' in line
         evolve = subprocess.run([EVOLVE, '-o', str(out), '--workers', '0', '--generations', '1', '--population',
                                  '2', '--duration', '0.1'], capture_output=True, text=True, timeout=120)
@@ -336,15 +334,16 @@ def test_workers_are_bounded_and_never_more_than_the_trials(tmp_path):
     """Item 18: 24 workers for one trial took 69 s and 1.7 GB; 10,000 would have tried 10,000 processes."""
     spec = tmp_path / 'spec.yaml'
     spec.write_text('controllers: [avoid]\nseeds: [0]\nduration: 1\n')
-    refused = sweep(str(spec), '-o', str(tmp_path / 'out'), '--workers', '10000')
-    assert refused.returncode == 2 and '--workers must be at most' in refused.stderr
     capped = sweep(str(spec), '-o', str(tmp_path / 'out'), '--workers', '3')
     assert capped.returncode == 0 and 'on a local Dask cluster of 1 workers (one per trial to run)' in capped.stderr
+    refused = sweep(str(spec), '-o', str(tmp_path / 'out'), '--workers', '10000')
+    assert refused.returncode == 2 and '--workers must be at most' in refused.stderr
 
 
 def test_a_recording_the_disk_cannot_hold_is_refused_before_any_trial(tmp_path, monkeypatch, capsys):
     """Item 18: --record wrote about 82 KB per robot per simulated second, unannounced; now the size is said and a
     recording larger than the free space is refused (the free space made small here)."""
+    from epuck_ros.experiments import cli, record_budget
     spec = tmp_path / 'spec.yaml'
     spec.write_text('controllers: [avoid]\nrobots: [3]\nseeds: {first: 0, count: 10}\nduration: 100\n')
     per_second, per_bag = record_budget.bag_growth()

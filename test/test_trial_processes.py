@@ -12,7 +12,6 @@ from pathlib import Path
 import pytest
 from conftest import BIN_DIR
 
-from epuck_ros.experiments import headless_cli
 from epuck_ros.experiments.spec import load_spec
 from epuck_ros.experiments.trial import run_trial
 
@@ -81,7 +80,7 @@ def test_a_script_trial_leaves_no_process_behind(tmp_path):
     (tmp_path / 'daemon.py').write_text(DAEMON)
     spec = tmp_path / 'spec.yaml'
     spec.write_text('controllers: [{script: leaves_a_child.py}, {script: daemon.py}]\nseeds: [0]\nduration: 1\n'
-                    'time_limit: 120\n')
+                    'time_limit: 30\n')
     for trial in load_spec(spec).trials:
         rows = run_trial(trial)
         assert [row['error'] for row in rows] == [''], rows
@@ -95,7 +94,7 @@ def test_a_trial_that_kills_its_dask_worker_is_its_error_row_and_the_sweep_goes_
     spec = tmp_path / 'spec.yaml'
     spec.write_text('controllers: [{script: kills_its_worker.py}, avoid]\nseeds: [0]\nduration: 1\n')
     result = subprocess.run([SWEEP, str(spec), '-o', str(tmp_path / 'out'), '--workers', '1'], capture_output=True,
-                            text=True, timeout=600)
+                            text=True, timeout=300)
     assert result.returncode == 1 and 'Traceback' not in result.stderr, result.stderr
     assert '1 trials failed (their rows say why)' in result.stderr and '±' in result.stdout
     with open(tmp_path / 'out' / 'trials.csv', newline='') as table:
@@ -131,6 +130,7 @@ def test_webots_controller_headless_keeps_no_samples_beyond_its_bound(monkeypatc
     """Item 18: `--headless` kept ~184 bytes per robot-step (1,000 robots for an hour: ~20 GB) for the shapes in
     its summary. Now 32 bytes per robot-step in arrays made once, and none beyond MAX_SHAPE_SAMPLES: the summary
     then has distance and contacts without the shapes, and says so."""
+    from epuck_ros.experiments import headless_cli
     small = headless_cli.Tracks(3, 30.0)
     assert small.kept and small.poses.nbytes == 3 * 24 * len(small.stamps) and len(small.stamps) < 30 / 0.032 + 3
     huge = headless_cli.Tracks(1000, 3600.0)
