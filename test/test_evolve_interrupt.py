@@ -48,3 +48,24 @@ def test_an_interrupted_evolution_keeps_the_generations_that_ran(tmp_path, numbe
     assert {key: value for key, value in best.items() if not key.startswith('generations')} == \
         {key: value for key, value in whole.items() if not key.startswith('generations')}
     assert (out / 'evolved_controller.py').read_text() == (tmp_path / 'whole' / 'evolved_controller.py').read_text()
+
+
+def test_a_batch_whose_dask_workers_died_is_one_line_and_the_generations_written(tmp_path, monkeypatch, capsys):
+    """Dask gives up on a task whose workers died under it (KilledWorker): a traceback, before; now one line, exit
+    1, and the generations that ran written."""
+    from distributed import KilledWorker
+    score = cli.score
+
+    def dies_in_generation_2(client, population, seed, duration, batches):
+        if dies_in_generation_2.calls == 2:
+            raise KilledWorker('evaluate-1', None, 3)
+        dies_in_generation_2.calls += 1
+        return score(client, population, seed, duration, batches)
+    dies_in_generation_2.calls = 0
+    monkeypatch.setattr(cli, 'score', dies_in_generation_2)
+    with pytest.raises(SystemExit) as ended:
+        cli.main(['-o', str(tmp_path / 'out'), '--generations', '5', *SETTINGS])
+    err = capsys.readouterr().err
+    assert ended.value.code == 1 and 'Traceback' not in err
+    assert 'the Dask workers died under a batch of generation 2' in err and '2 generations written' in err
+    assert len((tmp_path / 'out' / 'fitness.csv').read_text().splitlines()) == 3

@@ -356,3 +356,42 @@ def test_a_recording_the_disk_cannot_hold_is_refused_before_any_trial(tmp_path, 
     assert ended.value.code == 2 and line.count('\n') == 1, line
     assert f'--record of 10 trials: about {needed / 1e6:.1f} MB' in line and 'not enough room on the disk' in line
     assert not (tmp_path / 'out').exists()
+
+
+def test_an_interruption_before_any_trial_leaves_out_as_it_was(tmp_path, finished_table, monkeypatch, capsys):
+    """Ctrl-C while the cluster starts: exit 130 and OUT untouched (the table there, even another spec's, was read
+    and rewritten as this sweep's: a traceback)."""
+    from contextlib import contextmanager
+
+    from epuck_ros.experiments import cli
+
+    @contextmanager
+    def interrupted_start(*args, **kwargs):
+        raise KeyboardInterrupt
+        yield
+    spec, out = resume_case(tmp_path, finished_table)
+    spec.write_text(RESUMABLE.replace('[avoid]', '[spin]'))
+    monkeypatch.setattr(cli, 'open_client', interrupted_start)
+    with pytest.raises(SystemExit) as ended:
+        cli.main([str(spec), '-o', str(out)])
+    assert ended.value.code == 130 and 'interrupted before any trial ran' in capsys.readouterr().err
+    assert sorted(path.name for path in out.iterdir()) == ['trials.csv']
+    assert (out / 'trials.csv').read_text() == finished_table
+
+
+def test_a_folder_that_fails_at_the_end_is_one_line_and_exit_1(tmp_path, monkeypatch, capsys):
+    """The disk full when the picture is written: one line naming the folder, not a traceback."""
+    import errno
+
+    from epuck_ros.experiments import cli, picture
+
+    def disk_full(rows, out):
+        raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+    spec = tmp_path / 'spec.yaml'
+    spec.write_text('controllers: [avoid]\nseeds: [0]\nduration: 1\n')
+    monkeypatch.setattr(picture, 'draw_sweep', disk_full)
+    with pytest.raises(SystemExit) as ended:
+        cli.main([str(spec), '-o', str(tmp_path / 'out'), '--workers', '0'])
+    err = capsys.readouterr().err
+    assert ended.value.code == 1 and err.splitlines()[-1] == \
+        f'sweep: -o {tmp_path / "out"}: cannot write sweep.png: No space left on device'

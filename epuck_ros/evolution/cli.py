@@ -26,7 +26,7 @@ from epuck_ros.experiments.cluster import (
 from epuck_ros.experiments.interruption import exit_code, ignore_interrupts, terminate_as_interrupt
 from epuck_ros.experiments.output import OutputError, OutputFolder
 
-EXIT_BAD_INPUT = 2
+EXIT_FAILED, EXIT_BAD_INPUT = 1, 2
 PAPER_POPULATION, PAPER_GENERATIONS = 80, 100
 """Floreano and Mondada (1994)."""
 LIMITS = {'population': (2, 10000), 'generations': (1, 100000), 'seed': (0, 2 ** 32 - 1)}
@@ -77,6 +77,12 @@ def main(argv: list[str] | None = None) -> None:
     except (ClusterError, OutputError) as error:
         print(f'evolve: {error}', file=sys.stderr)
         raise SystemExit(EXIT_BAD_INPUT) from None
+    except Exception as error:  # noqa: BLE001 - Dask's KilledWorker (not imported without a cluster); else raised
+        if type(error).__name__ != 'KilledWorker':
+            raise
+        print(f'evolve: the Dask workers died under a batch of generation {len(history)}, each time Dask tried '
+              f'it (KilledWorker); {len(history)} generations written to {args.output}', file=sys.stderr)
+        raise SystemExit(EXIT_FAILED) from None
     except KeyboardInterrupt as interruption:   # Ctrl-C or SIGTERM: what ran is written already
         interrupted = interruption
     ignore_interrupts()
@@ -89,8 +95,7 @@ def main(argv: list[str] | None = None) -> None:
               f'{best["generation"]}); wrote {args.output}/fitness.csv, fitness.png, best_genome.json, '
               'evolved_controller.py', file=sys.stderr)
     else:
-        print(f'[evolve] interrupted before the first generation ended: nothing written to {args.output}',
-              file=sys.stderr)
+        print('[evolve] interrupted before the first generation ended', file=sys.stderr)
     if interrupted:
         raise SystemExit(exit_code(interrupted))
 

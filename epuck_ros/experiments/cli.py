@@ -80,11 +80,13 @@ def sweep(args: argparse.Namespace) -> None:
     except (SpecError, OutputError, TableError, RecordTooLarge) as error:
         _refuse(error)
     interrupted: KeyboardInterrupt | None = None
+    started = False
     try:
         workers = _local_workers(args.workers, len(todo))   # none: no cluster, nothing to run
         with open_client(workers, args.scheduler if todo else None, allowed_failures=0) as client:
             folder.make()
             table.start(row for rows in done.values() for row in rows)
+            started = True
             print(f'[sweep] {len(spec.trials)} trials ({len(done)} done before), {_where(args, client, workers)}',
                   file=sys.stderr, flush=True)
             progress = Progress(len(todo), _slots(client))
@@ -97,9 +99,15 @@ def sweep(args: argparse.Namespace) -> None:
     except (ClusterError, OutputError) as error:
         _refuse(error)
     except KeyboardInterrupt as interruption:   # the rows written so far are kept, --resume runs the rest
+        if not started:   # OUT as it was (a table there may be another sweep's)
+            raise
         interrupted = interruption
     ignore_interrupts()
-    _finish(args, spec, table, folder, interrupted)
+    try:
+        _finish(args, spec, table, folder, interrupted)
+    except OutputError as error:   # the disk filled up, say
+        print(f'sweep: {error}', file=sys.stderr)
+        raise SystemExit(EXIT_FAILED) from None
 
 
 def _refuse(error: Exception) -> None:
