@@ -367,18 +367,22 @@ MISBEHAVING = {
 
 def test_script_trials_that_misbehave_are_rows_saying_what_happened_and_the_sweep_goes_on(tmp_path):
     """Each in a forked child of the sweep: a script that raises, calls sys.exit(3) or os._exit(5), loops without
-    step(), or prints 2 MB per step is one row with its error each; the course's controller beside them runs, gives
+    step() (a sweep of its own, with a time limit of 3 s: no other trial's wall time depends on the machine's
+    load), or prints 2 MB per step is one row with its error each; the course's controller beside them runs, gives
     the rows of the same trial in this process, and its bag (--record) is read by rosbags."""
     for name, text in MISBEHAVING.items():
         (tmp_path / name).write_text(text)
     shutil.copy(COURSE_AVOIDANCE, tmp_path / 'course.py')
-    spec = tmp_path / 'scripts.yaml'
-    spec.write_text('controllers: [' + ', '.join(f'{{script: {name}}}' for name in [*MISBEHAVING, 'course.py']) +
-                    ']\nseeds: [1]\nduration: 3\ntime_limit: 3\n')
+    spec, looping = tmp_path / 'scripts.yaml', tmp_path / 'loops.yaml'
+    spec.write_text('controllers: [' + ', '.join(f'{{script: {name}}}' for name in [*MISBEHAVING, 'course.py']
+                                                 if name != 'loops.py') + ']\nseeds: [1]\nduration: 3\n')
+    looping.write_text('controllers: [{script: loops.py}]\nseeds: [1]\nduration: 3\ntime_limit: 3\n')
     out = tmp_path / 'out'
     result = sweep(str(spec), '-o', str(out), '--workers', '0', '--record', timeout=240)
     assert result.returncode == 1, result.stderr
     rows = {row['controller']: row for row in rows_of(out / 'trials.csv')}
+    assert sweep(str(looping), '-o', str(tmp_path / 'loops'), '--workers', '0').returncode == 1
+    rows.update({row['controller']: row for row in rows_of(tmp_path / 'loops' / 'trials.csv')})
     assert rows['raises.py']['error'] == \
         'ScriptError: raises.py: ZeroDivisionError: division by zero (line 4 of raises.py)'
     assert rows['exits.py']['error'] == 'ScriptError: exits.py: sys.exit(3)'

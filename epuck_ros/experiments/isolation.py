@@ -78,10 +78,22 @@ def call_in_child(function: Callable[[Any], T], argument: Any, limit: float, mem
         for fd in (result_read, report_read, stop_write):
             if fd >= 0:
                 os.close(fd)
-    if report is None:   # the keeper did not end: it goes, and whatever it kept goes with its process group
+    if report is None:   # the keeper did not end its watch: it goes
         os.kill(keeper, signal.SIGKILL)
-    os.waitpid(keeper, 0)
+    _ending.append(keeper)
+    _reap()
     return _outcome(data, report, limit, memory)
+
+
+_ending: list[int] = []
+"""Keepers that have reported and are ending: reaped when they have (their exit, the unmapping of a copy of this
+process, is no part of the trial's time)."""
+
+
+def _reap() -> None:
+    for keeper in list(_ending):
+        if os.waitpid(keeper, os.WNOHANG)[0]:
+            _ending.remove(keeper)
 
 
 def _outcome(data: bytes | None, report: bytes | None, limit: float, memory: float) -> Any:
@@ -129,13 +141,14 @@ def _keep(function: Callable[[Any], Any], argument: Any, pipes: tuple[int, int, 
         except OSError:   # the child has already ended
             pass
         why, detail = _watch(child, stop_read, time.monotonic() + limit, *memory)
-        for kill in (os.killpg, os.kill):   # at once, most of what it started (its process group), and itself
-            try:
+        for kill in (os.killpg, os.kill):   # at once, most of what it started (its process group), and itself:
+            try:                            # not reaped yet, so neither number can be another process's now
                 kill(child, signal.SIGKILL)
             except OSError:
                 pass
-        if why != 'ended':
-            os.waitpid(child, 0)
+        _, status = os.waitpid(child, 0)
+        if why == 'ended':
+            detail = status
         end_descendants()   # then what left the group (setsid) or was orphaned
         os.write(report_write, json.dumps([why, detail]).encode())
     finally:
@@ -143,7 +156,7 @@ def _keep(function: Callable[[Any], Any], argument: Any, pipes: tuple[int, int, 
 
 
 def _watch(child: int, stop_read: int, deadline: float, baseline: int, memory: float) -> tuple[str, Any]:
-    """Until the child ends ('ended', its wait status), goes over the time limit ('limit') or its processes' resident
+    """Until the child ends ('ended'), goes over the time limit ('limit') or its processes' resident
     memory over `baseline` + `memory` bytes ('memory', the bytes over `baseline`), or the caller closes its pipe
     ('stopped')."""
     try:
@@ -153,9 +166,8 @@ def _watch(child: int, stop_read: int, deadline: float, baseline: int, memory: f
         watched, period = [stop_read], 0.005
     others, next_walk = 0, time.monotonic() + TREE_PERIOD
     while True:
-        pid, status = os.waitpid(child, os.WNOHANG)
-        if pid:
-            return 'ended', status
+        if os.waitid(os.P_PID, child, os.WEXITED | os.WNOHANG | os.WNOWAIT) is not None:   # ended, not reaped
+            return 'ended', None
         now = time.monotonic()
         if now >= deadline:
             return 'limit', None

@@ -16,12 +16,15 @@ PR_SET_CHILD_SUBREAPER = 36
 """linux/prctl.h."""
 
 
+try:
+    _PRCTL = ctypes.CDLL(None, use_errno=True).prctl
+except (OSError, AttributeError):   # not Linux
+    _PRCTL = None
+
+
 def become_subreaper() -> bool:
     """Make this process its descendants' reaper when their parents end (False where Linux does not offer it)."""
-    try:
-        return ctypes.CDLL(None, use_errno=True).prctl(PR_SET_CHILD_SUBREAPER, 1, 0, 0, 0) == 0
-    except (OSError, AttributeError):
-        return False
+    return _PRCTL is not None and _PRCTL(PR_SET_CHILD_SUBREAPER, 1, 0, 0, 0) == 0
 
 
 def resident(pid: int) -> int:
