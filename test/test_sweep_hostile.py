@@ -395,3 +395,31 @@ def test_a_folder_that_fails_at_the_end_is_one_line_and_exit_1(tmp_path, monkeyp
     err = capsys.readouterr().err
     assert ended.value.code == 1 and err.splitlines()[-1] == \
         f'sweep: -o {tmp_path / "out"}: cannot write sweep.png: No space left on device'
+
+
+def test_a_table_the_disk_refuses_mid_sweep_is_one_line(tmp_path):
+    """A trial's rows that the disk refuses (here /dev/full, as a full disk answers) name the folder and the file;
+    the sweep then says it in one line (was an OSError's traceback)."""
+    from epuck_ros.experiments.output import OutputError, OutputFolder
+    from epuck_ros.experiments.table import Table
+    from epuck_ros.experiments.trial import COLUMNS
+    folder = OutputFolder(tmp_path)
+    table = Table(folder, [])
+    table._fd = os.open('/dev/full', os.O_WRONLY)
+    try:
+        with pytest.raises(OutputError, match='cannot write trials.csv: No space left on device'):
+            table.append([dict.fromkeys(COLUMNS, '')])
+    finally:
+        table.close()
+
+
+def test_a_recording_whose_size_cannot_be_measured_is_refused(monkeypatch):
+    """The size of a recording is measured on two short ones; if they fail, the recording is refused in one line."""
+    from epuck_ros.experiments import record_budget, trial
+    monkeypatch.setattr(trial, 'run_trial', lambda trial: [{'error': 'OSError: No space left on device'}])
+    record_budget.bag_growth.cache_clear()
+    try:
+        with pytest.raises(record_budget.RecordRefused, match='cannot measure what a recording takes: OSError'):
+            record_budget.estimate([(1, 10.0)])
+    finally:
+        record_budget.bag_growth.cache_clear()

@@ -22,7 +22,7 @@ from epuck_ros.experiments.cluster import (
     ClusterError, add_cluster_arguments, check_cluster_arguments, default_workers, open_client)
 from epuck_ros.experiments.interruption import exit_code, ignore_interrupts, terminate_as_interrupt
 from epuck_ros.experiments.output import OutputError, OutputFolder
-from epuck_ros.experiments.record_budget import RecordTooLarge, check_room, estimate
+from epuck_ros.experiments.record_budget import RecordRefused, check_room, estimate
 from epuck_ros.experiments.spec import Spec, SpecError, load_spec
 from epuck_ros.experiments.table import Row, Table, TableError
 from epuck_ros.experiments.trial import Trial, failed_rows, run_trial
@@ -77,7 +77,7 @@ def sweep(args: argparse.Namespace) -> None:
         table = Table(folder, spec.trials)
         done = table.done() if args.resume else {}
         todo = _todo(args, spec, done)
-    except (SpecError, OutputError, TableError, RecordTooLarge) as error:
+    except (SpecError, OutputError, TableError, RecordRefused) as error:
         _refuse(error)
     interrupted: KeyboardInterrupt | None = None
     started = False

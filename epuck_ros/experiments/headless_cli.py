@@ -21,7 +21,7 @@ from epuck_ros.bag.shapes import Motion
 from epuck_ros.bringup import summary
 from epuck_ros.conversions import nanoseconds_from_stamp, stamp_from_seconds
 from epuck_ros.experiments.interruption import exit_code, terminate_as_interrupt
-from epuck_ros.experiments.record_budget import LARGE, RecordTooLarge, check_room, estimate
+from epuck_ros.experiments.record_budget import LARGE, RecordRefused, check_room, estimate
 from epuck_ros.experiments.spec import MAX_DURATION, MAX_ROBOTS, MAX_SEED
 from epuck_ros.experiments.trial import DEFAULT_WORLD, Script, Trial, run
 from epuck_ros.model import TIME_STEP
@@ -98,7 +98,7 @@ def start_recording(parser: argparse.ArgumentParser, args: argparse.Namespace, w
         if size >= LARGE:
             print(f'[{PROGRAM}] {line}', flush=True)
         return TrialRecorder(args.record, world)
-    except RecordTooLarge as error:
+    except RecordRefused as error:
         parser.error(str(error))
     except OSError as error:
         parser.error(f'--record {args.record}: cannot write there: {error.strerror or error}')

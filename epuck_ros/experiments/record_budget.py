@@ -17,8 +17,9 @@ LARGE = 1 << 30
 """Bytes; a recording estimated above this is said before it starts."""
 
 
-class RecordTooLarge(RuntimeError):
-    """The disk cannot hold the recording; the message says the estimate and the free space."""
+class RecordRefused(RuntimeError):
+    """The disk cannot hold the recording (the message says the estimate and the free space), or its size could not
+    be measured."""
 
 
 @functools.lru_cache(maxsize=1)
@@ -26,13 +27,16 @@ def bag_growth() -> tuple[float, float]:
     """(bytes per robot per simulated second, bytes per bag), measured on two recordings of one robot."""
     from epuck_ros.experiments.trial import Trial, controller_from, run_trial
     sizes = []
-    with tempfile.TemporaryDirectory() as folder:
-        for seconds in (1.0, 2.0):
-            bag = Path(folder) / str(seconds)
-            (row,) = run_trial(Trial(controller_from('avoid'), duration=seconds, record=str(bag)))
-            if row['error']:
-                raise RuntimeError(f'a recording to measure failed: {row["error"]}')
-            sizes.append(sum(file.stat().st_size for file in bag.rglob('*') if file.is_file()))
+    try:
+        with tempfile.TemporaryDirectory() as folder:
+            for seconds in (1.0, 2.0):
+                bag = Path(folder) / str(seconds)
+                (row,) = run_trial(Trial(controller_from('avoid'), duration=seconds, record=str(bag)))
+                if row['error']:
+                    raise RecordRefused(f'cannot measure what a recording takes: {row["error"]}')
+                sizes.append(sum(file.stat().st_size for file in bag.rglob('*') if file.is_file()))
+    except OSError as error:   # no room for the temporary folder, say
+        raise RecordRefused(f'cannot measure what a recording takes: {error}') from None
     per_second = float(sizes[1] - sizes[0])
     return per_second, max(0.0, sizes[0] - per_second)
 
@@ -45,7 +49,7 @@ def estimate(runs: Iterable[tuple[int, float]]) -> float:
 
 def check_room(folder: Path, size: float, what: str) -> str:
     """One line saying `size` (bytes) of `what` against the free space where `folder` is (or will be);
-    RecordTooLarge when it does not fit."""
+    RecordRefused when it does not fit."""
     existing = folder.resolve()
     while not existing.exists():
         existing = existing.parent
@@ -53,7 +57,7 @@ def check_room(folder: Path, size: float, what: str) -> str:
     line = f'{what}: about {_human(size)} ({_human(bag_growth()[0])} per robot per simulated second), ' \
            f'{_human(free)} free'
     if size > free:
-        raise RecordTooLarge(f'{line}: not enough room on the disk')
+        raise RecordRefused(f'{line}: not enough room on the disk')
     return line
 
 

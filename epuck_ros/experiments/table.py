@@ -104,8 +104,11 @@ class Table:
         """A trial's rows, in one write at the end of the table (a reader never sees half of a trial, unless the
         machine dies mid-write: `done` then sees a trial cut short)."""
         data = _csv_text([[row[column] for column in COLUMNS] for row in rows]).encode()
-        while data:
-            data = data[os.write(self._fd, data):]
+        try:
+            while data:
+                data = data[os.write(self._fd, data):]
+        except OSError as error:   # the disk full, say
+            raise self.folder.fail(f'cannot write {NAME}: {error.strerror}') from None
 
     def close(self) -> None:
         if self._fd is not None:
