@@ -117,7 +117,9 @@ class Tracks:
         self.count = 0
 
     def add(self, stamp: int, poses: np.ndarray) -> None:
-        if self.kept and self.count < len(self.stamps):
+        if self.kept and self.count == len(self.stamps):   # more steps than the duration makes: no shapes, not
+            self.kept = False                               # shapes of a part of the run
+        if self.kept:
             self.stamps[self.count] = stamp
             self.poses[self.count] = poses
             self.count += 1

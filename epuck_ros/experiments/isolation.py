@@ -92,8 +92,12 @@ process, is no part of the trial's time)."""
 
 def _reap() -> None:
     for keeper in list(_ending):
-        if os.waitpid(keeper, os.WNOHANG)[0]:
-            _ending.remove(keeper)
+        try:
+            if not os.waitpid(keeper, os.WNOHANG)[0]:
+                continue
+        except ChildProcessError:   # reaped by someone else's wait for any child
+            pass
+        _ending.remove(keeper)
 
 
 def _outcome(data: bytes | None, report: bytes | None, limit: float, memory: float) -> Any:
@@ -113,7 +117,7 @@ def _outcome(data: bytes | None, report: bytes | None, limit: float, memory: flo
         raise ChildFailed(_how_it_ended(detail) if why == 'ended' else 'the trial\'s process ended before its result')
     try:
         kind, value = json.loads(data)
-    except ValueError:
+    except (ValueError, TypeError):
         raise ChildFailed('the trial\'s result was garbled (a process it started wrote to its channel)') from None
     if kind == 'error':
         raise ChildFailed(str(value))

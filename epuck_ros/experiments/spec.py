@@ -9,6 +9,7 @@ seeds: {first: 0, count: 10}        # or a list
 duration: 60                        # simulated seconds per trial
 noise: true
 time_limit: 600                     # wall seconds a trial with a script may take before it is killed
+memory_limit: 2048                  # megabytes (resident) a trial with a script may take before it is killed
 ```
 """
 from __future__ import annotations
@@ -24,9 +25,9 @@ from typing import Any
 from epuck_ros import untrusted_yaml
 from epuck_ros.behaviours import BEHAVIOURS, ConfigError
 from epuck_ros.behaviours.base import describe
-from epuck_ros.untrusted_file import FileProblem, read_bounded
 from epuck_ros.experiments.trial import (DEFAULT_MEMORY_LIMIT, DEFAULT_TIME_LIMIT, DEFAULT_WORLD, Controller, Script,
                                          Trial, controller_from)
+from epuck_ros.untrusted_file import FileProblem, read_bounded
 from epuck_ros.webots.script_file import read_script
 from epuck_ros.world import MAX_FILE_BYTES as WORLD_FILE_BYTES
 from epuck_ros.world import World, WorldError, default_world, load_world, place_robots
@@ -233,7 +234,7 @@ def _world(fields: _Fields, item: Any, field: str) -> _World:
             world = load_world(path)
             digest = hashlib.sha256(read_bounded(path, WORLD_FILE_BYTES)).hexdigest()
             fields.worlds[path] = _World(item, path, world, f'{Path(path).name} sha256:{digest}')
-    except (WorldError, FileProblem, ValueError) as error:   # ValueError: a NUL in the name
+    except ValueError as error:   # WorldError, FileProblem, or a NUL in the name
         raise fields.fail(field, str(error)) from None
     return fields.worlds[path]
 

@@ -269,7 +269,7 @@ def controller_from(name: str, parameters: Mapping[str, Any] | None = None) -> C
     number too) and checked as its Config checks them; ConfigError naming the setting otherwise."""
     if name not in BEHAVIOURS:
         raise ConfigError(f'no behaviour {name!r} (known: {", ".join(BEHAVIOURS)})')
-    defaults = dict((setting, value) for setting, value, *_ in describe(BEHAVIOURS[name].defaults))
+    defaults = {setting: value for setting, value, *_ in describe(BEHAVIOURS[name].defaults)}
     for setting, value in (parameters or {}).items():
         if setting not in defaults:
             raise ConfigError(f'{setting}: {name} has no such setting (known: {", ".join(defaults)})')
