@@ -69,3 +69,15 @@ def test_a_batch_whose_dask_workers_died_is_one_line_and_the_generations_written
     assert ended.value.code == 1 and 'Traceback' not in err
     assert 'the Dask workers died under a batch of generation 2' in err and '2 generations written' in err
     assert len((tmp_path / 'out' / 'fitness.csv').read_text().splitlines()) == 3
+
+
+def test_evolve_and_sweep_in_this_process_leave_its_signal_handlers_as_they_were(tmp_path):
+    """They ignore Ctrl-C and SIGTERM while they write their last files; they left them ignored for good, so a
+    process started later from the same caller (a test's `evolve`) ignored Ctrl-C as well."""
+    from epuck_ros.experiments import cli as sweep_cli
+    before = signal.getsignal(signal.SIGINT), signal.getsignal(signal.SIGTERM)
+    cli.main(['-o', str(tmp_path / 'evolve'), '--generations', '1', *SETTINGS])
+    spec = tmp_path / 'spec.yaml'
+    spec.write_text('controllers: [avoid]\nseeds: [0]\nduration: 1\n')
+    sweep_cli.main([str(spec), '-o', str(tmp_path / 'sweep'), '--workers', '0'])
+    assert (signal.getsignal(signal.SIGINT), signal.getsignal(signal.SIGTERM)) == before

@@ -23,7 +23,7 @@ from epuck_ros.evolution.ga import initial_population, next_generation
 from epuck_ros.evolution.network import GENES
 from epuck_ros.experiments.cluster import (
     ClusterError, add_cluster_arguments, check_cluster_arguments, default_workers, open_client)
-from epuck_ros.experiments.interruption import exit_code, ignore_interrupts, terminate_as_interrupt
+from epuck_ros.experiments.interruption import exit_code, interrupts_ignored, terminate_as_interrupt
 from epuck_ros.experiments.output import OutputError, OutputFolder
 
 EXIT_FAILED, EXIT_BAD_INPUT = 1, 2
@@ -85,11 +85,16 @@ def main(argv: list[str] | None = None) -> None:
         raise SystemExit(EXIT_FAILED) from None
     except KeyboardInterrupt as interruption:   # Ctrl-C or SIGTERM: what ran is written already
         interrupted = interruption
-    ignore_interrupts()
+    try:
+        with interrupts_ignored():
+            if history:
+                files.write_best(best, len(history))
+                folder.replace('fitness.png', lambda out: draw_fitness(history, out))
+    except OutputError as error:   # the disk filled up, say
+        print(f'evolve: {error}', file=sys.stderr)
+        raise SystemExit(EXIT_FAILED) from None
     ran = f'{len(history)} of {args.generations} generations' if interrupted else f'{len(history)} generations'
     if history:
-        files.write_best(best, len(history))
-        folder.replace('fitness.png', lambda out: draw_fitness(history, out))
         print(f'{"[evolve] interrupted: " if interrupted else "[evolve] "}{ran} of {args.population} in '
               f'{time.monotonic() - began:.1f} s; best fitness {best["fitness"]:.4f} (generation '
               f'{best["generation"]}); wrote {args.output}/fitness.csv, fitness.png, best_genome.json, '

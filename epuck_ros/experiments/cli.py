@@ -20,7 +20,7 @@ from pathlib import Path
 from epuck_ros import untrusted_yaml
 from epuck_ros.experiments.cluster import (
     ClusterError, add_cluster_arguments, check_cluster_arguments, default_workers, open_client)
-from epuck_ros.experiments.interruption import exit_code, ignore_interrupts, terminate_as_interrupt
+from epuck_ros.experiments.interruption import exit_code, interrupts_ignored, terminate_as_interrupt
 from epuck_ros.experiments.output import OutputError, OutputFolder
 from epuck_ros.experiments.record_budget import RecordRefused, check_room, estimate
 from epuck_ros.experiments.spec import Spec, SpecError, load_spec
@@ -63,7 +63,6 @@ def main(argv: list[str] | None = None) -> None:
         with terminate_as_interrupt():
             sweep(args)
     except KeyboardInterrupt as interruption:   # before any trial (the table is never left half written)
-        ignore_interrupts()
         print('\n[sweep] interrupted before any trial ran', file=sys.stderr)
         raise SystemExit(exit_code(interruption)) from None
 
@@ -102,9 +101,9 @@ def sweep(args: argparse.Namespace) -> None:
         if not started:   # OUT as it was (a table there may be another sweep's)
             raise
         interrupted = interruption
-    ignore_interrupts()
     try:
-        _finish(args, spec, table, folder, interrupted)
+        with interrupts_ignored():
+            _finish(args, spec, table, folder, interrupted)
     except OutputError as error:   # the disk filled up, say
         print(f'sweep: {error}', file=sys.stderr)
         raise SystemExit(EXIT_FAILED) from None
