@@ -40,7 +40,7 @@ setup(
             'record = epuck_ros.nodes.record_node:main',
             'bringup = epuck_ros.bringup:main',
             'bag = epuck_ros.bag.cli:main',
-            'webots_controller = epuck_ros.webots.runner:main',
+            'webots_controller = epuck_ros.webots_controller:main',
             'view = epuck_ros.nodes.view_node:main',
             'teleop = epuck_ros.nodes.teleop_node:main',
             'foxglove = epuck_ros.nodes.foxglove_node:main',

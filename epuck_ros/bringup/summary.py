@@ -28,9 +28,13 @@ def from_bag(path: Path) -> tuple[list[RobotFigures], dict[str, Motion]]:
 def motion_of(samples: Sequence[tuple[int, float, float, float]]) -> Motion:
     """The shape driven, from ground-truth samples (stamp ns, x, y, yaw) in any order, repeats allowed."""
     rows = np.array(sorted(set(samples)), dtype=float).reshape(-1, 4)
-    stamps = rows[:, 0].astype(np.int64)
+    return motion_of_track(rows[:, 0].astype(np.int64), rows[:, 1], rows[:, 2], rows[:, 3])
+
+
+def motion_of_track(stamps: np.ndarray, x: np.ndarray, y: np.ndarray, yaw: np.ndarray) -> Motion:
+    """The shape driven, from ground-truth samples in time order without repeats (stamps in ns, as integers)."""
     t = (stamps - stamps[0]) * 1e-9 if len(stamps) else stamps.astype(float)
-    return classify(Trajectory('ground_truth', t, rows[:, 1], rows[:, 2], np.unwrap(rows[:, 3]), stamps))
+    return classify(Trajectory('ground_truth', t, x, y, np.unwrap(yaw), stamps))
 
 
 def lines(figures: list[RobotFigures], motions: Mapping[str, Motion]) -> list[str]:

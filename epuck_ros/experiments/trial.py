@@ -21,9 +21,10 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from epuck_ros import untrusted_yaml
 from epuck_ros.bag.tally import RunTally
 from epuck_ros.behaviours import BEHAVIOURS, Behaviour, Observation, WheelCommand
-from epuck_ros.behaviours.base import ranges_from_raw
+from epuck_ros.behaviours.base import ConfigError, describe, ranges_from_raw
 from epuck_ros.conversions import nanoseconds_from_seconds, quaternion_from_yaw, yaw_from_quaternion
 from epuck_ros.experiments.isolation import ChildFailed, call_in_child
 from epuck_ros.lockstep import Lockstep
@@ -38,11 +39,15 @@ DEFAULT_WORLD = 'default'
 """A spec's name for the built-in world (`sim` with no `world` parameter)."""
 DEFAULT_TIME_LIMIT = 600.0
 """Wall seconds a trial with a script may take by default (a spec's `time_limit`)."""
+DEFAULT_MEMORY_LIMIT = 2048.0
+"""Megabytes a trial with a script may take by default (a spec's `memory_limit`)."""
 Policy = Callable[[Observation], WheelCommand]
 """A plain Python controller: an observation in, wheel speeds (rad/s) out."""
 COLUMNS = ('trial', 'controller', 'world', 'robots', 'seed', 'robot', 'distance_m', 'contacts_obstacles',
-           'contacts_robots', 'final_x', 'final_y', 'final_yaw', 'sim_time', 'wall_s', 'error')
-"""The columns of a trial's rows (`trials.csv`)."""
+           'contacts_robots', 'final_x', 'final_y', 'final_yaw', 'sim_time', 'wall_s', 'error', 'trial_key')
+"""The columns of a trial's rows (`trials.csv`); `trial_key` is `Trial.key`."""
+SETTING_TYPES = {float: 'a number', int: 'a whole number', bool: 'true or false', str: 'text'}
+"""A behaviour setting's type is its default's (behaviours.base.setting): what a spec or a caller must give."""
 
 
 @dataclass(frozen=True)
@@ -70,7 +75,9 @@ class Script:
 
     path: str
     name: str = ''
-    """How the spec names it (the `controller` column)."""
+    """How the sweep names it (the `controller` column); '' = the file's name."""
+    digest: str = ''
+    """The SHA-256 of its source when the spec read it (part of its trials' keys)."""
 
     @property
     def label(self) -> str:
@@ -98,6 +105,11 @@ class Trial:
     """How the spec named the world (its `world` column)."""
     time_limit: float = DEFAULT_TIME_LIMIT
     """Wall seconds a trial with a script may take before its process is killed (the trial then fails)."""
+    memory_limit: float = DEFAULT_MEMORY_LIMIT
+    """Megabytes of resident memory a trial with a script may take beyond what its process started with (its
+    processes together), before it is killed (the trial then fails)."""
+    key: str = field(default='', compare=False)
+    """What identifies its rows across runs of a sweep (the spec's hash of what they depend on), or ''."""
     record: str = ''
     """A folder to write the trial to as a rosbag2 MCAP bag (`recording`); '' = none. A retry writes it anew."""
 
@@ -115,11 +127,22 @@ def run_trial(trial: Trial, policy: Policy | None = None) -> list[dict[str, Any]
         if isinstance(trial.controller, Script) and policy is None:
             import numpy.random  # noqa: F401 - loaded by numpy on first use (the noise): here once, not in every child
             import epuck_ros.webots.headless  # noqa: F401 - imported here once, not in every child
-            return call_in_child(_rows, trial, trial.time_limit)
+            return call_in_child(_rows, trial, trial.time_limit, trial.memory_limit * 1e6)
         return _rows(trial, policy)
     except Exception as error:  # noqa: BLE001 - whatever went wrong is the trial's result
         what = str(error) if isinstance(error, ChildFailed) else f'{type(error).__name__}: {error}'
-        return [_row(trial, '', error=what, wall=time.perf_counter() - began)]
+        return failed_rows(trial, what, time.perf_counter() - began)
+
+
+def failed_rows(trial: Trial, error: str, wall: float = math.nan) -> list[dict[str, Any]]:
+    """A failed trial's rows: one per robot, as its rows would have been (names, robot count), each saying `error`;
+    one row with no robot's name if even its world cannot be made."""
+    try:
+        names = trial.load_world().names
+    except Exception:  # noqa: BLE001 - the error said is the trial's, not this one
+        names = ('',)
+    return [_row(trial, name, error=error, wall=wall, robots=len(names) if name else trial.robots)
+            for name in names]
 
 
 def _rows(trial: Trial, policy: Policy | None = None) -> list[dict[str, Any]]:
@@ -238,11 +261,23 @@ def _row(trial: Trial, robot: str, figures: Any = None, pose: Sequence[float] = 
         'contacts_obstacles': figures.world_contacts if figures else '',
         'contacts_robots': figures.robot_contacts if figures else '',
         'final_x': pose[0], 'final_y': pose[1], 'final_yaw': pose[2], 'sim_time': sim_time, 'wall_s': wall,
-        'error': error}
+        'error': error, 'trial_key': trial.key}
 
 
 def controller_from(name: str, parameters: Mapping[str, Any] | None = None) -> Controller:
-    """A Controller for behaviour `name` with `parameters` (checked as its Config checks them: ConfigError)."""
+    """A Controller for behaviour `name` with `parameters`: each of the type of its default (a whole number for a
+    number too) and checked as its Config checks them; ConfigError naming the setting otherwise."""
+    if name not in BEHAVIOURS:
+        raise ConfigError(f'no behaviour {name!r} (known: {", ".join(BEHAVIOURS)})')
+    defaults = {setting: value for setting, value, *_ in describe(BEHAVIOURS[name].defaults)}
+    for setting, value in (parameters or {}).items():
+        if setting not in defaults:
+            raise ConfigError(f'{setting}: {name} has no such setting (known: {", ".join(defaults)})')
+        expected = type(defaults[setting])
+        accepted = (int, float) if expected is float else expected   # a whole number is a number too
+        if isinstance(value, bool) is not (expected is bool) or not isinstance(value, accepted):
+            raise ConfigError(f'{setting}: expected {SETTING_TYPES[expected]}, got '
+                              f'{untrusted_yaml.cut(repr(value), 60)}')
     controller = Controller(name, tuple(sorted((parameters or {}).items())))
     controller.make()
     return controller

@@ -22,6 +22,7 @@ from epuck_ros.nodes.params import HELP_FLAGS, ParameterError, check_arguments, 
 from epuck_ros.webots.link import LinkError
 from epuck_ros.nodes.spinning import end_process
 from epuck_ros.webots.robot import close, configure
+from epuck_ros.webots.script_file import FileMissing, FileProblem, read_script
 
 PROGRAM = 'webots_controller'
 ROBOT_NAME = re.compile(r'[A-Za-z_][A-Za-z0-9_]*')
@@ -76,6 +77,16 @@ def fail(message: str) -> None:
     raise SystemExit(2)
 
 
+def check_script(path: Path, name: str) -> None:
+    """Exit 2 with one line unless `path` (named `name` by the user) is a script we can read."""
+    try:
+        read_script(path)
+    except FileMissing:
+        fail(f'no such controller script: {name}')
+    except FileProblem as problem:
+        fail(f'controller script {name}: {problem}')
+
+
 def run_script(path: Path, script_args: list[str]) -> tuple[int, str]:
     """Run the script as __main__: its exit code (1 and its traceback when it raises), and one line saying what
     went wrong ('' when nothing did)."""
@@ -108,7 +119,7 @@ def _run_as_main(path: Path) -> None:
     there, and the copies of a script that a headless trial runs at once, one thread per robot, put them back in
     the wrong order, leaving a script as the process's __main__ (multiprocessing's spawned children, Dask's
     workers, then ran that script instead of the program that started them)."""
-    code = compile(path.read_bytes(), str(path), 'exec')
+    code = compile(read_script(path), str(path), 'exec')
     exec(code, {'__name__': '__main__', '__file__': str(path), '__builtins__': builtins,  # noqa: S102 - its purpose
                 '__package__': None, '__spec__': None, '__loader__': None, '__cached__': None})
 
@@ -131,15 +142,8 @@ def _from_script(tb: TracebackType | None, path: str) -> tuple[TracebackType | N
 
 
 def main(argv: list[str] | None = None) -> None:
+    """The script over ROS (`webots_controller` without --headless: `epuck_ros.webots_controller`)."""
     argv = [PROGRAM, *(sys.argv[1:] if argv is None else argv)]
-    if '--headless' in argv[1:]:   # on the pure core in this process, no ROS (see its --help)
-        from epuck_ros.experiments.headless_cli import main as headless
-        code = 0
-        try:
-            headless([arg for arg in argv[1:] if arg != '--headless'])
-        except SystemExit as end:
-            code = end.code if isinstance(end.code, int) else 1
-        end_process(code)   # not SystemExit: a thread the script left running would keep the process alive
     if any(arg in HELP_FLAGS for arg in user_arguments(argv)):
         print(HELP)
         raise SystemExit(0)
@@ -148,9 +152,8 @@ def main(argv: list[str] | None = None) -> None:
     except ParameterError as error:
         fail(f'{str(error).split(" (known")[0]}: the controller\'s node has no parameters of its own')
     script, robot, script_args = parse(user_arguments(args))
+    check_script(Path(script), script)
     path = Path(script).resolve()
-    if not path.is_file():
-        fail(f'no such controller script: {script}')
     configure(robot, args[1:])
     code = 0
     try:
@@ -159,7 +162,3 @@ def main(argv: list[str] | None = None) -> None:
         close()
         rclpy.try_shutdown()
     end_process(code)   # not SystemExit: a thread the script left running would keep the process alive
-
-
-if __name__ == '__main__':
-    main()
