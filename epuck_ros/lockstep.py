@@ -10,7 +10,9 @@ it is asked — is *free*: its commands drive when they arrive, each step waits 
 the run is no longer reproducible (`on_free` says so once; so does `on_timeout` for a step that went on without
 an answer). Until a controller has answered at all, the step it has not answered is sent again every
 RESEND_AFTER: it may have subscribed after the step went out. One that has not answered within FIRST_ANSWER_WAIT
-is taken for free too: a timer on simulated time cannot answer before time moves on.
+is taken for free too: a timer on simulated time cannot answer before time moves on. Both only over DDS
+(`over_dds`): in one process (the headless trials) no step is lost in transit, and a controller that has not
+answered yet is still computing its answer (a script that loops without stepping is its time limit's to end).
 
 One `Lockstep` holds all of it: which robots the current step waits for, which answered, the modes, the resends,
 and how many controllers must be connected before the first step. The sim node and the headless trials
@@ -79,19 +81,21 @@ class Lockstep:
                  on_stall: Callable[[Sequence[int], float], None] = lambda robots, waited: None,
                  on_resend: Callable[[], None] = lambda: None,
                  on_free: Callable[[int, Answer], None] = lambda robot, answer: None,
-                 on_timeout: Callable[[Sequence[int]], None] = lambda robots: None) -> None:
+                 on_timeout: Callable[[Sequence[int]], None] = lambda robots: None, over_dds: bool = True) -> None:
         """`timeout`: wall seconds a step waits for the answers of controllers in lockstep, 0 = as long as it takes;
         `driven()`: the robots that have a controller now (default: all); `lend()`: whether the thread of a step's
         last answer takes the next step (asked under the condition while the holder waits, so nothing the holder
         writes changes meanwhile); `on_stall(robots, waited)`: every STALL_REPORT while a step waits for them;
         `on_resend()`: the step is about to be sent again; `on_free(robot, answer)`: that robot's controller is
-        free from now on, for what its answer was; `on_timeout(robots)`: the step goes on without their answers."""
+        free from now on, for what its answer was; `on_timeout(robots)`: the step goes on without their answers;
+        `over_dds`: steps and answers travel over DDS (resends and the first answer's wait, see the module)."""
         self._robots = robots
         self._step = step
         self._timeout = timeout if timeout > 0.0 else math.inf
         self._driven = driven or _every_robot(robots)
         self._lend = lend
         self._on_stall, self._on_resend, self._on_free, self._on_timeout = on_stall, on_resend, on_free, on_timeout
+        self._over_dds = over_dds
         self._holder: int | None = None
         """The thread (ident) that may step now."""
         self._changed = threading.Condition()
@@ -239,7 +243,7 @@ class Lockstep:
                 self._on_timeout(sorted(self._awaited))
                 self._take_answers()
                 return True
-            unanswered = [robot for robot in self._awaited if not self._answered_once[robot]]
+            unanswered = [robot for robot in self._awaited if not self._answered_once[robot]] if self._over_dds else []
             for robot in unanswered:
                 if now - self._first_awaited.setdefault(robot, now) >= FIRST_ANSWER_WAIT:
                     self._make_free(robot, Answer.SILENT)

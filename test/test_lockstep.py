@@ -70,6 +70,21 @@ def test_a_controller_that_never_answered_gets_its_step_again_until_it_answers(m
     assert [(count, resend) for count, resend, _ in sim.steps] == [(1, False)] + [(1, True)] * 5
 
 
+def test_in_one_process_a_first_answer_is_waited_for_without_resends_or_giving_up(monkeypatch):
+    """Headless (over_dds=False) no step is lost in transit: a controller still computing its first answer is
+    neither sent the step again nor taken for a free one, however long it takes (here 10 times both waits)."""
+    monkeypatch.setattr(lockstep_module, 'RESEND_AFTER', SHORT)
+    monkeypatch.setattr(lockstep_module, 'FIRST_ANSWER_WAIT', SHORT)
+    freed = []
+    step, sim = lockstep(robots=1, timeout=0.0, over_dds=False, on_free=lambda robot, why: freed.append(robot))
+    step.step()
+    answering = threading.Timer(10 * SHORT, step.answer, args=(0,))
+    answering.start()
+    assert step.await_answers() is True
+    answering.join()
+    assert [(count, resend) for count, resend, _ in sim.steps] == [(1, False)] and freed == []
+
+
 def test_a_stalled_controller_in_lockstep_is_waited_for_as_long_as_it_takes_and_reported(monkeypatch):
     """No time-out unless the user sets one: a line every STALL_REPORT names the robot and how long."""
     monkeypatch.setattr(lockstep_module, 'STALL_REPORT', SHORT)

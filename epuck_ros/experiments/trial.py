@@ -189,7 +189,7 @@ def run(trial: Trial, policy: Policy | None = None,
                getattr(controller, 'needs_proximity', True)) for robot, controller in enumerate(controllers)]
     # Stepped as the sim node steps, through a Lockstep that waits for every robot (each has its controller). The
     # scripts answer from their own threads, and the thread of a step's last answer takes the next step itself.
-    lockstep = stage.lockstep_for(publish) if stage is not None else Lockstep(len(sim.names), publish, timeout=0.0)
+    lockstep = stage.lockstep_for(publish) if stage is not None else Lockstep(len(sim.names), publish, over_dds=False)
     lockstep.claim()
     try:
         _step_to_end(sim, lockstep, robots, over, stage)

@@ -64,7 +64,7 @@ class ScriptStage:
                 if self._waiting:
                     self._changed.notify_all()
 
-        self.lockstep = Lockstep(len(self.seats), step, timeout=float('inf'), lend=self.lend)
+        self.lockstep = Lockstep(len(self.seats), step, timeout=float('inf'), lend=self.lend, over_dds=False)
         return self.lockstep
 
     def step_after(self, seen: int) -> bool:
