@@ -21,8 +21,15 @@ STILL_DISTANCE = 0.01
 """m; a run travelling less than this (a quarter of the body radius) stayed in place."""
 CORNER_RANGE_DEG = (45.0, 135.0)
 """A rectangle's corners, as driven: the course's timed turns make 82.4-85.0° ones (31 or 32 steps), not 90°."""
+CORNER_SPREAD_DEG = 10.0
+"""A rectangle's corners are alike: they differ by this at most. Obstacle avoidance turns until the way is clear, by
+as much as the wall it met asks (`avoid_obstacles.py` in the default arena: 110.7°, 87.7°, 70.0°, 58.9°)."""
 MIN_SIDE_RATIO = 0.25
 """A rectangle's shortest side is at least this fraction of its longest (else it is free motion)."""
+SIDE_TOLERANCE = 0.15
+"""A rectangle's opposite sides are as long as each other to within this fraction of the longer one; its last side
+(the run may end part-way along it) is at most that much longer than the side opposite. Obstacle avoidance drives
+until the next wall, however far that is."""
 CIRCLE_RMS_RATIO = 0.1
 """A circle's points lie within this fraction of its radius (rms) of the fitted circle."""
 
@@ -155,18 +162,24 @@ def _straight_line(trajectory: Trajectory) -> StraightLine:
 
 def _rectangle_corners(trajectory: Trajectory, sides: list[tuple[float, float, int]]) -> Corners | None:
     """The corners when the sides make a rectangle as driven: at least 3 sides of comparable length (the last
-    may be cut short), and turns of 45-135° all one way; a turn after the last side (closing the rectangle)
-    is a corner too."""
+    may be cut short), turns of 45-135° all one way and alike, opposite sides as long as each other; a turn after
+    the last side (closing the rectangle, perhaps cut short too) is a corner as well."""
     if len(sides) < 3:
         return None
     headings = [heading for heading, _, _ in sides]
-    angles = [math.degrees(b - a) for a, b in zip(headings, headings[1:])]
+    turns = [math.degrees(b - a) for a, b in zip(headings, headings[1:])]
     trailing = math.degrees(float(trajectory.yaw[-1]) - headings[-1])
-    if abs(trailing) >= CORNER_RANGE_DEG[0]:
-        angles.append(trailing)
+    angles = turns + ([trailing] if abs(trailing) >= CORNER_RANGE_DEG[0] else [])
     lengths = [length for _, length, _ in sides]
     low, high = CORNER_RANGE_DEG
     if (not all(low <= abs(a) <= high for a in angles) or len({a > 0 for a in angles}) != 1
             or min(lengths[:-1]) < MIN_SIDE_RATIO * max(lengths)):  # the run may stop part-way along the last
+        return None
+    if max(turns) - min(turns) > CORNER_SPREAD_DEG:
+        return None
+    opposite = zip(lengths, lengths[2:])
+    *whole, (before_last, last) = opposite
+    if any(abs(a - b) > SIDE_TOLERANCE * max(a, b) for a, b in whole) or \
+            last > (1.0 + SIDE_TOLERANCE) * before_last:
         return None
     return Corners(angles, lengths)

@@ -1,0 +1,96 @@
+"""What kind of run it was (`bag.shapes.classify`, in `bag summary` and bringup's summary) tells the truth: obstacle
+avoidance, however it went, is never a rectangle, and the shipped bags of the true shapes keep their figures.
+
+The avoidance bags are recorded here, headless (the same runs as over ROS, at the core's speed): the `avoid`
+behaviour in a sweep, the course's obstacle_avoidance.py and the example avoid_obstacles.py through `webots_controller
+--headless --record`; each was called a rectangle before (`Corners: 4: 110.7°, 87.7°, 70.0°, 58.9°`)."""
+from __future__ import annotations
+
+import subprocess
+from pathlib import Path
+
+import pytest
+import yaml
+from conftest import BIN_DIR
+
+from epuck_ros.bag.reader import Bag
+from epuck_ros.bag.run_summary import load_runs, summarise_runs
+
+REPO = Path(__file__).resolve().parents[1]
+AVOID_OBSTACLES = REPO / 'epuck_ros' / 'webots' / 'examples' / 'avoid_obstacles.py'
+COURSE_AVOIDANCE = REPO / 'test' / 'data' / 'course_controllers' / 'obstacle_avoidance.py'
+COURSE_RECTANGLE = REPO / 'test' / 'data' / 'course_controllers' / 'controller_4.py'
+
+
+def motions(bag: Path) -> list[str]:
+    with Bag(bag) as reader:
+        return [summary.motion for summary in summarise_runs(load_runs(reader)).robots]
+
+
+def bag_summary(bag: Path) -> str:
+    result = subprocess.run([str(BIN_DIR / 'bag'), 'summary', str(bag)], capture_output=True, text=True, timeout=60)
+    assert result.returncode == 0, result.stderr
+    return result.stdout
+
+
+def test_a_sweeps_avoid_trials_are_free_motion(tmp_path):
+    """The example sweep's avoid trials (both cruise speeds, one robot and three, seeds 0-3): nine of their 32 robots
+    were called rectangles."""
+    spec = tmp_path / 'avoid.yaml'
+    controllers = ['avoid', {'behaviour': 'avoid', 'parameters': {'cruise_speed': 0.8}}]
+    spec.write_text(yaml.safe_dump({'controllers': controllers, 'worlds': ['default'], 'robots': [1, 3],
+                                    'seeds': {'first': 0, 'count': 4}, 'duration': 20, 'noise': True}))
+    swept = subprocess.run([str(BIN_DIR / 'sweep'), str(spec), '-o', str(tmp_path / 'out'), '--record', '--workers',
+                            '0'], capture_output=True, text=True, timeout=600)
+    assert swept.returncode == 0, swept.stderr
+    found = {bag.name: motions(bag) for bag in (tmp_path / 'out' / 'bags').iterdir()}
+    assert len(found) == 16 and sum(len(robots) for robots in found.values()) == 32
+    assert all(motion == 'free motion' for robots in found.values() for motion in robots), found
+    assert 'Motion:            free motion' in bag_summary(tmp_path / 'out' / 'bags' / '0')
+
+
+@pytest.mark.parametrize('script, seed, duration', [(AVOID_OBSTACLES, 0, 30), (AVOID_OBSTACLES, 3, 20),
+                                                    (COURSE_AVOIDANCE, 0, 30)])
+def test_obstacle_avoidance_scripts_are_free_motion(tmp_path, script, seed, duration):
+    """The example avoid_obstacles.py (both were rectangles) and the course's obstacle avoidance, headless and
+    recorded: free motion in bringup's summary (no corners) and in `bag summary`."""
+    bag = tmp_path / 'bag'
+    run = subprocess.run([str(BIN_DIR / 'webots_controller'), str(script), '--headless', '--seed', str(seed),
+                          '--duration', str(duration), '--record', str(bag)], capture_output=True, text=True,
+                         timeout=300)
+    assert run.returncode == 0, run.stderr
+    assert 'Corners' not in run.stdout, run.stdout
+    assert 'Motion:            free motion' in bag_summary(bag)
+
+
+@pytest.mark.parametrize('bag, motion, figures', [
+    ('forward', 'straight line', 'Straight line:     0.2995 m heading 0.0°, max deviation 0.0000 m'),
+    ('spin', 'spin in place', 'Heading rate:      -138.4°/s (-2.415 rad/s, clockwise), 1.53 turns'),
+    ('circle', 'circle', 'Circle fit:        radius 0.0780 m, centre (0.000, 0.078), rms 0.0000 m, 1.04 laps'),
+    ('rectangle', 'rectangle', 'Corners:           4: 89.8°, 90.0°, 90.0°, 88.9° (sides 0.313, 0.313, 0.313, 0.313 m)'),
+    ('avoid', 'free motion', None)])
+def test_the_shipped_bags_keep_their_shapes(bag, motion, figures):
+    """bags/: what each run was and its figures, as `bag summary` said before."""
+    text = bag_summary(REPO / 'bags' / bag)
+    assert f'Motion:            {motion}' in text
+    assert figures is None or figures in text, text
+
+
+@pytest.mark.parametrize('controller', ['timed', 'sides', 'course'])
+def test_rectangles_stay_rectangles(tmp_path, controller):
+    """The rectangle behaviour's two turn modes (the course's 1 s turns: 82.4° corners; odometry: 90°) with sides of
+    two lengths, and the course's controller_4.py: rectangles, their corners all alike."""
+    bag = tmp_path / 'bag'
+    if controller == 'course':
+        command = ['webots_controller', str(COURSE_RECTANGLE), '--headless', '--duration', '30', '--record', str(bag)]
+    else:
+        parameters = {'turn_mode': 'timed'} if controller == 'timed' else {'side_a': 0.3, 'side_b': 0.15}
+        spec = tmp_path / 'rectangle.yaml'
+        spec.write_text(yaml.safe_dump({'controllers': [{'behaviour': 'rectangle', 'parameters': parameters}],
+                                        'seeds': [0], 'duration': 30}))
+        command = ['sweep', str(spec), '-o', str(tmp_path / 'out'), '--record', '--workers', '0']
+        bag = tmp_path / 'out' / 'bags' / '0'
+    run = subprocess.run([str(BIN_DIR / command[0]), *command[1:]], capture_output=True, text=True, timeout=300)
+    assert run.returncode == 0, run.stderr
+    assert motions(bag) == ['rectangle']
+    assert 'Corners:' in bag_summary(bag)
