@@ -83,12 +83,10 @@ def main(argv: list[str]) -> None:
         stamp = nanoseconds_from_stamp(*stamp_from_seconds(sim.time))
         for name, (x, y, yaw) in zip(sim.names, sim.true_pose.tolist()):
             samples.setdefault(name, []).append((stamp, x, y, yaw))
-        if recorder is not None:
-            recorder.step(sim)
 
     began = time.perf_counter()
     try:
-        sim, tally = run(trial, each_step=each_step)
+        sim, tally = run(trial, each_step=each_step, recorder=recorder)
     except ScriptError as error:
         print(f'{PROGRAM}: {error}', file=sys.stderr)
         raise SystemExit(EXIT_FAILED) from None

@@ -14,7 +14,7 @@ image's pixels copied into the tail of its CDR bytes.
 """
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 
 from rclpy.node import Node
 from rclpy.publisher import Publisher
@@ -143,15 +143,21 @@ class SensePorts:
 
     def update_wants(self, want: Callable[[str, int, bool], None], forced: frozenset[str]) -> None:
         """Tell the simulation which of this robot's senses are wanted now (`forced`: by the parameter)."""
+        readers = {kind: self._readers_of(kind) for kind in ON_DEMAND_TOPICS}
         for kind in SENSE_TOPICS:
-            read, asked = self._readers_of(kind)
-            wanted = asked or kind in forced
+            wanted = readers[kind][1] or kind in forced
             if wanted != self._wanted[kind]:
                 self._wanted[kind] = wanted
                 want(kind, self.index, wanted)
-            self.subscribed[kind] = read and wanted
-        read, asked = self._readers_of(_CAMERA_INFO)
-        self._info_subscribed = read and (asked or self._wanted['camera'])
+        self.follow(self._wanted, {kind: read for kind, (read, _) in readers.items()}, readers[_CAMERA_INFO][1])
+
+    def follow(self, wanted: Mapping[str, bool], read: Mapping[str, bool], info_asked: bool = False) -> None:
+        """Publish, after each step, the topics of the `wanted` senses that are `read` (by kind, camera_info's
+        with the camera's or when `info_asked`). A headless trial's bag (experiments/recording.py) follows what
+        the simulation computes, as its recorder reads every topic."""
+        for kind in SENSE_TOPICS:
+            self.subscribed[kind] = read[kind] and wanted[kind]
+        self._info_subscribed = read[_CAMERA_INFO] and (info_asked or wanted['camera'])
         self.publishing = self._info_subscribed or any(self.subscribed.values())
         if self.publishing and not self._made:
             self._make_messages()

@@ -145,7 +145,7 @@ class SimNode(Node):
         _stop_if_asked()
         self._tf = TfPorts(self, self.ports, self._sim, len(self.ports) > 1, stream, LATCHED,
                            values['frame_prefix'] + WORLD_FRAME)
-        self._publish_world(world, values['frame_prefix'])
+        publish_world(self, world, values['frame_prefix'])
         self.create_service(Empty, 'reset', self._on_reset)
         self.create_service(Trigger, 'step', self._on_step)
         self._clock_pub = quiet_publisher(self, Clock, '/clock', stream)
@@ -180,13 +180,6 @@ class SimNode(Node):
             ports.append(RobotPorts(self, index, name, several, stream, LATCHED, self._on_command,
                                     values['frame_prefix'], values['cmd_vel_stamped'], patches=patches))
         return ports
-
-    def _publish_world(self, world: World, frame_prefix: str) -> None:
-        """The world, latched: as YAML, and as markers for RViz."""
-        quiet_publisher(self, String, 'world', LATCHED).publish(
-            String(data=yaml.safe_dump(world.to_dict(), sort_keys=False)))
-        quiet_publisher(self, MarkerArray, 'world_markers', LATCHED).publish(
-            world_markers(world, frame_prefix + WORLD_FRAME))
 
     def _say_ready(self, world: World, values: dict) -> None:
         shown = ', '.join(world.names[:5]) + (', ...' if len(world.names) > 5 else '')
@@ -390,6 +383,14 @@ class SimNode(Node):
             f'per step; from now on each step waits at most {OWN_RATE_WAIT * 1000:g} ms for it (the run '
             f'goes on {pace}, no longer the same to the bit). To keep lockstep, publish one command per step '
             f'(on each /clock tick or ir_raw message).')
+
+
+def publish_world(node: Node, world: World, frame_prefix: str) -> None:
+    """The world, latched: as YAML, and as markers for RViz (also into a headless trial's bag)."""
+    quiet_publisher(node, String, 'world', LATCHED).publish(
+        String(data=yaml.safe_dump(world.to_dict(), sort_keys=False)))
+    quiet_publisher(node, MarkerArray, 'world_markers', LATCHED).publish(
+        world_markers(world, frame_prefix + WORLD_FRAME))
 
 
 def _world(values: dict) -> World:
