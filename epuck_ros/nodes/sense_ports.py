@@ -3,8 +3,8 @@ imu (design.md, "Senses"); each sense is computed only while it is wanted.
 
 Wanted means a subscriber on its topic that asks for it (so an echo, RViz or a controller just works), or the `senses`
 parameter. A recorder's subscriber does not ask (`RECORDER_NODE`): it records a sense while something else asks for
-it, so recording an IR-only run renders no camera (it rendered and recorded every step: 9.4 MB for 30 s instead of
-about 1 MB). A topic is published while its sense is wanted and it has a subscriber of either kind.
+it, so recording an IR-only run renders no camera (it rendered and recorded one every step, the bag several times as
+large). A topic is published while its sense is wanted and it has a subscriber of either kind.
 From SENSE_TOPICS_ON_DEMAND_FROM robots a topic's publisher is made only once a subscriber to it is in the graph
 (`SensePorts`).
 The node looks at the subscriber counts every SENSE_POLL wall seconds (`update_wants`), not every step: a swarm's
