@@ -6,15 +6,20 @@ behaviour in a sweep, the course's obstacle_avoidance.py and the example avoid_o
 --headless --record`; each was called a rectangle before (`Corners: 4: 110.7°, 87.7°, 70.0°, 58.9°`)."""
 from __future__ import annotations
 
+import math
 import subprocess
 from pathlib import Path
 
+import numpy as np
 import pytest
 import yaml
 from conftest import BIN_DIR
 
 from epuck_ros.bag.reader import Bag
 from epuck_ros.bag.run_summary import load_runs, summarise_runs
+from epuck_ros.bag.runs import Trajectory
+from epuck_ros.bag.shapes import classify, classify_runs
+from epuck_ros.world import default_world
 
 REPO = Path(__file__).resolve().parents[1]
 AVOID_OBSTACLES = REPO / 'epuck_ros' / 'webots' / 'examples' / 'avoid_obstacles.py'
@@ -94,3 +99,43 @@ def test_rectangles_stay_rectangles(tmp_path, controller):
     assert run.returncode == 0, run.stderr
     assert motions(bag) == ['rectangle']
     assert 'Corners:' in bag_summary(bag)
+
+
+def square_path(x: float, y: float, side: float, laps: float = 1.25) -> Trajectory:
+    """A square driven as the rectangle behaviour drives it: sides at 0.0628 m/s, turns in place of 90° left at
+    1.45 rad/s, sampled every 32 ms from (x, y) heading along +x."""
+    step, speed, rate = 0.032, 0.0628, 1.45
+    xs, ys, yaws = [x], [y], [0.0]
+    for corner in range(round(4 * laps)):
+        for _ in range(round(side / speed / step)):
+            xs.append(xs[-1] + speed * step * math.cos(yaws[-1]))
+            ys.append(ys[-1] + speed * step * math.sin(yaws[-1]))
+            yaws.append(yaws[-1])
+        target = yaws[-1] + math.pi / 2
+        while yaws[-1] < target - 1e-9:
+            xs.append(xs[-1])
+            ys.append(ys[-1])
+            yaws.append(min(target, yaws[-1] + rate * step))
+    stamps = np.arange(1, len(xs) + 1, dtype=np.int64) * 32_000_000
+    return Trajectory('ground_truth', (stamps - stamps[0]) * 1e-9, np.array(xs), np.array(ys), np.array(yaws), stamps)
+
+
+def test_corners_turned_where_the_sensors_see_a_wall_are_no_rectangles_corners():
+    """The same square path in the open is a rectangle; driven along the arena's walls, each corner turned 0.06 m
+    from a wall (where obstacle avoidance turns), it is free motion; without the world only the path is judged. Its
+    five corners: at (0.15, -0.15) twice, (0.15, 0.15), (-0.15, 0.15), (-0.15, -0.15)."""
+    arena = default_world()
+    in_the_open = square_path(-0.15, -0.15, 0.3)
+    along_the_walls = square_path(-0.44, -0.44, 0.88)
+    assert classify_runs({'': in_the_open}, arena)[''].kind == 'rectangle'
+    assert classify_runs({'': along_the_walls}, arena)[''].kind == 'free motion'
+    assert classify(along_the_walls).kind == 'rectangle'
+    # other robots' bodies count as walls do: standing next to most of the corners, not next to one
+
+    def standing(x: float, y: float) -> Trajectory:
+        count = len(in_the_open.t)
+        return Trajectory('ground_truth', in_the_open.t, np.full(count, x), np.full(count, y), np.zeros(count),
+                          in_the_open.stamps_ns)
+    assert classify_runs({'a': in_the_open, 'b': standing(0.22, -0.15)}, arena)['a'].kind == 'rectangle'
+    crowded = {'a': in_the_open, 'b': standing(0.22, -0.15), 'c': standing(0.22, 0.15)}
+    assert classify_runs(crowded, arena)['a'].kind == 'free motion'

@@ -99,7 +99,7 @@ def main(argv: list[str]) -> None:
             recorder.close()
     wall = time.perf_counter() - began
     several = len(sim.names) > 1
-    motions = {name if several else '': summary.motion_of(track) for name, track in samples.items()}
+    motions = summary.motions_of({name if several else '': track for name, track in samples.items()}, sim.world)
     lines = [f'simulated {sim.time:.2f} s in {wall:.2f} s wall ({sim.time / wall:.0f}x real time), headless']
     lines += summary.lines(tally.figures, motions)
     if args.record is not None:
