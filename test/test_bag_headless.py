@@ -20,6 +20,7 @@ from rosbags.typesys import Stores, get_typestore
 
 from epuck_ros.conversions import stamp_from_label
 from epuck_ros.nodes import serialized
+from epuck_ros.nodes.record_node import sense_of
 
 REPO = Path(__file__).resolve().parents[1]
 LEDS_EVERY_STEP = REPO / 'test' / 'data' / 'webots' / 'leds_every_step.py'
@@ -67,7 +68,9 @@ def compare(ros: dict[str, dict[str, Any]], headless: dict[str, dict[str, Any]],
             layouts: bool) -> None:
     """Every topic of the run in both bags, with the same type, offered QoS and messages. Over ROS the answer to the
     last step (it drives nothing) and the LEDs a script set while handling it may come before the recorder stops, or
-    not: one such message more is left out. `layouts`: compare the layouts of the labelled arrays too."""
+    not: one such message more is left out. `layouts`: compare the layouts of the labelled arrays too. Without the
+    step protocol a sense topic starts over ROS when DDS discovery lets the simulator see the controller's reader
+    (issue 25): its messages are then those of the steps both bags have (the last ones)."""
     assert set(ros) - ROS_ONLY == set(headless), sorted((set(ros) - ROS_ONLY) ^ set(headless))
     for topic, mine in headless.items():
         theirs = ros[topic]
@@ -76,6 +79,8 @@ def compare(ros: dict[str, dict[str, Any]], headless: dict[str, dict[str, Any]],
         ignored = topic.rsplit('/', 1)[-1] in LABELLED and not layouts
         expected = [plain(msg, ignored) for msg in mine['messages']]
         found = [plain(msg, ignored) for msg in theirs['messages']]
+        if not STEP_PROTOCOL and sense_of(topic) is not None and 0 < len(found) <= len(expected):
+            expected = expected[len(expected) - len(found):]
         if topic.endswith(('/wheel_cmd', '/leds')) and len(found) == len(expected) + 1:
             extra = next((index for index in reversed(range(len(found)))
                           if found[:index] + found[index + 1:] == expected), None)
@@ -121,11 +126,13 @@ def avoid_bags(tmp_path_factory: pytest.TempPathFactory) -> tuple[dict, dict]:
 @pytest.fixture(scope='module')
 def script_bags(tmp_path_factory: pytest.TempPathFactory) -> tuple[dict, dict]:
     """A script that reads its ground sensors, sets its LEDs every step and drives into a wall (seed 5, 6 s):
-    `bringup --controller` and `webots_controller --headless --record`."""
+    `bringup --controller` and `webots_controller --headless --record`. Without the step protocol, with no noise: a
+    sense's noise is drawn from its first wanted step on, which over ROS comes when discovery lets it (issue 25)."""
     folder = tmp_path_factory.mktemp('script')
-    ros = run_both(folder, ['--controller', str(LEDS_EVERY_STEP), '--seed', '5', '--duration', '6'],
-                   ['webots_controller', str(LEDS_EVERY_STEP), '--headless', '--seed', '5', '--duration', '6',
-                    '--record', str(folder / 'headless')])
+    options = ['--seed', '5', '--duration', '6', *([] if STEP_PROTOCOL else ['--no-noise'])]
+    ros = run_both(folder, ['--controller', str(LEDS_EVERY_STEP), *options],
+                   ['webots_controller', str(LEDS_EVERY_STEP), '--headless', *options, '--record',
+                    str(folder / 'headless')])
     return read(ros), read(folder / 'headless')
 
 
