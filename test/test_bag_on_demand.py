@@ -67,7 +67,9 @@ def test_leds_set_every_step_lose_no_sample_at_full_speed(launch, tmp_path):
     leds = messages(bag)['/leds']
     counted = [int(msg.data[0]) for msg in leds]
     steps = round(20.0 / 0.032)
-    assert counted == list(range(1, len(counted) + 1)) and len(counted) >= steps - 1, counted[:5] + counted[-5:]
+    # led0 = n goes out with the answer to step n + 1; the answer to the last step (n = steps - 1) drives nothing and
+    # may come after the recorder stopped
+    assert counted == list(range(1, len(counted) + 1)) and len(counted) >= steps - 2, counted[:5] + counted[-5:]
     assert all([int(bit) for bit in msg.data[1:]] == [count >> i & 1 for i in range(9)]
                for msg, count in zip(leds, counted))
     topics = messages(bag)
