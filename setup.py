@@ -17,9 +17,12 @@ setup(
         ('share/' + package_name + '/worlds', glob('epuck_ros/worlds/*.yaml')),
         ('share/' + package_name + '/urdf', ['epuck_ros/urdf/epuck.urdf']),
     ],
-    install_requires=['setuptools', 'numpy', 'pyyaml', 'mcap', 'zstandard', 'lz4', 'matplotlib', 'dask[distributed]',
-                      'gymnasium', 'pettingzoo', 'rosbags'],
-    extras_require={'test': ['pytest', 'pytest-xdist', 'ros-domain-coordinator', 'mcap-ros2-support', 'selenium',
+    # A plain `pip install .` runs everything, the `epuck_sim` pytest fixture included (its entry point is in every
+    # install): ROS 2 Jazzy from PyPI, and domain_coordinator, which claims the fixture's domain.
+    install_requires=['setuptools', 'ros-jazzy-rclpy[fastrtps]', 'ros-jazzy-common-interfaces',
+                      'ros-domain-coordinator>=0.12', 'numpy', 'pyyaml', 'mcap', 'zstandard', 'lz4', 'matplotlib',
+                      'dask[distributed]', 'gymnasium', 'pettingzoo', 'rosbags', 'foxglove-sdk>=0.30.3,<0.31'],
+    extras_require={'test': ['pytest', 'pytest-xdist', 'mcap-ros2-support', 'websocket-client', 'selenium',
                              'yourdfpy', 'flake8', 'pydocstyle']},
     zip_safe=True,
     maintainer='epuck_ros maintainers',
@@ -40,6 +43,7 @@ setup(
             'webots_controller = epuck_ros.webots.runner:main',
             'view = epuck_ros.nodes.view_node:main',
             'teleop = epuck_ros.nodes.teleop_node:main',
+            'foxglove = epuck_ros.nodes.foxglove_node:main',
             'sweep = epuck_ros.experiments.cli:main',
             'evolve = epuck_ros.evolution.cli:main',
         ],

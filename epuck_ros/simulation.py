@@ -151,6 +151,7 @@ class Simulation:
         obstacle, robot = self._stepper.step(self._state)
         self._count_contacts(obstacle, robot, events)
         if self.senses.active:
+            self.senses.step = self._steps + 1
             self.senses.sense(self._state)
         self._steps += 1
         return events

@@ -6,6 +6,8 @@ bag instead of sending over DDS. So a headless bag has the topics, types, bytes 
 construction: robot_description, /tf_static and /tf, odom, ground_truth, proximity, joint_states, ir_raw and
 collisions per robot, the senses a controller read while it read them (as the simulator publishes them: from the step
 after it asked), world, world_markers and /clock; each topic offered with the QoS a recorder reads from the graph.
+A sense is published from the step its controller asked for it on, as the simulator publishes a newly wanted sense's
+current step at once, and `lockstep_status` says the run held (a headless trial is lockstep, always).
 The controllers' side as their nodes publish it: each robot's `wheel_cmd`, one answer per step before the last (the
 answer to the last step drives nothing; a behaviour's node ends with a stop), its array naming the step it answers
 (`layout.dim[0].label` = `conversions.stamp_label`), and a script's `leds` whenever it changes them.
@@ -22,17 +24,19 @@ from typing import Any
 
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from rosgraph_msgs.msg import Clock
-from std_msgs.msg import Float64MultiArray, Int32MultiArray, MultiArrayDimension
+from std_msgs.msg import Float64MultiArray, Int32MultiArray
 
 from epuck_ros.bag.qos import QosProfile
 from epuck_ros.bag.writer import BagWriter
-from epuck_ros.conversions import nanoseconds_from_stamp, stamp_from_seconds, stamp_label
+from epuck_ros.conversions import nanoseconds_from_stamp, stamp_from_seconds
+from epuck_ros.integrity import HELD
 from epuck_ros.model import RobotModel
 from epuck_ros.nodes.ack_window import COMMAND_QOS, history_steps
+from epuck_ros.nodes.lockstep_report import LockstepReport
 from epuck_ros.nodes.qos import LATCHED
 from epuck_ros.nodes.robot_ports import WORLD_FRAME, RobotPorts, topic_prefix
 from epuck_ros.nodes.sense_ports import ON_DEMAND_TOPICS, SensePorts
-from epuck_ros.nodes.serialized import Patch, exact_cdr
+from epuck_ros.nodes.serialized import Patch, array_bytes, exact_cdr
 from epuck_ros.nodes.sim_node import publish_world
 from epuck_ros.nodes.tf_ports import TfPorts
 from epuck_ros.simulation import Simulation
@@ -136,6 +140,7 @@ class TrialRecorder:
         self._senses = [SensePorts(node, index, name, several, stream, sim) for index, name in enumerate(sim.names)]
         self._tf = TfPorts(node, self._ports, sim, several, stream, LATCHED, WORLD_FRAME, self._model)
         publish_world(node, self._world, '')
+        LockstepReport(node, sim.names, HELD, 0.0, lambda: sim.time)
         self._clock = node.create_publisher(Clock, '/clock', stream)
         self._clock_message = Patch(Clock(), [('clock.sec', 'i'), ('clock.nanosec', 'I')])   # as the sim node's
         self._controllers = [(node.create_publisher(Float64MultiArray, topic_prefix(name, several) + COMMAND_TOPIC,
@@ -151,10 +156,9 @@ class TrialRecorder:
                 self._start(sim)
             self._stamp = stamp = stamp_from_seconds(sim.time)
             self._node.step(stamp)
-            wanted = sim.senses.wanted
             for ports, senses in zip(self._ports, self._senses):
                 ports.publish(sim, stamp)
-                senses.follow({kind: bool(wanted[kind][senses.index]) for kind in wanted}, READ)
+                _follow(senses, sim)
                 if senses.publishing:
                     senses.publish(sim, stamp)
             self._tf.publish(sim, stamp)
@@ -164,10 +168,17 @@ class TrialRecorder:
                     self._ports[robot].publish_collisions(count)
             self._clock.publish(self._clock_message.bytes(stamp))
 
-    def answered(self, robot: int, left: float, right: float) -> None:
-        """Robot `robot`'s controller answered the current step with these wheel speeds (rad/s)."""
+    def sense_wanted(self, robot: int, kind: str, sim: Simulation) -> None:
+        """Robot `robot`'s controller asked for sense `kind` (read at once): its message of the current step."""
         with self._lock:
-            self._controllers[robot][0].publish(answer(left, right, self._stamp))
+            senses = self._senses[robot]
+            _follow(senses, sim)
+            senses.publish(sim, self._stamp, [kind])
+
+    def answered(self, robot: int, left: float, right: float) -> None:
+        """Robot `robot`'s controller answered the current step with these wheel speeds (rad/s), naming it."""
+        with self._lock:
+            self._controllers[robot][0].publish(array_bytes((float(left), float(right)), self._stamp))
 
     def leds(self, robot: int, values: Sequence[int]) -> None:
         """A script set its LEDs (the ten values, as the Webots shim publishes them)."""
@@ -178,16 +189,12 @@ class TrialRecorder:
         """The behaviours' nodes end: each commands a zero wheel speed (unnamed: it answers no step)."""
         with self._lock:
             for command, _ in self._controllers:
-                command.publish(Float64MultiArray(data=[0.0, 0.0]))
+                command.publish(array_bytes((0.0, 0.0)))
 
     def close(self) -> None:
         self._bag.close()
 
 
-def answer(left: float, right: float, stamp: tuple[int, int]) -> Float64MultiArray:
-    """A controller's `wheel_cmd` answering the step stamped `stamp`: the step named in its layout's first dimension
-    (the step protocol of issue 25), `[left, right]` rad/s."""
-    label = MultiArrayDimension(label=stamp_label(*stamp), size=2, stride=2)
-    msg = Float64MultiArray(data=[float(left), float(right)])
-    msg.layout.dim = [label]
-    return msg
+def _follow(senses: SensePorts, sim: Simulation) -> None:
+    """The robot's sense topics publish what the simulation computes for it (the recorder reads them all)."""
+    senses.follow({kind: bool(wanted[senses.index]) for kind, wanted in sim.senses.wanted.items()}, READ)

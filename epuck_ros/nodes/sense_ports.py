@@ -8,13 +8,16 @@ large). A topic is published while its sense is wanted and it has a subscriber o
 From SENSE_TOPICS_ON_DEMAND_FROM robots a topic's publisher is made only once a subscriber to it is in the graph
 (`SensePorts`).
 The node looks at the subscriber counts every SENSE_POLL wall seconds (`update_wants`), not every step: a swarm's
-thousands of topics would cost more than its steps. A sense newly wanted is read at once from the current state,
-so the next step's messages carry it. Messages are serialised once and patched each step (`serialized`), the
-image's pixels copied into the tail of its CDR bytes.
+thousands of topics would cost more than its steps. A sense newly wanted is read at once from the current state and
+its message of the current step published at once: a lockstep controller that has just subscribed waits for that
+message before it answers the step, so the sense is sure to be read on the next step (the step protocol, see
+epuck_ros/lockstep.py). Every message names its step: a header's stamp, or for the raw arrays the layout's label
+(`conversions.stamp_label`). Messages are serialised once and patched each step (`serialized`), the image's pixels
+copied into the tail of its CDR bytes.
 """
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Iterable, Mapping
 
 from rclpy.node import Node
 from rclpy.publisher import Publisher
@@ -23,9 +26,10 @@ from sensor_msgs.msg import CameraInfo, Image, Imu
 from std_msgs.msg import Float64MultiArray
 
 from epuck_ros.description import IMU_FRAME
-from epuck_ros.model import CAMERA_FOV, GROUND_SENSOR_NAMES, LIGHT_SENSOR_NAMES
+from epuck_ros.model import CAMERA_FOV
 from epuck_ros.nodes.robot_ports import STAMP_FIELDS, frame_prefix, quiet_publisher, topic_prefix
-from epuck_ros.nodes.serialized import Patch, exact_cdr
+from epuck_ros.conversions import stamp_from_seconds
+from epuck_ros.nodes.serialized import Patch, array_bytes, exact_cdr
 from epuck_ros.sensors.camera import camera_matrix
 from epuck_ros.sensors.imu import rates_from_gyro_values
 from epuck_ros.simulation import Simulation
@@ -99,8 +103,9 @@ class SensePorts:
         self._frames, self._size = frames, (width, height)
         self._made = False
         self._wanted = {kind: False for kind in SENSE_TOPICS}
-        self._readers: dict[str, tuple[int, bool]] = {}
-        """Per kind, (matched readers, whether one asks) as last settled by the graph (`_readers_of`)."""
+        self._asking = {kind: 0 for kind in SENSE_TOPICS}
+        self._readers: dict[str, tuple[int, int]] = {}
+        """Per kind, (matched readers, readers that ask) as last settled by the graph (`_readers_of`)."""
         self.subscribed = {kind: False for kind in SENSE_TOPICS}
         """Per sense, whether its topic is published after each step: the sense is wanted and the topic read."""
         self._info_subscribed = False
@@ -131,25 +136,30 @@ class SensePorts:
         info.p = [k[0], 0.0, k[2], 0.0, 0.0, k[4], k[5], 0.0, 0.0, 0.0, 1.0, 0.0]
         info.header.frame_id = frames + 'camera'
         self._info = Patch(info, STAMP_FIELDS)
-        self._ground = Patch(Float64MultiArray(data=[0.0] * len(GROUND_SENSOR_NAMES)),
-                             [(f'data[{i}]', 'd') for i in range(len(GROUND_SENSOR_NAMES))])
-        self._light = Patch(Float64MultiArray(data=[0.0] * len(LIGHT_SENSOR_NAMES)),
-                            [(f'data[{i}]', 'd') for i in range(len(LIGHT_SENSOR_NAMES))])
         imu = Imu()
         imu.header.frame_id = frames + IMU_FRAME
         imu.orientation_covariance[0] = -1.0   # REP 145: no orientation estimate
         self._imu = Patch(imu, IMU_FIELDS)
         self._made = True
 
-    def update_wants(self, want: Callable[[str, int, bool], None], forced: frozenset[str]) -> None:
-        """Tell the simulation which of this robot's senses are wanted now (`forced`: by the parameter)."""
+    def update_wants(self, want: Callable[[str, int, bool], None], forced: frozenset[str]) -> list[str]:
+        """Tell the simulation which of this robot's senses are wanted now (`forced`: by the parameter); the senses
+        that have just got a reader that asks for them, or whose publication starts (the node publishes their
+        current step at once: a lockstep controller that subscribed waits for that message)."""
         readers = {kind: self._readers_of(kind) for kind in ON_DEMAND_TOPICS}
+        new = []
         for kind in SENSE_TOPICS:
-            wanted = readers[kind][1] or kind in forced
+            count, asking = readers[kind]
+            wanted = asking > 0 or kind in forced
             if wanted != self._wanted[kind]:
                 self._wanted[kind] = wanted
                 want(kind, self.index, wanted)
-        self.follow(self._wanted, {kind: read for kind, (read, _) in readers.items()}, readers[_CAMERA_INFO][1])
+            if asking > self._asking[kind] or (count and wanted and not self.subscribed[kind]):
+                new.append(kind)
+            self._asking[kind] = asking
+        self.follow(self._wanted, {kind: count > 0 for kind, (count, _) in readers.items()},
+                    readers[_CAMERA_INFO][1] > 0)
+        return new
 
     def follow(self, wanted: Mapping[str, bool], read: Mapping[str, bool], info_asked: bool = False) -> None:
         """Publish, after each step, the topics of the `wanted` senses that are `read` (by kind, camera_info's
@@ -162,40 +172,43 @@ class SensePorts:
         if self.publishing and not self._made:
             self._make_messages()
 
-    def _readers_of(self, kind: str) -> tuple[bool, bool]:
-        """Whether the topic of `kind` has readers, and whether one of them asks for it: any reader but a recorder's
+    def _readers_of(self, kind: str) -> tuple[int, int]:
+        """How many readers the topic of `kind` has, and how many of them ask for it: any reader but a recorder's
         (RECORDER_NODE). The graph is asked only when the number of matched readers changed, until it shows that
-        many with their nodes' names; meanwhile a sense stays as it was unless a reader known to ask appeared."""
+        many with their nodes' names; meanwhile the readers known to ask are not counted fewer than before."""
         publisher = self._publishers[kind]
         count = 0 if publisher is None else publisher.get_subscription_count()
         settled = self._readers.get(kind)
         if settled is not None and settled[0] == count:
-            return count > 0, settled[1]
+            return settled
         if count == 0:
-            self._readers[kind] = (0, False)
-            return False, False
+            self._readers[kind] = (0, 0)
+            return 0, 0
         names = [info.node_name for info in self._node.get_subscriptions_info_by_topic(publisher.topic_name)]
-        asked = any(name != RECORDER_NODE and not name.startswith(_UNKNOWN_NODE) for name in names)
+        asking = sum(1 for name in names if name != RECORDER_NODE and not name.startswith(_UNKNOWN_NODE))
         if len(names) == count and not any(name.startswith(_UNKNOWN_NODE) for name in names):
-            self._readers[kind] = (count, asked)
+            self._readers[kind] = (count, asking)
         elif settled is not None:
-            asked = asked or settled[1]
-        return True, asked
+            asking = max(asking, settled[1])
+        return count, asking
 
-    def publish(self, sim: Simulation, stamp: tuple[int, int]) -> None:
-        """This robot's sense messages for the senses with subscribers (their readings are those of this step)."""
+    def publish(self, sim: Simulation, stamp: tuple[int, int], kinds: Iterable[str] = SENSE_TOPICS) -> None:
+        """This robot's sense messages of `kinds` that are published (their readings are those of this step)."""
         robot, senses, subscribed, publishers = self.index, sim.senses, self.subscribed, self._publishers
-        if subscribed['camera'] and senses.images is not None:
-            publishers['camera'].publish(self._image.bytes(stamp, senses.images[robot].tobytes()))
-        if self._info_subscribed:
+        for kind in kinds:
+            if not subscribed[kind]:
+                continue
+            if kind == 'camera' and senses.images is not None:
+                publishers['camera'].publish(self._image.bytes(stamp, senses.images[robot].tobytes()))
+            elif kind == 'ground':
+                publishers['ground'].publish(array_bytes(senses.ground_raw[robot].tolist(), stamp))
+            elif kind == 'light':
+                publishers['light'].publish(array_bytes(senses.light_raw[robot].tolist(), stamp))
+            elif kind == 'imu':
+                rates = rates_from_gyro_values(senses.gyro[robot]).tolist()
+                publishers['imu'].publish(self._imu.bytes((*stamp, *rates, *senses.accelerometer[robot].tolist())))
+        if self._info_subscribed and 'camera' in kinds:
             publishers[_CAMERA_INFO].publish(self._info.bytes(stamp))
-        if subscribed['ground']:
-            publishers['ground'].publish(self._ground.bytes(senses.ground_raw[robot].tolist()))
-        if subscribed['light']:
-            publishers['light'].publish(self._light.bytes(senses.light_raw[robot].tolist()))
-        if subscribed['imu']:
-            rates = rates_from_gyro_values(senses.gyro[robot]).tolist()
-            publishers['imu'].publish(self._imu.bytes((*stamp, *rates, *senses.accelerometer[robot].tolist())))
 
 
 class SenseFeeds:
@@ -247,7 +260,11 @@ class SenseFeeds:
         self._update(self.ports[self._turn])
 
     def _update(self, ports: SensePorts) -> None:
+        """One robot's wants; a sense just subscribed is published at once for the current step (see the module)."""
         was = ports.publishing
-        ports.update_wants(lambda kind, robot, wanted: self._sim.senses.want(kind, [robot], wanted), self._forced)
+        new = ports.update_wants(lambda kind, robot, wanted: self._sim.senses.want(kind, [robot], wanted),
+                                 self._forced)
         if ports.publishing != was:
             self._publishing = [ports for ports in self.ports if ports.publishing]
+        if new and self._sim.steps:   # no step published yet: the first one will carry it
+            ports.publish(self._sim, stamp_from_seconds(self._sim.time), new)

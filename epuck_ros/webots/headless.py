@@ -181,6 +181,9 @@ class CoreLink:
         if kind not in self._wanted:
             self._wanted.add(kind)
             self._stage.sim.senses.want(kind, [self._robot])
+            recorder = self._stage.recorder()
+            if recorder is not None:   # the simulator publishes the step in hand at once (its reader waits for it)
+                recorder.sense_wanted(self._robot, kind, self._stage.sim)
 
     def publish_leds(self, values: list[int]) -> None:
         """Into the trial's bag, if it is recorded (no view to tell in a headless run)."""
