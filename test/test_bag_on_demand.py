@@ -4,6 +4,8 @@ Real processes over DDS (`bringup`, `sim`, `record`), bags read back with rosbag
 from __future__ import annotations
 
 import re
+import subprocess
+import sys
 from pathlib import Path
 
 from conftest import ros_args, set_sim_parameter
@@ -121,3 +123,41 @@ def test_record_senses_asks_for_a_sense_and_a_recorder_records_what_is_published
     asked, seen = recorded['asking']['/camera/image_raw'], recorded['passive']['/camera/image_raw']
     assert any(image.data.any() for image in asked)   # rendered: the arena's walls, not a black frame
     assert [bytes(image.data) for image in seen] == [bytes(image.data) for image in asked[-len(seen):]]
+
+
+BURST_AND_EXIT = '''
+import os, sys, time
+import rclpy
+from epuck_ros.nodes.dds_profile import use_package_profile
+from epuck_ros.webots.link import SimLink
+use_package_profile()
+rclpy.init()
+link = SimLink('webots_controller', '', lambda: False)
+deadline = time.monotonic() + 60
+while link.node.count_subscribers('/leds') == 0 or link.node.count_publishers('/leds') == 0:
+    link.publish_leds([0] * 10)   # the publisher is made with the first LEDs
+    link._executor.spin_once(timeout_sec=0.05)
+    if time.monotonic() > deadline:
+        sys.exit('no reader of /leds')
+time.sleep(1.0)   # the graph shows a reader before DDS has matched it
+for count in range(1, int(sys.argv[1]) + 1):
+    link.publish_leds([count] + [0] * 9)
+link.close()
+os._exit(0)   # as webots_controller ends (spinning.end_process)
+'''
+
+
+def test_a_controller_that_ends_leaves_the_recorder_everything_it_sent(launch, tmp_path):
+    """A Webots controller's link publishing LEDs (and answers) faster than a recorder takes them, then ending as
+    webots_controller ends (os._exit): the recorder has every message. Its writer's samples went with the process:
+    a loaded bringup run lost its last 6 answers and LEDs (the controller stops first), a burst of 2,000 LEDs 1,250."""
+    for burst in range(3):
+        bag = tmp_path / f'bag{burst}'
+        recorder = launch('record', '-o', str(bag), '/leds', *ros_args({}))
+        recorder.wait_for_output('Recording to')
+        sent = subprocess.run([sys.executable, '-c', BURST_AND_EXIT, '2000'], capture_output=True, text=True,
+                              timeout=120)
+        assert sent.returncode == 0, sent.stderr
+        assert recorder.stop() == 0
+        counted = {int(msg.data[0]) for msg in messages(bag)['/leds']}
+        assert counted - {0} == set(range(1, 2001)), (burst, len(counted))
