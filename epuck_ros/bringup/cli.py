@@ -100,7 +100,9 @@ def build_parser() -> argparse.ArgumentParser:
                         help='a parameter for the node that declares it (sim parameters go to sim, the rest to the '
                              'behaviour; view.NAME to the view); repeatable')
     parser.add_argument('--record', nargs='?', const='', default=None, metavar='DIR',
-                        help='record all topics to an MCAP bag (default folder: bags/rosbag2_<date>)')
+                        help='record all topics to an MCAP bag (default folder: bags/rosbag2_<date>); the camera, '
+                             'ground, light and IMU topics are in it while the controller (or the view) reads them: '
+                             'add -p senses:=camera,ground,light,imu to render and record them anyway')
     parser.add_argument('--record-compression', choices=('none', 'zstd', 'lz4'), default='none',
                         help='chunk compression of the recording (default none, as rosbag2)')
     parser.add_argument('--view', action='store_true', help='also start the browser view and print its URL')

@@ -31,10 +31,10 @@ from epuck_ros.nodes.announcements import ANNOUNCEMENT_QOS, SIMULATORS_TOPIC, An
 from epuck_ros.nodes.dds_profile import use_package_profile, warn_if_not_fast_dds
 from epuck_ros.nodes.qos import LATCHED
 from epuck_ros.nodes.robot_ports import topic_prefix
+from epuck_ros.nodes.sense_ports import RECORDER_NODE
 from epuck_ros.world import World, WorldError, world_from_dict
 
 SIM_NODE = 'sim'
-RECORDER_NODE = 'recorder'
 VIEW_NODE = 'view'
 COMMAND_TOPICS = ('wheel_cmd', 'cmd_vel')
 REQUEST_RETRY = 2.0

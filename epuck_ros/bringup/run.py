@@ -297,7 +297,7 @@ def report(supervisor: Supervisor, sim_time: float, wall_time: float) -> list[st
         notes.append(f'[bringup] recorded to {plan.record_dir} (bag summary {plan.record_dir} says more)')
     elif monitor.tally is not None:
         figures = monitor.tally.figures
-        motions = {track.label: summary.motion_of(track.samples) for track in monitor.tracks.values()}
+        motions = summary.motions_of({track.label: track.samples for track in monitor.tracks.values()}, monitor.world)
         time_step = _time_step(plan)
         lost = sum(samples_missing(track, time_step, sim_time) for track in monitor.tracks.values())
         if lost:

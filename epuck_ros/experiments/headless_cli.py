@@ -17,7 +17,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from epuck_ros.bag.shapes import Motion
+from epuck_ros.bag.shapes import Motion, classify_runs
 from epuck_ros.bringup import summary
 from epuck_ros.conversions import nanoseconds_from_stamp, stamp_from_seconds
 from epuck_ros.experiments.interruption import exit_code, terminate_as_interrupt
@@ -105,7 +105,7 @@ def start_recording(parser: argparse.ArgumentParser, args: argparse.Namespace, w
 
 
 class Tracks:
-    """Every robot's ground truth at each step, for the shape it drove (`summary.motion_of_track`): kept in arrays
+    """Every robot's ground truth at each step, for the shape it drove (`summary.trajectory_of_track`): kept in arrays
     of 32 bytes per robot-step, and only when the run's robot-steps are at most MAX_SHAPE_SAMPLES (a large or long
     run is summed up without its shapes; distance and contacts are counted as it runs, whatever its size)."""
 
@@ -124,13 +124,14 @@ class Tracks:
             self.poses[self.count] = poses
             self.count += 1
 
-    def motions(self, labels: list[str]) -> dict[str, Motion]:
-        """Each robot's shape under its label in `summary.lines`; none when the samples were not kept."""
+    def motions(self, labels: list[str], world: World) -> dict[str, Motion]:
+        """Each robot's shape under its label in `summary.lines`, in `world` with the others; none when the samples
+        were not kept."""
         if not self.kept:
             return {}
         poses, stamps = self.poses[:self.count], self.stamps[:self.count]
-        return {label: summary.motion_of_track(stamps, poses[:, i, 0], poses[:, i, 1], poses[:, i, 2])
-                for i, label in enumerate(labels)}
+        return classify_runs({label: summary.trajectory_of_track(stamps, poses[:, i, 0], poses[:, i, 1], poses[:, i, 2])
+                              for i, label in enumerate(labels)}, world)
 
 
 def main(argv: list[str]) -> None:
@@ -143,13 +144,11 @@ def main(argv: list[str]) -> None:
 
     def each_step(sim: Simulation) -> None:
         tracks.add(nanoseconds_from_stamp(*stamp_from_seconds(sim.time)), sim.true_pose)
-        if recorder is not None:
-            recorder.step(sim)
 
     began = time.perf_counter()
     try:
         with terminate_as_interrupt():
-            sim, tally = run(trial, each_step=each_step)
+            sim, tally = run(trial, each_step=each_step, recorder=recorder)
     except ScriptError as error:
         print(f'{PROGRAM}: {error}', file=sys.stderr)
         raise SystemExit(EXIT_FAILED) from None
@@ -163,7 +162,7 @@ def main(argv: list[str]) -> None:
     wall = time.perf_counter() - began
     several = len(sim.names) > 1
     lines = [f'simulated {sim.time:.2f} s in {wall:.2f} s wall ({sim.time / wall:.0f}x real time), headless']
-    lines += summary.lines(tally.figures, tracks.motions([name if several else '' for name in sim.names]))
+    lines += summary.lines(tally.figures, tracks.motions([name if several else '' for name in sim.names], sim.world))
     if not tracks.kept:
         lines.append(f'shapes not classified: {len(sim.names)} robots x {sim.steps} steps, more than the '
                      f'{MAX_SHAPE_SAMPLES} samples kept for them (`bag summary` of a --record bag classifies them)')

@@ -33,6 +33,7 @@ from epuck_ros.simulation import Simulation
 from epuck_ros.world import World, default_world, load_world, place_robots
 
 if TYPE_CHECKING:
+    from epuck_ros.experiments.recording import TrialRecorder
     from epuck_ros.webots.headless import ScriptSeat, ScriptStage
 
 DEFAULT_WORLD = 'default'
@@ -83,10 +84,10 @@ class Script:
     def label(self) -> str:
         return self.name or Path(self.path).name
 
-    def stage(self, sim: Simulation, over: Callable[[], bool]) -> ScriptStage:
+    def stage(self, sim: Simulation, over: Callable[[], bool], recorder: TrialRecorder | None = None) -> ScriptStage:
         """The script's seats on `sim`, one per robot; `over()`: the run has taken its last step."""
         from epuck_ros.webots.headless import ScriptStage   # the shim's Robot imports rclpy (no DDS is started)
-        return ScriptStage(Path(self.path), sim, over)
+        return ScriptStage(Path(self.path), sim, over, recorder=recorder)
 
 
 @dataclass(frozen=True)
@@ -152,7 +153,7 @@ def _rows(trial: Trial, policy: Policy | None = None) -> list[dict[str, Any]]:
         shutil.rmtree(trial.record, ignore_errors=True)   # what a run cut short (a killed worker) left
         recorder = TrialRecorder(Path(trial.record), trial.load_world())
         try:
-            sim, tally = run(trial, policy, recorder.step)
+            sim, tally = run(trial, policy, recorder=recorder)
         finally:
             recorder.close()
     else:
@@ -162,10 +163,11 @@ def _rows(trial: Trial, policy: Policy | None = None) -> list[dict[str, Any]]:
             for i, (name, figures) in enumerate(zip(sim.names, tally.figures))]
 
 
-def run(trial: Trial, policy: Policy | None = None,
-        each_step: Callable[[Simulation], None] | None = None) -> tuple[Simulation, RunTally]:
+def run(trial: Trial, policy: Policy | None = None, each_step: Callable[[Simulation], None] | None = None,
+        recorder: TrialRecorder | None = None) -> tuple[Simulation, RunTally]:
     """Step the trial to its end: the simulation as it ended and the tally of its ground truth (what `bag
-    summary` and `bringup` count); `each_step(sim)` sees every step as the simulator publishes it."""
+    summary` and `bringup` count); `each_step(sim)` sees every step as the simulator publishes it, `recorder` every
+    step and what the controllers send."""
     world = trial.load_world()
     sim = Simulation(world, RobotModel(), time_step=TIME_STEP, seed=trial.seed, noise=trial.noise)
     several = len(world.robots) > 1
@@ -179,9 +181,12 @@ def run(trial: Trial, policy: Policy | None = None,
 
     def publish(resend: bool) -> None:
         sim.step()
+        if recorder is not None:
+            recorder.step(sim)
         _published(sim, tally, labels, each_step)
 
-    stage = trial.controller.stage(sim, over) if isinstance(trial.controller, Script) and policy is None else None
+    stage = trial.controller.stage(sim, over, recorder) if isinstance(trial.controller, Script) and policy is None \
+        else None
     controllers = stage.seats if stage is not None else [policy or trial.controller.make() for _ in sim.names]
     # What each controller's node subscribes (a plain policy gets everything), and how each is asked: looked up
     # once, not at every step (this loop runs once per robot per step, beside a core that is itself fast).
@@ -191,20 +196,24 @@ def run(trial: Trial, policy: Policy | None = None,
     # scripts answer from their own threads, and the thread of a step's last answer takes the next step itself.
     lockstep = stage.lockstep_for(publish) if stage is not None else Lockstep(len(sim.names), publish, over_dds=False)
     lockstep.claim()
+    answered = recorder.answered if recorder is not None and stage is None else None   # a script's: its own thread
     try:
-        _step_to_end(sim, lockstep, robots, over, stage)
+        _step_to_end(sim, lockstep, robots, over, stage, answered)
     finally:   # a script's step() returns -1
         if stage is not None:
             stage.close()
+    if answered is not None:   # a behaviour's node commands a stop as it ends
+        recorder.stop()
     if stage is not None:   # a script may fail after the end, too
         stage.check()
     return sim, tally
 
 
 def _step_to_end(sim: Simulation, lockstep: Lockstep, robots: list[tuple[int, Callable, bool, bool]],
-                 over: Callable[[], bool], stage: Any) -> None:
+                 over: Callable[[], bool], stage: Any, answered: Callable[[int, float, float], None] | None) -> None:
     """The first step with the wheels still, then each step's answers and the next step until `over()`: every robot
-    answers each step (a script from its own thread, which may take the next steps itself: the lent claim)."""
+    answers each step (a script from its own thread, which may take the next steps itself: the lent claim);
+    `answered` is told each answer given here."""
     lockstep.step()
     while not over():
         now = _stamp_seconds(sim.time)
@@ -214,6 +223,8 @@ def _step_to_end(sim: Simulation, lockstep: Lockstep, robots: list[tuple[int, Ca
             command = update(Observation(now, odom, ranges))
             if command is not None:   # None: a script that answers from its thread
                 sim.command_wheels(robot, command.left, command.right)
+                if answered is not None:
+                    answered(robot, command.left, command.right)
                 lockstep.answer(robot)
         if not lockstep.await_answers():   # every robot answered (the scripts' threads may have stepped on)
             raise RuntimeError('lockstep: a robot did not answer its step')

@@ -166,8 +166,8 @@ def _as_rosbags(msg: Any) -> Any:
             else:
                 values[name] = [_as_rosbags(item) if hasattr(item, 'get_fields_and_field_types') else item
                                 for item in value]
-        else:
-            values[name] = value
+        else:   # rclpy holds an octet (DiagnosticStatus.level) as one byte, rosbags as its number
+            values[name] = value[0] if kind == 'octet' else value
     return _TYPESTORE.types[_type_name(msg)](**values)
 
 

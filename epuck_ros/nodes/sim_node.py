@@ -154,7 +154,7 @@ class SimNode(Node):
         _stop_if_asked()
         self._tf = TfPorts(self, self.ports, self._sim, len(self.ports) > 1, stream, LATCHED,
                            values['frame_prefix'] + WORLD_FRAME)
-        self._publish_world(world, values['frame_prefix'])
+        publish_world(self, world, values['frame_prefix'])
         self.create_service(Empty, 'reset', self._on_reset)
         self.create_service(Trigger, 'step', self._on_step)
         self._clock_pub = quiet_publisher(self, Clock, '/clock', stream)
@@ -193,13 +193,6 @@ class SimNode(Node):
             ports.append(RobotPorts(self, index, name, several, stream, LATCHED, self._on_command,
                                     values['frame_prefix'], values['cmd_vel_stamped'], patches=patches))
         return ports
-
-    def _publish_world(self, world: World, frame_prefix: str) -> None:
-        """The world, latched: as YAML, and as markers for RViz."""
-        quiet_publisher(self, String, 'world', LATCHED).publish(
-            String(data=yaml.safe_dump(world.to_dict(), sort_keys=False)))
-        quiet_publisher(self, MarkerArray, 'world_markers', LATCHED).publish(
-            world_markers(world, frame_prefix + WORLD_FRAME))
 
     def _say_ready(self, world: World, values: dict) -> None:
         shown = ', '.join(world.names[:5]) + (', ...' if len(world.names) > 5 else '')
@@ -402,6 +395,14 @@ class SimNode(Node):
 
     def _stepping(self) -> bool:
         return self._running.is_set() and not self._controls.idle()
+
+
+def publish_world(node: Node, world: World, frame_prefix: str) -> None:
+    """The world, latched: as YAML, and as markers for RViz (also into a headless trial's bag)."""
+    quiet_publisher(node, String, 'world', LATCHED).publish(
+        String(data=yaml.safe_dump(world.to_dict(), sort_keys=False)))
+    quiet_publisher(node, MarkerArray, 'world_markers', LATCHED).publish(
+        world_markers(world, frame_prefix + WORLD_FRAME))
 
 
 def _world(values: dict) -> World:

@@ -22,6 +22,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from rcl_interfaces.msg import ParameterType, ParameterValue
+from rclpy.duration import Duration
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter_client import AsyncParameterClient
@@ -33,7 +34,7 @@ from std_msgs.msg import Float64MultiArray, Int32MultiArray
 from epuck_ros.conversions import nanoseconds_from_stamp, stamp_from_nanoseconds
 from epuck_ros.model import CAMERA_HEIGHT, CAMERA_WIDTH
 from epuck_ros.nodes.ack_window import COMMAND_QOS
-from epuck_ros.nodes.qos import LATCHED
+from epuck_ros.nodes.qos import LED_QOS
 from epuck_ros.nodes.robot_ports import JOINT_NAMES
 from epuck_ros.nodes.sense_ports import SENSE_TOPICS
 from epuck_ros.nodes.serialized import array_bytes, array_values
@@ -48,6 +49,9 @@ KEPT_STEPS = 16
 may be several steps ahead of a slow controller)."""
 PARAMETER_RETRY = 5.0
 """Wall seconds after which the request for the simulator's time_step is sent again."""
+DELIVERY_WAIT = 0.9
+"""Wall seconds the closing link waits for its readers to acknowledge what it published: within the second a Webots
+controller is given to end (robot.KILL_DELAY)."""
 ROBOT_CHOICE_GRACE = 3.0
 """Wall seconds the simulator's other robots may be in the graph without ours before `--robot` is refused."""
 
@@ -289,7 +293,7 @@ class SimLink:
     def publish_leds(self, values: list[int]) -> None:
         """The ten LED values the script set (latched: a view started later still draws them)."""
         if self._led_publisher is None:
-            self._led_publisher = self.node.create_publisher(Int32MultiArray, self._prefix + 'leds', LATCHED)
+            self._led_publisher = self.node.create_publisher(Int32MultiArray, self._prefix + 'leds', LED_QOS)
         self._led_publisher.publish(Int32MultiArray(data=[int(v) for v in values]))
 
     def answer_and_wait(self, left: float, right: float) -> StepData | None:
@@ -330,5 +334,13 @@ class SimLink:
         return data
 
     def close(self) -> None:
+        """The node goes, once every reader has what it published (at most DELIVERY_WAIT): a reader that fell behind
+        (a recorder, with `bringup` stopping the controller first) lost the last answers and LEDs with the process."""
+        deadline = time.monotonic() + DELIVERY_WAIT
+        for publisher in (self._publisher, self._led_publisher):
+            if publisher is not None and \
+                    not publisher.wait_for_all_acked(Duration(seconds=max(0.0, deadline - time.monotonic()))):
+                print(f'webots_controller: a reader of {publisher.topic_name} had not taken everything within '
+                      f'{DELIVERY_WAIT:g} s: a recording may miss the last messages', flush=True)
         self._executor.shutdown(timeout_sec=0.0)
         self.node.destroy_node()
