@@ -12,7 +12,7 @@ from nav_msgs.msg import Odometry
 from rcl_interfaces.msg import Parameter as ParameterMsg
 from rcl_interfaces.msg import ParameterType, ParameterValue
 from rcl_interfaces.srv import GetParameters, SetParameters
-from rclpy.qos import DurabilityPolicy, QoSProfile
+from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.serialization import serialize_message
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState, Range
@@ -23,13 +23,15 @@ from visualization_msgs.msg import MarkerArray
 
 from epuck_ros.conversions import stamp_label
 from epuck_ros.model import MAX_WHEEL_SPEED, SENSOR_NAMES
+from epuck_ros.nodes.qos import LATCHED
 from epuck_ros.nodes.robot_ports import WARN_PERIOD
 from epuck_ros.nodes.sim_node import publication_mode
 
 HALF_SPEED = 0.5 * MAX_WHEEL_SPEED
 LINEAR_SPEED = HALF_SPEED * 0.02  # 0.0628 m/s
 STEP = 0.032
-LATCHED = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+KEEP_ALL = QoSProfile(history=HistoryPolicy.KEEP_ALL, reliability=ReliabilityPolicy.RELIABLE)
+"""A reader that loses nothing it has not taken yet."""
 
 
 def stamp_seconds(msg: object) -> float:
@@ -102,16 +104,20 @@ def test_clock_advances_one_time_step_per_step(launch, test_node):
 
 def test_reset_puts_the_robot_back_and_zeroes_odometry(launch, test_node):
     start_sim(launch, test_node, real_time_factor=10.0)
-    truth = test_node.collect(Odometry, 'ground_truth')
-    odom = test_node.collect(Odometry, 'odom')
-    joints = test_node.collect(JointState, 'joint_states')
+    # Every step's message kept (the sim runs at 10x, a loaded test node may fall a few hundred behind)
+    truth = test_node.collect(Odometry, 'ground_truth', KEEP_ALL)
+    odom = test_node.collect(Odometry, 'odom', KEEP_ALL)
+    joints = test_node.collect(JointState, 'joint_states', KEEP_ALL)
     pub = test_node.node.create_publisher(Float64MultiArray, 'wheel_cmd', 10)
     test_node.spin_until(lambda: truth and pub.get_subscription_count() > 0, what='sim topics')
     home = truth[-1].pose.pose.position
+
+    def moving() -> list:   # 2 cm out, the wheels still turning (cmd_timeout stops them 0.5 simulated s on)
+        return [msg for msg in odom if msg.pose.pose.position.x > 0.02 and msg.twist.twist.linear.x > 0.0]
+
     pub.publish(wheel_cmd(HALF_SPEED, 0.3 * MAX_WHEEL_SPEED))
-    test_node.spin_until(lambda: odom and odom[-1].pose.pose.position.x > 0.02, what='the robot to move')
-    # The joint states of that very step (the newest may be later: cmd_timeout may have stopped the wheels since)
-    moved = next(stamp_seconds(msg) for msg in odom if msg.pose.pose.position.x > 0.02)
+    test_node.spin_until(moving, what='the robot to move')
+    moved = stamp_seconds(moving()[0])   # the joint states of that very step
     test_node.spin_until(lambda: any(stamp_seconds(msg) == moved for msg in joints), what='joint_states of that step')
     then = next(msg for msg in joints if stamp_seconds(msg) == moved)
     assert then.position[0] > 0.5 and then.velocity[0] == pytest.approx(HALF_SPEED)

@@ -141,18 +141,18 @@ def test_one_seed_bound_for_the_sim_a_spec_and_headless(tmp_path):
     MAX_SEED = simulation.MAX_SEED
     assert [spec.range for spec in SIM_PARAMETERS if spec.name == 'seed'] == [(0, MAX_SEED)]
     spec = tmp_path / 'spec.yaml'
-    for seeds, field in ((f'{{first: {MAX_SEED}, count: 2}}', 'seeds.count'),
-                         ('{first: 9223372036854775807, count: 2}', 'seeds.first'),
-                         (f'[0, {MAX_SEED + 1}]', r'seeds\[1\]')):
+    for seeds, refusal in ((f'{{first: {MAX_SEED}, count: 2}}', f'seeds: the last seed, {MAX_SEED + 1}, is above'),
+                           ('{first: 9223372036854775807, count: 2}', 'seeds.first: expected a whole number'),
+                           (f'[0, {MAX_SEED + 1}]', r'seeds\[1\]: expected a whole number')):
         spec.write_text(f'controllers: [avoid]\nworlds: [default]\nrobots: [1]\nseeds: {seeds}\nduration: 1\n'
                         'noise: true\n')
-        with pytest.raises(SpecError, match=f'{field}: expected a whole number'):
+        with pytest.raises(SpecError, match=refusal):
             load_spec(spec)
     spec.write_text(f'controllers: [avoid]\nworlds: [default]\nrobots: [1]\nseeds: {{first: {MAX_SEED}, count: 1}}\n'
                     'duration: 1\nnoise: true\n')
     assert [trial.seed for trial in load_spec(spec).trials] == [MAX_SEED]
     script = Path(runner.EXAMPLES_DIR) / 'spin.py'
-    run = subprocess.run([sys.executable, '-m', 'epuck_ros.webots.runner', str(script), '--headless', '--seed',
+    run = subprocess.run([sys.executable, '-m', 'epuck_ros.webots_controller', str(script), '--headless', '--seed',
                           str(MAX_SEED + 1), '--duration', '0.1'], capture_output=True, text=True)
     assert run.returncode == 2 and f'--seed must be from 0 to {MAX_SEED}' in run.stderr
 

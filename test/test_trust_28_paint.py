@@ -144,4 +144,4 @@ def test_a_spec_reads_each_world_file_once(tmp_path, monkeypatch):
     reads = []
     monkeypatch.setattr(spec_module, 'load_world', lambda path: (reads.append(path), load_world(path))[1])
     trials = load_spec(spec).trials
-    assert len(trials) == 101 * 2 and reads == [tmp_path / 'arena.yaml']
+    assert len(trials) == 101 * 2 and [Path(path) for path in reads] == [tmp_path / 'arena.yaml']

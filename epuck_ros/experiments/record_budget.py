@@ -2,7 +2,7 @@
 before a large one starts, and refused, before anything is written, when the disk cannot hold it.
 
 A headless bag holds the same messages every step for every robot, so it grows by a fixed amount per robot per
-simulated second (about 82 KB) plus a fixed part per bag. Both are measured here, once per process, by recording
+simulated second plus a fixed part per bag. Both are measured here, once per process, by recording
 one short run twice (1 and 2 simulated seconds): the estimate follows whatever `recording` writes.
 """
 from __future__ import annotations

@@ -14,9 +14,9 @@ from __future__ import annotations
 
 import threading
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import Protocol
 
 from epuck_ros.behaviours import Observation, WheelCommand
 from epuck_ros.conversions import nanoseconds_from_stamp, stamp_from_seconds
@@ -26,8 +26,16 @@ from epuck_ros.webots.link import StepData
 from epuck_ros.webots.robot import KILL_DELAY, SINGLE_ROBOT_NAME, bind_thread
 from epuck_ros.webots.runner import run_script
 
-if TYPE_CHECKING:
-    from epuck_ros.experiments.recording import TrialRecorder
+
+class ScriptRecorder(Protocol):
+    """What the scripts of a recorded trial tell its recorder (experiments.recording.TrialRecorder): declared here,
+    below the experiments, which import this module."""
+
+    def sense_wanted(self, robot: int, kind: str, sim: Simulation) -> None: ...
+
+    def answered(self, robot: int, left: float, right: float) -> None: ...
+
+    def leds(self, robot: int, values: Sequence[int]) -> None: ...
 
 
 class ScriptError(RuntimeError):
@@ -39,7 +47,7 @@ class ScriptStage:
     answer (`lockstep_for`), and the count of steps taken, which each script's step() waits on."""
 
     def __init__(self, script: Path, sim: Simulation, over: Callable[[], bool],
-                 arguments: tuple[str, ...] = (), recorder: TrialRecorder | None = None) -> None:
+                 arguments: tuple[str, ...] = (), recorder: ScriptRecorder | None = None) -> None:
         """`over()`: the run has taken its last step (the simulator pauses there); `recorder` is told what the scripts
         send while it is not (over ROS, what answers the last step may come after the recording stopped)."""
         self.sim, self._over, self._recorder = sim, over, recorder
@@ -100,7 +108,7 @@ class ScriptStage:
                 self._changed.notify_all()
             self.lockstep.close()   # the loop stops waiting for this step's answers
 
-    def recorder(self) -> TrialRecorder | None:
+    def recorder(self) -> ScriptRecorder | None:
         """The recorder to tell what a script sends now: None without one, or once the run is over."""
         return None if self._recorder is None or self._over() else self._recorder
 
