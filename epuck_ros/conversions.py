@@ -3,9 +3,9 @@
 A stamp is (sec, nanosec) as builtin_interfaces/Time holds it; nanoseconds since the epoch (or since the
 simulation's start) are the exact form used to compare stamps. A message without a header (the Float64MultiArray
 of `ir_raw`, `ground_raw`, `light_raw` and a stamped `wheel_cmd`) names its step in its layout: one dimension
-describing the data, labelled `stamp=SEC.NANOSEC` (`stamp_label`), which readers of `data` never see. A planar pose's orientation is a rotation
-about z, so its quaternion is (0, 0, sin(yaw / 2), cos(yaw / 2)). No ROS imports: the core, the bag code and
-the nodes all use these.
+describing the data, labelled `stamp=SEC.NANOSEC` (`stamp_label`), which readers of `data` never see. A planar
+pose's orientation is a rotation about z, so its quaternion is (0, 0, sin(yaw / 2), cos(yaw / 2)). No ROS imports:
+the core, the bag code and the nodes all use these.
 """
 from __future__ import annotations
 

@@ -4,11 +4,14 @@ One source for the URDF published on `robot_description`, the file installed und
 the sensors' `/tf_static` transforms, so that RViz's robot model, tf2 and the simulated sensors agree.
 Frames follow REP 103/105: `base_link` on the floor midway between the wheels, x forward, y left, z up.
 
-`python -m epuck_ros.description [PREFIX]` prints the URDF (the shipped file is this output without a prefix).
+`python -m epuck_ros.description [PREFIX]` prints the URDF (the shipped file is this output without a prefix); a
+PREFIX such as `epuck3` is a frame prefix, `epuck3/`, as the simulator's frames of robot epuck3 have it.
 """
 from __future__ import annotations
 
+import argparse
 import math
+import re
 import sys
 from dataclasses import dataclass
 from pathlib import Path
@@ -26,6 +29,8 @@ IMU_FRAME = 'imu'
 """The frame of the accelerometer and gyro, and of the `imu` topic's messages."""
 URDF_FILE = Path(__file__).parent / 'urdf' / 'epuck.urdf'
 """The shipped URDF (unprefixed frames); `colcon` installs it under share/epuck_ros/urdf/."""
+FRAME_PREFIX = re.compile(r'([A-Za-z_][A-Za-z0-9_]*/)*')
+"""A frame prefix: ROS names, each followed by a slash (`epuck3/`, `sim1/epuck3/`); tf2 refuses a leading slash."""
 
 
 @dataclass(frozen=True)
@@ -100,13 +105,29 @@ def _numbers(values: tuple[float, ...]) -> str:
     return ' '.join(repr(float(v)) for v in values)
 
 
+def frame_prefix(text: str) -> str:
+    """`text` as a frame prefix: `epuck3` and `epuck3/` both give `epuck3/` (a frame is then `epuck3/base_link`, not
+    `epuck3base_link`); ValueError for anything that is not ROS names separated by slashes."""
+    prefix = text if not text or text.endswith('/') else text + '/'
+    if not FRAME_PREFIX.fullmatch(prefix):
+        raise ValueError(f'a frame prefix is a robot name, or names separated by "/" (letters, digits, _; e.g. '
+                         f'epuck3), got {text!r}')
+    return prefix
+
+
 def main(argv: list[str] | None = None) -> None:
-    args = sys.argv[1:] if argv is None else argv
-    if args and args[0] in ('-h', '--help'):
-        print('usage: python -m epuck_ros.description [PREFIX]\nPrints the e-puck URDF; PREFIX (e.g. "epuck3/") '
-              'goes in front of every link and joint name.')
-        return
-    sys.stdout.write(urdf(prefix=args[0] if args else ''))
+    parser = argparse.ArgumentParser(prog='python -m epuck_ros.description',
+                                     description='Print the e-puck URDF (the shipped epuck_ros/urdf/epuck.urdf is this '
+                                                 'output without a prefix).')
+    parser.add_argument('prefix', nargs='?', default='', metavar='PREFIX',
+                        help='the frames\' prefix, e.g. epuck3 (or epuck3/): links named epuck3/base_link, ... as the '
+                             'simulator names robot epuck3\'s frames')
+    args = parser.parse_args(sys.argv[1:] if argv is None else argv)
+    try:
+        prefix = frame_prefix(args.prefix)
+    except ValueError as error:
+        parser.error(str(error))
+    sys.stdout.write(urdf(prefix=prefix))
 
 
 if __name__ == '__main__':

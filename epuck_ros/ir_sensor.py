@@ -3,11 +3,12 @@
 Rows of the table are (distance m, raw value, relative noise std), distance increasing, raw decreasing
 (model.IR_LOOKUP_TABLE). Forward lookups follow Webots: linear interpolation, distances beyond the table take
 the end row. The inverse follows webots_ros2 (Math.cpp interpolateLookupTable): piecewise linear, extrapolated
-linearly from the two end rows, so raw 60 -> 0.0720 m and raw 0 -> 0.0882 m.
+linearly from the two end rows, so a raw value below the far end's (noise) reads a little beyond the table.
 
 What the model leaves out, on purpose: the ray does not see the robot's own body, the obstacle's colour
 (Webots' reflection factor) is taken as 1, and the ray's 0.16 rad upward tilt is ignored (distances are
-measured in the floor plane, 1.3 % shorter than Webots' slant distance).
+measured in the floor plane: Webots' slant distance is longer by the factor 1 / cos(0.16), within the
+table's noise).
 """
 from __future__ import annotations
 

@@ -29,6 +29,11 @@ from epuck_ros.stepping.swarm import SwarmStepper
 from epuck_ros.world import World
 
 
+MAX_SEED = 2**31 - 1
+"""The largest seed of a run, wherever it is given (the sim's `seed` parameter, a sweep's spec, `--headless`): one
+bound, so that every seed a headless trial takes, `bringup --seed` takes too and repeats the run."""
+
+
 class CommandError(ValueError):
     """A command the simulator refuses (NaN or infinite speeds); the robot keeps its previous command."""
 
@@ -151,6 +156,7 @@ class Simulation:
         obstacle, robot = self._stepper.step(self._state)
         self._count_contacts(obstacle, robot, events)
         if self.senses.active:
+            self.senses.step = self._steps + 1
             self.senses.sense(self._state)
         self._steps += 1
         return events

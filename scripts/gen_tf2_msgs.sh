@@ -6,6 +6,7 @@
 # Usage: scripts/gen_tf2_msgs.sh [VENV]   (default .venv; idempotent)
 set -euo pipefail
 cd "$(dirname "$(readlink -f "$0")")/.."
+. scripts/elapsed.sh
 venv=$(readlink -f "${1:-.venv}")
 python=$venv/bin/python
 if [ ! -x "$python" ]; then
@@ -27,7 +28,8 @@ if [ ${#missing[@]} -gt 0 ]; then
     exit 0
   fi
 fi
-echo "[tf2_msgs] building tf2_msgs/msg/TFMessage into $venv" >&2
+echo "[tf2_msgs] building tf2_msgs/msg/TFMessage into $venv (pip, then CMake) ..." >&2
+began=$SECONDS
 "$python" -m pip install --quiet -r scripts/tf2_msgs/build-requirements.txt
 build=$(mktemp -d)
 trap 'rm -rf "$build"' EXIT
@@ -40,4 +42,4 @@ cmake -S scripts/tf2_msgs -B "$build" "${generator[@]}" -DCMAKE_INSTALL_PREFIX="
 cmake --build "$build" --parallel 2 >"$build/build.log" 2>&1 || { tail -30 "$build/build.log" >&2; exit 1; }
 cmake --install "$build" >/dev/null
 "$python" -c 'from tf2_msgs.msg import TFMessage; TFMessage()'
-echo "[tf2_msgs] built: the simulator publishes /tf and /tf_static" >&2
+echo "[tf2_msgs] built in $(elapsed_since "$began"): the simulator publishes /tf and /tf_static" >&2

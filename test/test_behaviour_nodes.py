@@ -77,7 +77,9 @@ class Run:
         readers = [sub for sub in test_node.node.subscriptions if sub.topic_name in ('/ground_truth', '/odom')]
         test_node.spin_until(lambda: all(sub.get_publisher_count() for sub in readers), timeout=30.0,
                              what='the sim matched with the test node')
-        self.behaviour = launch(behaviour, *ros_args({'use_sim_time': True, **params}))
+        # its state changes ('driving', 'cruising'), which the tests wait for, are DEBUG lines
+        self.behaviour = launch(behaviour, *ros_args({'use_sim_time': True, **params}), '--log-level',
+                                f'{behaviour}:=debug')
         set_sim_parameter(test_node, self.sim, 'paused', False)
 
     def wait_for(self, process: object, text: str, timeout: float = 20.0) -> None:

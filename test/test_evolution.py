@@ -67,7 +67,7 @@ def test_an_output_folder_that_cannot_be_written_is_one_line_and_exit_2(tmp_path
     blocker.write_text('')
     with pytest.raises(SystemExit) as ended:
         cli.main(['-o', str(blocker / 'out'), *TINY])
-    assert ended.value.code == 2 and f'-o {blocker / "out"}: cannot write there' in capsys.readouterr().err
+    assert ended.value.code == 2 and f'-o {blocker / "out"}: {blocker} is not a folder' in capsys.readouterr().err
 
 
 def test_the_controller_script_computes_the_network_and_the_activations_of_the_evolution():

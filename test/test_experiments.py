@@ -103,11 +103,14 @@ def test_a_headless_script_is_the_lockstep_bringup_run_and_records_the_same_bag(
     assert recorded.truth.x[-1] != recorded.truth.x[0]
 
 
-def test_a_failing_controller_is_a_row_with_its_error():
+def test_a_failing_controller_is_a_row_per_robot_with_its_error_and_the_trials_own_values():
     def broken(observation):
         raise RuntimeError('controller bug')
     (row,) = run_trial(Trial(controller_from('avoid'), duration=1), policy=broken)
-    assert row['error'] == 'RuntimeError: controller bug' and row['robot'] == ''
+    assert row['error'] == 'RuntimeError: controller bug' and (row['robot'], row['robots']) == ('epuck', 1)
+    rows = run_trial(Trial(controller_from('avoid'), robots=3, seed=4, duration=1, index=7), policy=broken)
+    assert [(row['trial'], row['robots'], row['seed'], row['robot'], row['error']) for row in rows] == \
+        [(7, 3, 4, f'epuck{i}', 'RuntimeError: controller bug') for i in range(3)]
 
 
 def test_a_policy_of_the_forward_behaviours_speeds_is_the_forward_trial():
@@ -276,7 +279,7 @@ def test_resume_runs_only_the_trials_not_written_yet(tmp_path):
      '200000 trials, more than 100000'),
     ('controllers: [avoid]\nseeds: [0]\nduration: 5\nnoisy: true\n', 'noisy: unknown key (did you mean noise?)'),
     ('controllers: [{script: my_controller.py}]\nseeds: [0]\nduration: 5\n',
-     'controllers[0].script: cannot read my_controller.py: No such file or directory'),
+     'controllers[0].script: my_controller.py: file not found'),
     ('controllers: [avoid, {script: broken.py}]\nseeds: [0]\nduration: 5\n',
      'controllers[1].script: broken.py is not valid Python: '),
     ('controllers: [{script: broken.py, args: 1}]\nseeds: [0]\nduration: 5\n', 'controllers[0].args: unknown key'),
@@ -364,18 +367,22 @@ MISBEHAVING = {
 
 def test_script_trials_that_misbehave_are_rows_saying_what_happened_and_the_sweep_goes_on(tmp_path):
     """Each in a forked child of the sweep: a script that raises, calls sys.exit(3) or os._exit(5), loops without
-    step(), or prints 2 MB per step is one row with its error each; the course's controller beside them runs, gives
+    step() (a sweep of its own, with a time limit of 3 s: no other trial's wall time depends on the machine's
+    load), or prints 2 MB per step is one row with its error each; the course's controller beside them runs, gives
     the rows of the same trial in this process, and its bag (--record) is read by rosbags."""
     for name, text in MISBEHAVING.items():
         (tmp_path / name).write_text(text)
     shutil.copy(COURSE_AVOIDANCE, tmp_path / 'course.py')
-    spec = tmp_path / 'scripts.yaml'
-    spec.write_text('controllers: [' + ', '.join(f'{{script: {name}}}' for name in [*MISBEHAVING, 'course.py']) +
-                    ']\nseeds: [1]\nduration: 3\ntime_limit: 3\n')
+    spec, looping = tmp_path / 'scripts.yaml', tmp_path / 'loops.yaml'
+    spec.write_text('controllers: [' + ', '.join(f'{{script: {name}}}' for name in [*MISBEHAVING, 'course.py']
+                                                 if name != 'loops.py') + ']\nseeds: [1]\nduration: 3\n')
+    looping.write_text('controllers: [{script: loops.py}]\nseeds: [1]\nduration: 3\ntime_limit: 3\n')
     out = tmp_path / 'out'
     result = sweep(str(spec), '-o', str(out), '--workers', '0', '--record', timeout=240)
     assert result.returncode == 1, result.stderr
     rows = {row['controller']: row for row in rows_of(out / 'trials.csv')}
+    assert sweep(str(looping), '-o', str(tmp_path / 'loops'), '--workers', '0').returncode == 1
+    rows.update({row['controller']: row for row in rows_of(tmp_path / 'loops' / 'trials.csv')})
     assert rows['raises.py']['error'] == \
         'ScriptError: raises.py: ZeroDivisionError: division by zero (line 4 of raises.py)'
     assert rows['exits.py']['error'] == 'ScriptError: exits.py: sys.exit(3)'

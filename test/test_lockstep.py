@@ -1,6 +1,7 @@
 """`Lockstep` on its own: no ROS, no DDS; the answers come from test threads as they would from an executor.
 
-Timeouts are short and nothing asserts on how long anything took: only on what was stepped, and by which thread."""
+Timeouts are short and nothing asserts on how long anything took: only on what was stepped, and by which thread.
+A wait that would last for ever is ended by `close` from another thread (a test never waits out a real stall)."""
 from __future__ import annotations
 
 import threading
@@ -8,7 +9,7 @@ import threading
 import pytest
 
 import epuck_ros.lockstep as lockstep_module
-from epuck_ros.lockstep import LOCKSTEP_START_RESENDS, OWN_RATE_AFTER, Lockstep, StepClaimError
+from epuck_ros.lockstep import Answer, Lockstep, StepClaimError
 
 SHORT = 0.02
 """A timeout that expires quickly."""
@@ -53,31 +54,91 @@ def test_a_step_waits_for_every_driven_robot_and_only_for_them():
     assert [count for count, _, _ in sim.steps] == [1, 2]
 
 
-def test_a_missing_answer_holds_the_step_until_the_timeout():
-    step, sim = lockstep(robots=2, timeout=SHORT)
+def test_a_controller_that_never_answered_gets_its_step_again_until_it_answers(monkeypatch):
+    """It may have subscribed after the step went out: the step is sent again every RESEND_AFTER, with no limit."""
+    monkeypatch.setattr(lockstep_module, 'RESEND_AFTER', SHORT)
+    step, sim = lockstep(robots=2, timeout=0.0)
     step.step()
     step.answer(0)
-    step.answer(0)
-    # robot 1 never answered: its first step is sent again, a few times at most, then the simulation goes on
-    outcomes = [step.await_answers() for _ in range(LOCKSTEP_START_RESENDS + 1)]
-    assert outcomes == [False] * LOCKSTEP_START_RESENDS + [True]
-
-
-def test_with_no_controller_any_answer_completes_the_step():
-    step, _ = lockstep(robots=3, driven=lambda: [])
-    step.step()
+    outcomes = []
+    for _ in range(5):
+        outcomes.append(step.await_answers())
+        step.step(resend=True)
     step.answer(1)
+    outcomes.append(step.await_answers())
+    assert outcomes == [False] * 5 + [True]
+    assert [(count, resend) for count, resend, _ in sim.steps] == [(1, False)] + [(1, True)] * 5
+
+
+def test_in_one_process_a_first_answer_is_waited_for_without_resends_or_giving_up(monkeypatch):
+    """Headless (over_dds=False) no step is lost in transit: a controller still computing its first answer is
+    neither sent the step again nor taken for a free one, however long it takes (here 10 times both waits)."""
+    monkeypatch.setattr(lockstep_module, 'RESEND_AFTER', SHORT)
+    monkeypatch.setattr(lockstep_module, 'FIRST_ANSWER_WAIT', SHORT)
+    freed = []
+    step, sim = lockstep(robots=1, timeout=0.0, over_dds=False, on_free=lambda robot, why: freed.append(robot))
+    step.step()
+    answering = threading.Timer(10 * SHORT, step.answer, args=(0,))
+    answering.start()
+    assert step.await_answers() is True
+    answering.join()
+    assert [(count, resend) for count, resend, _ in sim.steps] == [(1, False)] and freed == []
+
+
+def test_a_stalled_controller_in_lockstep_is_waited_for_as_long_as_it_takes_and_reported(monkeypatch):
+    """No time-out unless the user sets one: a line every STALL_REPORT names the robot and how long."""
+    monkeypatch.setattr(lockstep_module, 'STALL_REPORT', SHORT)
+    stalls: list[tuple[list[int], float]] = []
+    step, sim = lockstep(robots=2, timeout=0.0, on_stall=lambda robots, waited: stalls.append((list(robots), waited)))
+    step.step()
+    step.answer(0)
+    step.answer(1)
+    assert step.await_answers()
+    step.step()
+    step.answer(0)   # robot 1 stalls
+
+    def answer_late() -> None:
+        while len(stalls) < 3:
+            threading.Event().wait(SHORT)
+        step.answer(1, Answer.STEP)
+
+    late = in_thread(answer_late)
+    assert step.await_answers()
+    late.join()
+    assert [robots for robots, _ in stalls[:3]] == [[1]] * 3
+    assert [waited for _, waited in stalls[:3]] == sorted(waited for _, waited in stalls[:3])
+    assert len(sim.steps) == 2
+
+
+def test_a_timeout_the_user_set_passes_the_step_and_says_whose_answer_was_missing():
+    timed_out = []
+    step, _ = lockstep(robots=2, timeout=SHORT, on_timeout=lambda robots: timed_out.append(list(robots)))
+    step.step()
+    step.answer(0)
+    step.answer(1)
+    assert step.await_answers()
+    step.step()
+    step.answer(0)
+    assert step.await_answers()   # robot 1 answered before: nothing to send again, the step goes on
+    assert timed_out == [[1]]
+
+
+def test_with_no_controller_nobody_is_waited_for():
+    step, _ = lockstep(robots=3, timeout=0.0, driven=lambda: [])
+    step.step()
     assert step.await_answers()
 
 
 def test_an_answer_before_the_step_does_not_answer_it():
-    step, _ = lockstep(robots=1, timeout=SHORT)
+    timed_out = []
+    step, _ = lockstep(robots=1, timeout=SHORT, on_timeout=timed_out.append)
     step.step()
     step.answer(0)
-    assert step.await_answers()   # robot 0 has answered once: from now on a missed step is passed, not re-sent
+    assert step.await_answers()
     step.answer(0)                # early: the next step is not out yet
     step.step()
-    assert step.await_answers()   # ... so this one timed out (nothing to re-send: it answered before)
+    assert step.await_answers()   # ... so this one timed out
+    assert timed_out == [[0]]
 
 
 def test_the_thread_of_the_last_answer_steps_while_the_holder_lends_its_claim():
@@ -140,28 +201,48 @@ def test_answers_outside_a_wait_never_step():
     assert len(sim.steps) == 1
 
 
-def test_a_controller_at_its_own_rate_is_found_and_no_longer_held_to_the_timeout():
+@pytest.mark.parametrize('kind', [Answer.UNSTAMPED, Answer.STALE])
+def test_a_controller_is_free_by_what_it_sends_and_is_then_no_longer_waited_for(kind):
+    """Answers that name no step, or an older step: a timer or a joystick, not a lockstep controller. Said once;
+    from then on each step waits at most OWN_RATE_WAIT for it (with no time-out set, a step would otherwise wait
+    for ever)."""
     found = []
-    step, sim = lockstep(robots=2, timeout=SHORT, on_own_rate=found.append)
+    step, sim = lockstep(robots=2, timeout=0.0, on_free=lambda robot, answer: found.append((robot, answer)))
     step.step()
     step.answer(0)
-    step.answer(1)
+    step.answer(1, kind)
     assert step.await_answers()
-    for _ in range(OWN_RATE_AFTER + 2):   # robot 1 answers no more: it answered once, so no step is re-sent
+    for _ in range(3):   # robot 1 answers no more
         step.step()
         step.answer(0)
         assert step.await_answers()
-    assert found == [1]   # found once, after OWN_RATE_AFTER steps in a row
-    assert not any(resend for _, resend, _ in sim.steps)
+    assert found == [(1, kind)]
+    assert len(sim.steps) == 4 and not any(resend for _, resend, _ in sim.steps)
 
 
-def test_a_resend_publishes_the_same_step_again_and_says_so():
-    resent = []
-    step, sim = lockstep(robots=1, timeout=SHORT, on_resend=lambda: resent.append(sim.count))
+def test_answers_are_paired_with_the_step_they_name():
+    step, _ = lockstep(robots=2)
+    assert step.classify(0, None, 64) is Answer.UNSTAMPED
+    assert step.classify(0, 64, 64) is Answer.STEP
+    assert step.classify(0, 32, 64) is Answer.STALE
+    assert step.classify(0, 96, 64) is Answer.FUTURE
     step.step()
+    step.answer(0, Answer.STEP, 64)
+    assert step.classify(0, 64, 64) is Answer.REPEATED      # the step sent again, answered twice
+    assert step.classify(0, 64, 96) is Answer.REPEATED      # ... the second answer come after the next step
+    assert step.classify(0, None, 96) is Answer.BESIDE      # a stop, or another publisher, beside a named answer
+    assert step.classify(1, 64, 64) is Answer.STEP          # each robot on its own
+
+
+def test_a_resend_publishes_the_same_step_again_keeps_its_answers_and_says_so(monkeypatch):
+    monkeypatch.setattr(lockstep_module, 'RESEND_AFTER', SHORT)
+    resent = []
+    step, sim = lockstep(robots=2, timeout=0.0, on_resend=lambda: resent.append(sim.count))
+    step.step()
+    step.answer(0)
     assert not step.await_answers()
     step.step(resend=True)
-    step.answer(0)
+    step.answer(1)     # robot 0's answer to the first sending still counts: its repeat would be dropped
     assert step.await_answers()
     assert resent == [1]
     assert [(count, resend) for count, resend, _ in sim.steps] == [(1, False), (1, True)]
@@ -218,7 +299,7 @@ def test_no_step_is_lent_while_controllers_are_required():
 
 
 def test_close_ends_a_wait_without_answers():
-    step, _ = lockstep(robots=1)
+    step, _ = lockstep(robots=1, timeout=0.0)
     step.step()
     closer = threading.Timer(SHORT, step.close)
     closer.start()

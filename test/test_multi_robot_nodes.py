@@ -11,16 +11,17 @@ import numpy as np
 import pytest
 import yaml
 from conftest import ros_args
-from geometry_msgs.msg import Twist, Vector3
+from geometry_msgs.msg import Twist, TwistStamped, Vector3
 from nav_msgs.msg import Odometry
 from rcl_interfaces.msg import Parameter as ParameterMsg, ParameterType, ParameterValue
 from rcl_interfaces.srv import SetParameters
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import CameraInfo, Imu, JointState, Range
-from std_msgs.msg import Float64MultiArray, String
+from std_msgs.msg import Float64MultiArray, MultiArrayDimension, String
 from std_srvs.srv import Trigger
 
+from epuck_ros.conversions import stamp_from_label, stamp_label
 from epuck_ros.nodes.ack_window import history_steps
 from epuck_ros.nodes.sense_ports import SENSE_TOPICS_ON_DEMAND_FROM
 
@@ -86,19 +87,23 @@ def subscribe(test_node, msg_type: type, topic: str, qos: object = EVERY_STEP) -
 
 
 class LockstepClients:
-    """Answers each step of a lockstep sim for some robots, once that step's `/clock` and every robot's `ir_raw` are
-    in: `command(robot, step, ir_raw)` gives the message to publish on that robot's topic (None: no answer)."""
+    """Answers each step of a lockstep sim for some robots, by the step protocol: once every robot's `ir_raw` of that
+    step is in (paired by the step its label names), `command(robot, step, ir_raw)` gives the message to publish on
+    that robot's topic (None: no answer), which is sent naming the step (a labelled wheel_cmd; a Twist goes as a
+    TwistStamped: the sim runs with cmd_vel_stamped)."""
 
     def __init__(self, test_node, names: list[str], topics: dict[str, tuple[type, str]],
                  command: Callable[[str, int, list[float]], object]) -> None:
         self.node = test_node.node
         self.clocks: list[float] = []
         self.raw: dict[str, list[list[float]]] = {name: [] for name in names}
+        self._raw_by_step: dict[str, dict[tuple[int, int], list[float]]] = {name: {} for name in names}
         self.truth: dict[str, list[Odometry]] = {name: [] for name in names}
-        self.publishers = {name: self.node.create_publisher(msg_type, f'/{name}/{topic}', 10)
+        self.publishers = {name: self.node.create_publisher(TwistStamped if msg_type is Twist else msg_type,
+                                                            f'/{name}/{topic}', 10)
                            for name, (msg_type, topic) in topics.items()}
         self._command = command
-        self.answered = 0
+        self.answered: list[tuple[int, int]] = []
         self._subscriptions = [self.node.create_subscription(Clock, '/clock', self._on_clock, EVERY_STEP)]
         for name in names:
             self._subscriptions += [
@@ -113,25 +118,35 @@ class LockstepClients:
 
     def _on_clock(self, msg: Clock) -> None:
         self.clocks.append(seconds(msg.clock))
-        self._answer()
 
     def _on_raw(self, name: str, msg: Float64MultiArray) -> None:
+        step = stamp_from_label(msg.layout.dim[0].label)
+        if step in self._raw_by_step[name] or (self.answered and step <= self.answered[-1]):
+            return   # the first step sent again
+        self._raw_by_step[name][step] = list(msg.data)
         self.raw[name].append(list(msg.data))
-        self._answer()
+        if all(step in raws for raws in self._raw_by_step.values()):
+            self._answer(step)
 
-    def _answer(self) -> None:
-        while self.answered < len(self.clocks) and all(len(raw) > self.answered for raw in self.raw.values()):
-            step = self.answered
-            for name, publisher in list(self.publishers.items()):
-                msg = self._command(name, step, self.raw[name][step])
-                if msg is not None:
-                    publisher.publish(msg)
-            self.answered += 1
+    def _answer(self, step: tuple[int, int]) -> None:
+        index = len(self.answered)
+        for name, publisher in list(self.publishers.items()):
+            msg = self._command(name, index, self._raw_by_step[name][step])
+            if isinstance(msg, Float64MultiArray):
+                msg.layout.dim = [MultiArrayDimension(label=stamp_label(*step), size=len(msg.data),
+                                                      stride=len(msg.data))]
+            elif isinstance(msg, Twist):
+                stamped = TwistStamped(twist=msg)
+                stamped.header.stamp.sec, stamped.header.stamp.nanosec = step
+                msg = stamped
+            if msg is not None:
+                publisher.publish(msg)
+        self.answered.append(step)
 
 
 def start_lockstep_sim(launch, test_node, world: str, **params):
     """A paused lockstep sim; `run` resumes it once the clients are connected, so every step is seen."""
-    sim = launch('sim', *ros_args({'world': world, 'lockstep': True, 'lockstep_timeout': 10.0, 'paused': True,
+    sim = launch('sim', *ros_args({'world': world, 'lockstep': True, 'paused': True, 'cmd_vel_stamped': True,
                                    'real_time_factor': 0, 'noise': False, **params}))
     test_node.wait_for_simulator()
     return sim

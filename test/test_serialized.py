@@ -11,7 +11,8 @@ from sensor_msgs.msg import JointState, Range
 from std_msgs.msg import Float64MultiArray, MultiArrayDimension, MultiArrayLayout
 
 from epuck_ros.bag.msgdefs import schema_text
-from epuck_ros.nodes.serialized import Patch, exact_cdr, float64_values
+from epuck_ros.conversions import stamp_label
+from epuck_ros.nodes.serialized import Patch, array_bytes, array_values, exact_cdr
 
 
 def test_a_patched_message_is_the_exact_cdr_of_the_message_with_those_values():
@@ -60,18 +61,18 @@ def test_exact_cdr_is_what_an_independent_encoder_writes_and_not_longer_than_the
 
 
 @pytest.mark.parametrize('values', [[], [1.5], [0.0, -6.28], [float(i) / 3 for i in range(8)], [math.inf, 2.0]])
-def test_float64_values_reads_what_rclpy_serialised(values):
-    assert float64_values(serialize_message(Float64MultiArray(data=values))) == tuple(values)
+def test_array_values_reads_what_rclpy_serialised(values):
+    assert array_values(serialize_message(Float64MultiArray(data=values))) == (tuple(values), None)
 
 
-def test_float64_values_of_a_nan_command_is_nan_for_the_simulator_to_refuse():
-    left, right = float64_values(serialize_message(Float64MultiArray(data=[math.nan, 1.0])))
+def test_array_values_of_a_nan_command_is_nan_for_the_simulator_to_refuse():
+    (left, right), _ = array_values(serialize_message(Float64MultiArray(data=[math.nan, 1.0])))
     assert math.isnan(left) and right == 1.0
 
 
 def test_an_array_with_a_layout_is_read_too():
     layout = MultiArrayLayout(dim=[MultiArrayDimension(label='wheels', size=2, stride=2)], data_offset=0)
-    assert float64_values(serialize_message(Float64MultiArray(layout=layout, data=[4.0, 5.0]))) == (4.0, 5.0)
+    assert array_values(serialize_message(Float64MultiArray(layout=layout, data=[4.0, 5.0]))) == ((4.0, 5.0), None)
 
 
 def _cdr(kind: int, order: str, dims: list[tuple[bytes, int, int]], values: list[float]) -> bytes:
@@ -87,14 +88,14 @@ def _cdr(kind: int, order: str, dims: list[tuple[bytes, int, int]], values: list
 
 @pytest.mark.parametrize('kind, order', [(0, '>'), (1, '<')])
 @pytest.mark.parametrize('dims', [[], [(b'wheels', 2, 2)], [(b'ab', 1, 2), (b'abcdefg', 3, 4)]])
-def test_float64_values_reads_xcdr1_either_way_round_as_rclpy_does(kind, order, dims):
+def test_array_values_reads_xcdr1_either_way_round_as_rclpy_does(kind, order, dims):
     data = _cdr(kind, order, dims, [4.0, -5.5])
-    assert float64_values(data) == tuple(deserialize_message(data, Float64MultiArray).data) == (4.0, -5.5)
+    assert array_values(data)[0] == tuple(deserialize_message(data, Float64MultiArray).data) == (4.0, -5.5)
 
 
 @pytest.mark.parametrize('kind, order', [(6, '>'), (7, '<')])
 def test_xcdr2_which_no_jazzy_middleware_sends_for_this_type_is_refused_quietly(kind, order, capfd):
-    assert float64_values(_cdr(kind, order, [], [4.0, -5.5])) is None
+    assert array_values(_cdr(kind, order, [], [4.0, -5.5])) is None
     assert capfd.readouterr() == ('', '')
 
 
@@ -113,10 +114,32 @@ def _malformed() -> dict[str, bytes]:
 
 @pytest.mark.parametrize('data', _malformed().values(), ids=_malformed().keys())
 def test_bytes_that_are_no_float64_array_read_as_none_without_a_word_from_rclpy(data, capfd):
-    assert float64_values(data) is None
+    assert array_values(data) is None
     assert capfd.readouterr() == ('', '')   # rclpy's C deserialiser printed a line per message
 
 
 def test_every_truncation_of_an_array_reads_as_none():
     data = _cdr(1, '<', [(b'wheels', 2, 2)], [1.0, 2.0])
-    assert all(float64_values(data[:end]) is None for end in range(len(data)))
+    assert all(array_values(data[:end]) is None for end in range(len(data)))
+
+
+@pytest.mark.parametrize('values', [[], [0.5], [float(i) / 3 for i in range(8)], [1.0, 2.0, 3.0]])
+@pytest.mark.parametrize('stamp', [None, (0, 0), (12, 32_000_000), (1234567, 999_999_999)])
+def test_array_bytes_is_the_exact_cdr_and_array_values_reads_back_the_numbers_and_the_step(values, stamp):
+    msg = Float64MultiArray(data=values)
+    if stamp is not None:
+        msg.layout.dim = [MultiArrayDimension(label=stamp_label(*stamp), size=len(values), stride=len(values))]
+    data = array_bytes(values, stamp)
+    assert data == exact_cdr(msg)
+    assert deserialize_message(data, Float64MultiArray) == msg
+    assert array_values(data) == (tuple(values), stamp)
+
+
+@pytest.mark.parametrize('label', [b'wheels', b'stamp=12', b'stamp=1.5', b'stamp=x.000000000', b'\xff\xfe'])
+def test_an_array_whose_label_names_no_step_reads_with_no_stamp(label):
+    assert array_values(_cdr(1, '<', [(label, 2, 2)], [1.0, 2.0])) == ((1.0, 2.0), None)
+
+
+def test_every_truncation_of_a_stamped_array_reads_as_none():
+    data = array_bytes([1.0, 2.0], (3, 64_000_000))
+    assert all(array_values(data[:end]) is None for end in range(len(data)))

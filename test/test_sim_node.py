@@ -16,10 +16,12 @@ from rclpy.qos import DurabilityPolicy, QoSProfile
 from rclpy.serialization import serialize_message
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState, Range
-from std_msgs.msg import Float64MultiArray, String, UInt32
+from diagnostic_msgs.msg import DiagnosticStatus
+from std_msgs.msg import Float64MultiArray, MultiArrayDimension, String, UInt32
 from std_srvs.srv import Empty
 from visualization_msgs.msg import MarkerArray
 
+from epuck_ros.conversions import stamp_label
 from epuck_ros.model import MAX_WHEEL_SPEED, SENSOR_NAMES
 from epuck_ros.nodes.robot_ports import WARN_PERIOD
 from epuck_ros.nodes.sim_node import publication_mode
@@ -42,6 +44,13 @@ def start_sim(launch, test_node, **params):
 
 def wheel_cmd(left: float, right: float) -> Float64MultiArray:
     return Float64MultiArray(data=[left, right])
+
+
+def answer(left: float, right: float, clock: Clock) -> Float64MultiArray:
+    """A wheel_cmd that answers the step of `clock`: its layout's label names that step (the step protocol)."""
+    msg = wheel_cmd(left, right)
+    msg.layout.dim = [MultiArrayDimension(label=stamp_label(clock.clock.sec, clock.clock.nanosec), size=2, stride=2)]
+    return msg
 
 
 def test_one_command_moves_the_robot_until_the_timeout(launch, test_node):
@@ -101,7 +110,11 @@ def test_reset_puts_the_robot_back_and_zeroes_odometry(launch, test_node):
     home = truth[-1].pose.pose.position
     pub.publish(wheel_cmd(HALF_SPEED, 0.3 * MAX_WHEEL_SPEED))
     test_node.spin_until(lambda: odom and odom[-1].pose.pose.position.x > 0.02, what='the robot to move')
-    assert joints[-1].position[0] > 0.5 and joints[-1].velocity[0] == pytest.approx(HALF_SPEED)
+    # The joint states of that very step (the newest may be later: cmd_timeout may have stopped the wheels since)
+    moved = next(stamp_seconds(msg) for msg in odom if msg.pose.pose.position.x > 0.02)
+    test_node.spin_until(lambda: any(stamp_seconds(msg) == moved for msg in joints), what='joint_states of that step')
+    then = next(msg for msg in joints if stamp_seconds(msg) == moved)
+    assert then.position[0] > 0.5 and then.velocity[0] == pytest.approx(HALF_SPEED)
     client = test_node.node.create_client(Empty, 'reset')
     assert client.wait_for_service(timeout_sec=10.0)
     future = client.call_async(Empty.Request())
@@ -141,13 +154,14 @@ def test_a_flood_of_malformed_wheel_cmd_bytes_costs_a_throttled_warning_and_lock
     pub = test_node.node.create_publisher(Float64MultiArray, 'wheel_cmd', 200)
     test_node.spin_until(lambda: pub.get_subscription_count() > 0 and test_node.node.count_publishers('/clock'),
                          what='the sim to be discovered')
+    test_node.spin_until(lambda: clocks, what='the first step')
     bad = bytearray(serialize_message(wheel_cmd(1.0, 1.0)))
     bad[12:16] = (1000).to_bytes(4, 'little')   # a sequence of 1,000 numbers in a buffer of 2
     started = time.monotonic()
     for _ in range(200):
         pub.publish(bytes(bad))   # bytes go out as the serialised message
     seen = len(clocks)
-    pub.publish(wheel_cmd(1.0, 1.0))   # after the bad ones on the same writer: lockstep answers it with a step
+    pub.publish(answer(1.0, 1.0, clocks[-1]))   # after the bad ones on the same writer: it answers the step
     test_node.spin_until(lambda: len(clocks) > seen, timeout=60.0, what='the step answering the good command')
     elapsed = time.monotonic() - started
     lines = [line for line in sim.output().splitlines() if 'wheel_cmd refused' in line or 'buffer' in line]
@@ -170,6 +184,7 @@ def test_world_and_collision_count_are_latched(launch, test_node):
     ('time_step:=-1.0', 'time_step'),
     ('real_time_factor:=fast', 'real_time_factor'),
     ('world:=/no/such/world.yaml', '/no/such/world.yaml'),
+    ('frame_prefix:=1bad', 'frame_prefix'),
 ])
 def test_bad_parameters_are_refused_at_start(launch, param, expected):
     sim = launch('sim', '--ros-args', '-p', param)
@@ -185,23 +200,58 @@ def test_malformed_world_file_names_the_field(launch, tmp_path: Path):
     assert 'boxes[0].size' in sim.output() and str(world) in sim.output()
 
 
-def test_lockstep_advances_one_step_per_command(launch, test_node):
-    start_sim(launch, test_node, lockstep=True, lockstep_timeout=30.0, real_time_factor=0.0)
-    clocks = test_node.collect(Clock, '/clock', 100)
+def test_lockstep_pairs_each_answer_with_the_step_it_names(launch, test_node):
+    """One step per answer naming the current step; a repeat of it, or one naming a step not reached, takes no step;
+    the run is reproducible (lockstep_status) until a command that names no step makes the robot's controller
+    free: from then on the simulation goes on without waiting for it."""
+    start_sim(launch, test_node, lockstep=True, real_time_factor=0.0)
+    clocks = test_node.collect(Clock, '/clock', 1000)
+    statuses = test_node.collect(DiagnosticStatus, 'lockstep_status', LATCHED)
     pub = test_node.node.create_publisher(Float64MultiArray, 'wheel_cmd', 10)
-    test_node.spin_until(lambda: pub.get_subscription_count() > 0 and test_node.node.count_publishers('/clock'),
-                         what='the sim to be discovered')
-    test_node.spin_for(0.5)  # the first step was published before we listened; the sim now waits for a command
-    steps_per_command = []
+    # The first step goes out once the sim matched our publisher (lockstep_controllers 1), and again every second
+    # until answered (we may have subscribed to /clock after it).
+    test_node.spin_until(lambda: clocks, what='the first step')
+    steps_per_answer = []
     for _ in range(5):
-        seen = len(clocks)
-        pub.publish(wheel_cmd(1.0, 1.0))
+        seen, step = len(clocks), clocks[-1]
+        pub.publish(answer(1.0, 1.0, step))
+        pub.publish(answer(1.0, 1.0, step))   # a repeat: dropped
         test_node.spin_until(lambda: len(clocks) > seen, what='the step answering the command')
-        test_node.spin_for(0.3)  # without another command, no further step comes
-        steps_per_command.append(len(clocks) - seen)
-    assert steps_per_command == [1] * 5
-    times = [c.clock.sec + c.clock.nanosec * 1e-9 for c in clocks[-5:]]   # (the first step may be here too)
-    assert [b - a for a, b in zip(times, times[1:])] == pytest.approx([STEP] * 4, abs=1e-9)
+        test_node.spin_for(0.3)  # without another answer, no further step comes
+        steps_per_answer.append(len({(c.clock.sec, c.clock.nanosec) for c in clocks[seen:]}))
+    assert steps_per_answer == [1] * 5
+    times = sorted({c.clock.sec + c.clock.nanosec * 1e-9 for c in clocks})
+    assert [b - a for a, b in zip(times, times[1:])] == pytest.approx([STEP] * (len(times) - 1), abs=1e-9)
+    future = Clock()
+    future.clock.sec = clocks[-1].clock.sec + 10
+    seen = len(clocks)
+    pub.publish(answer(1.0, 1.0, future))
+    test_node.spin_for(0.5)
+    assert len(clocks) == seen   # an answer naming a step not reached answers nothing
+    test_node.spin_until(lambda: statuses, what='lockstep_status')
+    assert statuses[-1].level == DiagnosticStatus.OK and 'reproducible: every step' in statuses[-1].message
+    pub.publish(wheel_cmd(0.5, 0.5))   # names no step, beside named answers: a teleop, say; it answers nothing
+    test_node.spin_until(lambda: statuses[-1].level == DiagnosticStatus.WARN, what='the run said not reproducible')
+    assert 'not reproducible: a command that names no step drove epuck beside its lockstep controller' in \
+        statuses[-1].message
+    assert len(clocks) == seen
+    pub.publish(answer(1.0, 1.0, clocks[-1]))
+    test_node.spin_until(lambda: len(clocks) > seen, what='the step answering the next named answer')
+
+
+def test_a_controller_whose_commands_name_no_step_is_not_waited_for_and_the_run_says_so(launch, test_node):
+    """A timer or a joystick on plain wheel_cmd (or Twist): recognised by what it sends, not by how late."""
+    start_sim(launch, test_node, lockstep=True, real_time_factor=0.0)
+    clocks = test_node.collect(Clock, '/clock', 1000)
+    statuses = test_node.collect(DiagnosticStatus, 'lockstep_status', LATCHED)
+    pub = test_node.node.create_publisher(Float64MultiArray, 'wheel_cmd', 10)
+    test_node.spin_until(lambda: clocks, what='the first step')
+    seen = len(clocks)
+    pub.publish(wheel_cmd(1.0, 1.0))
+    test_node.spin_until(lambda: len(clocks) > seen + 20, what='steps without waiting for the free controller')
+    test_node.spin_until(lambda: statuses and statuses[-1].level == DiagnosticStatus.WARN,
+                         what='the run said not reproducible')
+    assert 'not reproducible: the controller of epuck sends commands that name no step' in statuses[-1].message
 
 
 def test_lockstep_takes_no_step_before_it_sees_the_controllers_it_was_told_of(launch, test_node):
@@ -309,8 +359,9 @@ def test_repeated_timeouts_are_logged_once_then_counted(launch, test_node):
     assert 'command time-out: wheels stopped 2 more times (epuck 2)' in output
 
 
-def test_one_robot_keeps_its_names_with_a_frame_prefix_and_the_markers_are_latched(launch, test_node):
-    start_sim(launch, test_node, frame_prefix='r1/')
+@pytest.mark.parametrize('prefix', ['r1/', 'r1'])   # a prefix gets its slash: r1/odom, not r1odom
+def test_one_robot_keeps_its_names_with_a_frame_prefix_and_the_markers_are_latched(launch, test_node, prefix):
+    start_sim(launch, test_node, frame_prefix=prefix)
     odom = test_node.collect(Odometry, 'odom')
     truth = test_node.collect(Odometry, 'ground_truth')
     ranges = test_node.collect(Range, 'proximity', 1000)

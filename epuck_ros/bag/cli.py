@@ -16,6 +16,7 @@ from epuck_ros.bag.cdr import CdrError
 from epuck_ros.bag.export import export_csv
 from epuck_ros.bag.info import format_info
 from epuck_ros.bag.reader import Bag, BagError
+from epuck_ros.bag.lockstep_status import recorded_integrity
 from epuck_ros.bag.run_summary import BagSummary, summarise_runs
 from epuck_ros.bag.runs import RunData, load_runs
 from epuck_ros.bag.summary_text import format_bag_summary
@@ -72,7 +73,15 @@ def _only(runs: list[RunData], summary: BagSummary, namespace: str | None,
 def _summary(args: argparse.Namespace) -> None:
     with Bag(args.path) as bag:
         runs, summary = _only(*_runs(bag), args.namespace, args.path)
-    print(json.dumps(summary.to_dict(), indent=2) if args.json else format_bag_summary(summary))
+        integrity = recorded_integrity(bag)
+    if args.json:
+        report = summary.to_dict()
+        report['reproducible'] = None if integrity is None else integrity.reproducible
+        report['reproducible_reason'] = None if integrity is None else integrity.reason
+        print(json.dumps(report, indent=2))
+        return
+    verdict = 'unknown: the bag holds no lockstep_status' if integrity is None else integrity.verdict
+    print(format_bag_summary(summary) + f'\n{"Reproducible:":<19}{verdict}')
 
 
 def _plot(args: argparse.Namespace) -> None:

@@ -14,8 +14,9 @@ are judged (nearly every step a whole number of periods), so event-driven ones s
 Stamps follow one of two clocks: simulated time (from 0 when the simulator starts) or the wall clock (from
 1970: `rosout` and any node without `use_sim_time`). A topic is compared only with topics of its own clock, and
 what it can be missing is bounded by the bag itself: the span its clock's periodic topics cover, in periods.
-(A bag once reported "/clock: ~56109941978 of 56109943853 messages missing": a wall-clock `rosout` on 32 ms
-multiples was taken for a periodic topic and its 2027 stamps became the end every simulated topic missed.)
+Why: a wall-clock `rosout` whose stamps fell on multiples of the step was once taken for a periodic topic, its
+stamps (years after the simulation's) became the end every simulated topic missed, and a small bag was reported
+missing billions of messages.
 """
 from __future__ import annotations
 

@@ -46,6 +46,9 @@ MAX_NAMED_ROBOTS = 12
 MAX_LISTED_CORNERS = 6
 OBSTACLE_STYLE = {'facecolor': '0.6', 'edgecolor': '0.2'}
 TIME_COLORMAP = 'viridis'
+FLOOR_TEXELS = 1024
+"""Floor texels per side at most in a picture: the arena spans fewer pixels than that (the senses' texture can be
+twice as fine, and four times the work to paint)."""
 
 
 def _draw_world(axes: plt.Axes, world: World) -> None:
@@ -54,7 +57,7 @@ def _draw_world(axes: plt.Axes, world: World) -> None:
     width, height = world.arena_size
     looks = world.appearance
     if looks.paint or looks.floor_color != FLOOR_COLOR:
-        floor = FloorTexture(world.arena_size, looks.floor_color, looks.paint)
+        floor = FloorTexture(world.arena_size, looks.floor_color, looks.paint, FLOOR_TEXELS)
         axes.imshow(floor.image, origin='lower', extent=(-width / 2, width / 2, -height / 2, height / 2),
                     interpolation='nearest', alpha=0.6, zorder=0, gid='floor')
     axes.add_patch(Rectangle((-width / 2, -height / 2), width, height, fill=False, linewidth=3,

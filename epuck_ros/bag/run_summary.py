@@ -16,7 +16,7 @@ from epuck_ros.bag.runs import (ODOMETRY, RANGE, STRING, TRAJECTORY_TOPICS, RunD
                                 robot_namespaces, start_pose)
 from epuck_ros.bag.shapes import (CIRCLE_RMS_RATIO, CORNER_RANGE_DEG, MIN_CORNER_DEG, MIN_SEGMENT_TIME, MIN_SIDE_RATIO,
                                   MOVING_SPEED, STILL_DISTANCE, STRAIGHT_YAW_RATE, CircleFit, Corners, Motion, Spin,
-                                  StraightLine, classify, fit_circle, straight_segments)
+                                  StraightLine, classify, classify_recorded, fit_circle, straight_segments)
 from epuck_ros.bag.summary_text import (format_bag_summary, format_figures, format_summary, shape_lines,
                                         turn_direction)
 from epuck_ros.bag.tally import (CONTACT_MARGIN, SLIP_RATIO, Contact, RobotFigures, RunTally, contacts_from_slip,
@@ -84,7 +84,7 @@ def summarise_runs(runs: Sequence[RunData], model: RobotModel = RobotModel()) ->
     figures = {f.name: f for f in tally.figures}
     several = len(runs) > 1
     summaries = []
-    for run in runs:
+    for run, motion in zip(runs, classify_recorded(runs, model)):
         trajectory = run.trajectory
         notes = [] if run.closed_properly else ['bag not closed properly: figures from its complete chunks']
         notes += [run.world_problem] if run.world_problem else []
@@ -106,7 +106,6 @@ def summarise_runs(runs: Sequence[RunData], model: RobotModel = RobotModel()) ->
             if len(finite):
                 best = finite[np.argmin(values[finite])]
                 closest, sensor, when = float(values[best]), frames[best].decode(errors='replace'), float(stamps[best])
-        motion = classify(trajectory)
         distance = figures[run.name].distance if run.truth is not None else trajectory.distance
         duration = trajectory.duration
         summaries.append(RunSummary(

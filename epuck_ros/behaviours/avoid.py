@@ -12,8 +12,8 @@ The course's threshold is the raw value 80, which the inverse lookup table turns
 Braitenberg (Webots' default e-puck controller): each wheel = 0.5 * MAX_SPEED + sum(w * raw / 4096) * MAX_SPEED,
 clipped; it works on raw values, so ranges go back through the table (inf -> the table's far value, 67.19).
 The same front escape turn overrides it: raw / 4096 stays below 0.1 until an obstacle is within 2 cm of a
-sensor, and the sensors sit 3 to 6 mm inside the body's edge, so the weights alone react too late; with them
-alone the robot touched the default world's boxes 4 to 14 times in 5 simulated minutes (seeds 0 to 4).
+sensor, and the sensors sit 3 to 6 mm inside the body's edge, so the weights alone react too late and the robot
+touches the boxes of the default world (the README gives the count).
 """
 from __future__ import annotations
 

@@ -17,6 +17,9 @@ from rclpy.validate_namespace import validate_namespace
 
 from epuck_ros.behaviours import BEHAVIOURS
 from epuck_ros.bringup import tables
+from epuck_ros.foxglove.address import DEFAULT_HOST as FOXGLOVE_HOST
+from epuck_ros.foxglove.address import DEFAULT_PORT as FOXGLOVE_PORT
+from epuck_ros.foxglove.address import address_error
 from epuck_ros.nodes.params import ParameterError, ParamSpec, check_arguments
 from epuck_ros.world import WorldError, load_world, placed_names
 
@@ -44,6 +47,8 @@ class Plan:
     view_params: list[str] = field(default_factory=list)
     view_url: str = ''
     record_dir: Path | None = None
+    foxglove_port: int | None = None
+    """The Foxglove bridge's port on FOXGLOVE_HOST (0: any free one, which its own line says); None: no bridge."""
 
 
 class _Parser(argparse.ArgumentParser):
@@ -66,7 +71,8 @@ def build_parser() -> argparse.ArgumentParser:
                '  bringup rectangle --duration 30 -p turn_mode:=timed --real-time-factor 0\n'
                '  bringup avoid --robots 20 --duration 60 --record      # 20 robots, one avoid process\n'
                '  bringup --controller my_controller.py --duration 20   # a Webots-style or rclpy script\n'
-               '  bringup avoid --view                                  # and watch it on http://127.0.0.1:8765/')
+               '  bringup avoid --view                                  # and watch it on http://127.0.0.1:8765/\n'
+               '  bringup avoid --foxglove                              # in Foxglove: ws://127.0.0.1:8765')
     parser.add_argument('behaviour', nargs='?', choices=tuple(BEHAVIOURS),
                         help='the course behaviour to run (default: avoid, unless --controller is given)')
     parser.add_argument('--controller', metavar='SCRIPT.py',
@@ -94,11 +100,20 @@ def build_parser() -> argparse.ArgumentParser:
                         help='a parameter for the node that declares it (sim parameters go to sim, the rest to the '
                              'behaviour; view.NAME to the view); repeatable')
     parser.add_argument('--record', nargs='?', const='', default=None, metavar='DIR',
-                        help='record all topics to an MCAP bag (default folder: bags/rosbag2_<date>)')
+                        help='record all topics to an MCAP bag (default folder: bags/rosbag2_<date>); the camera, '
+                             'ground, light and IMU topics are in it while the controller (or the view) reads them: '
+                             'add -p senses:=camera,ground,light,imu to render and record them anyway')
     parser.add_argument('--record-compression', choices=('none', 'zstd', 'lz4'), default='none',
                         help='chunk compression of the recording (default none, as rosbag2)')
     parser.add_argument('--view', action='store_true', help='also start the browser view and print its URL')
+    parser.add_argument('--foxglove', nargs='?', type=int, const=FOXGLOVE_PORT, default=None, metavar='PORT',
+                        help=f'also serve the run to Foxglove on ws://{FOXGLOVE_HOST}:PORT (default {FOXGLOVE_PORT}; '
+                             '0 = any free port): every topic, the simulation\'s time as the server\'s; a topic is '
+                             'read only while a Foxglove panel shows it, so the camera is rendered only while an image '
+                             'panel shows it (see foxglove --help)')
     parser.add_argument('--namespace', default='', help='ROS namespace of the simulation (e.g. class1)')
+    parser.add_argument('--verbose', action='store_true',
+                        help='also show the behaviour\'s state changes (cruising, turning, ...: its DEBUG lines)')
     return parser
 
 
@@ -152,11 +167,24 @@ def make_plan(args: argparse.Namespace) -> Plan:
     if args.view:
         plan.view_params = _checked(routed['view'], view_specs)
         plan.view_url = tables.view_url(plan.view_params)
+    if args.foxglove is not None:
+        plan.foxglove_port = _foxglove_port(args.foxglove, plan.view_url)
     if args.record is not None:
         plan.record_dir = Path(args.record) if args.record else tables.default_bag_folder()
         if plan.record_dir.exists():
             raise ValueError(f'--record {plan.record_dir}: already exists (pick a new folder)')
     return plan
+
+
+def _foxglove_port(port: int, view_url: str) -> int:
+    """The bridge's port, checked before anything starts: taken, or the view's too, is a refusal."""
+    problem = address_error(FOXGLOVE_HOST, port)
+    if problem is not None:
+        raise ValueError(f'--foxglove {port}: cannot serve on {FOXGLOVE_HOST}:{port}: {problem}')
+    if port and view_url.endswith(f':{port}/'):
+        raise ValueError(f'--foxglove {port}: the view serves on port {port} too: give --foxglove another port '
+                         f'(--foxglove {port + 1}) or the view another (-p view.port:=8080)')
+    return port
 
 
 def _robot_names(args: argparse.Namespace) -> tuple[str, ...]:
@@ -172,7 +200,8 @@ def _robot_names(args: argparse.Namespace) -> tuple[str, ...]:
 def _controller_plan(args: argparse.Namespace, several: bool) -> Plan:
     if not args.controller:
         behaviour = args.behaviour or 'avoid'
-        return Plan(behaviour, 'behaviour', [behaviour, *(['--robots', 'all'] if several else [])],
+        verbose = ['--ros-args', '--log-level', f'{behaviour}:=debug', '--'] if args.verbose else []
+        return Plan(behaviour, 'behaviour', [behaviour, *(['--robots', 'all'] if several else []), *verbose],
                     'all')
     script = Path(args.controller)
     if _is_webots(script):

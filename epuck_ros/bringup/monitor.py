@@ -11,6 +11,7 @@ import time
 
 import rclpy
 import yaml
+from diagnostic_msgs.msg import DiagnosticStatus
 from nav_msgs.msg import Odometry
 from rclpy.context import Context
 from rclpy.experimental import EventsExecutor
@@ -25,14 +26,15 @@ from std_msgs.msg import String
 from epuck_ros.bag.cdr import odometry_fields
 from epuck_ros.bag.tally import RunTally
 from epuck_ros.conversions import nanoseconds_from_seconds, seconds_from_stamp
+from epuck_ros.integrity import STATUS_TOPIC, Integrity, integrity_from
 from epuck_ros.nodes.announcements import ANNOUNCEMENT_QOS, SIMULATORS_TOPIC, Announcement, parse_announcement
 from epuck_ros.nodes.dds_profile import use_package_profile, warn_if_not_fast_dds
 from epuck_ros.nodes.qos import LATCHED
 from epuck_ros.nodes.robot_ports import topic_prefix
+from epuck_ros.nodes.sense_ports import RECORDER_NODE
 from epuck_ros.world import World, WorldError, world_from_dict
 
 SIM_NODE = 'sim'
-RECORDER_NODE = 'recorder'
 VIEW_NODE = 'view'
 COMMAND_TOPICS = ('wheel_cmd', 'cmd_vel')
 REQUEST_RETRY = 2.0
@@ -106,12 +108,18 @@ class RunMonitor:
         """The enclave our simulator was started with: how the graph tells it from another node called sim."""
         self.announcements: set[Announcement] = set()
         """Every simulator that announced itself on this domain (ours among them once it is up)."""
+        self.integrity: Integrity | None = None
+        """Whether the run is reproducible, as the simulator's latched lockstep_status last said."""
         self._parameters = AsyncParameterClient(self.node, SIM_NODE)
         self.node.create_subscription(Clock, '/clock', self._on_clock, 10)
         self.node.create_subscription(String, 'world', self._on_world, LATCHED)
+        self.node.create_subscription(DiagnosticStatus, STATUS_TOPIC, self._on_status, LATCHED)
         self.node.create_subscription(String, SIMULATORS_TOPIC, self._on_announcement, ANNOUNCEMENT_QOS)
 
     # --- what the run did -------------------------------------------------------------------------------
+    def _on_status(self, msg: DiagnosticStatus) -> None:
+        self.integrity = integrity_from(msg.message, {value.key: value.value for value in msg.values})
+
     def _on_clock(self, msg: Clock) -> None:
         self.sim_time = seconds_from_stamp(msg.clock.sec, msg.clock.nanosec)
         self.clock_messages += 1
@@ -242,11 +250,11 @@ class RunMonitor:
         opened at the printed address as soon as bringup printed it was refused on a loaded machine)."""
         return any(info.node_name == VIEW_NODE for info in self.node.get_subscriptions_info_by_topic('world'))
 
-    def set_paused(self, paused: bool, timeout: float, controllers: int = 0) -> bool:
+    def set_paused(self, paused: bool, timeout: float, controllers: int | None = None) -> bool:
         """Set the simulator's `paused` parameter, asking again every REQUEST_RETRY; True once it said yes. With
         `controllers`, a lockstep simulator's first step waits until it sees that many (`lockstep_controllers`)."""
         deadline = time.monotonic() + timeout
-        wanted = [Parameter('lockstep_controllers', value=controllers)] if controllers else []
+        wanted = [Parameter('lockstep_controllers', value=controllers)] if controllers is not None else []
         while True:
             future = self._parameters.set_parameters(wanted + [Parameter('paused', value=paused)])
             self._executor.spin_until_future_complete(

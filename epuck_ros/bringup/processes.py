@@ -22,6 +22,7 @@ import threading
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TextIO
 
 STOP_SIGNAL = signal.SIGTERM
 """How `bringup` asks a child to end: rclpy shuts down on it as on Ctrl-C once initialised, and before that the
@@ -34,8 +35,24 @@ READ_CHUNK = 64 * 1024
 _LINE_END = re.compile(rb'\r\n|[\r\n]')
 ERROR_LINES = 5
 """Lines of a child's output kept to explain its failure."""
+_OUTPUT = threading.Lock()
+"""Held while one line goes out: the children's forwarding threads and bringup's own messages share the terminal."""
 PR_SET_PDEATHSIG = 1  # <linux/prctl.h>
 CLEAN_EXIT_CODES = (0, -signal.SIGINT, 128 + signal.SIGINT, -signal.SIGTERM, 128 + signal.SIGTERM)
+
+
+def say(line: str, stream: TextIO | None = None) -> bool:
+    """Write `line` and its newline in one piece, never inside another's line (print() writes the two apart, and a
+    child's line once ran into bringup's next: `...(t=0.000 s)[bringup] running avoid`); default stream: stdout.
+    False when the stream is gone (a closed pipe): there is no one left to tell."""
+    stream = sys.stdout if stream is None else stream
+    with _OUTPUT:
+        try:
+            stream.write(line + '\n')
+            stream.flush()
+        except (OSError, ValueError):   # BrokenPipeError, or a closed stream
+            return False
+    return True
 
 
 def _prctl() -> Callable[..., int] | None:
@@ -91,11 +108,15 @@ class Child:
     process: subprocess.Popen
     tail: collections.deque = field(default_factory=lambda: collections.deque(maxlen=ERROR_LINES))
     output_done: threading.Event = field(default_factory=threading.Event)
+    echo: bool = True
+    """Whether its lines still go to bringup's output (not once that is gone)."""
 
     def forward_output(self) -> None:
-        r"""Echo the child's output with a `[name]` prefix and keep its last lines. Read in chunks, a line ends at
-        `\n` or `\r` (a progress line rewritten with `\r` is a line each time) and one longer than `MAX_LINE` is
-        cut: a child printing 200 MB without a newline took bringup to 800 MB."""
+        r"""Echo the child's output, line by line, each whole (`say`), with a `[name]` prefix, and keep its last
+        lines. Read in chunks, a line ends at `\n` or `\r` (a progress line rewritten with `\r` is a line each time)
+        and one longer than `MAX_LINE` is cut: a child printing without a newline would otherwise grow bringup's
+        memory without bound. Once bringup's own output is gone (a closed pipe), the child's is still read, so
+        that the child never blocks on a full pipe."""
         assert self.process.stdout is not None
         pending, cutting = b'', False
         while chunk := self.process.stdout.read1(READ_CHUNK):
@@ -115,7 +136,8 @@ class Child:
     def _emit(self, data: bytes) -> None:
         line = data.decode(errors='replace')
         self.tail.append(line)
-        print(f'[{self.name}] {line}', flush=True)
+        if self.echo:
+            self.echo = say(f'[{self.name}] {line}')
 
     def failure(self) -> str:
         """What went wrong, once the process has ended unexpectedly: one line, ending with the child's last line

@@ -13,12 +13,13 @@ from collections.abc import Callable
 
 from epuck_ros.bag.reader import BagError
 from epuck_ros.bringup import summary, tables
-from epuck_ros.bringup.cli import Plan, parse_args, ros_domain
+from epuck_ros.bringup.cli import FOXGLOVE_HOST, Plan, parse_args, ros_domain
 from epuck_ros.bringup.monitor import RunMonitor, samples_missing
-from epuck_ros.bringup.processes import Child, Children, executable
+from epuck_ros.bringup.processes import Child, Children, executable, say
 from epuck_ros.nodes.announcements import Announcement
+from epuck_ros.foxglove.address import NODE_NAME as FOXGLOVE_NODE
 
-STOP_ORDER = ('controller', 'view', 'record', 'sim')
+STOP_ORDER = ('controller', 'view', 'foxglove', 'record', 'sim')
 """Controllers stop first (a behaviour commands a stop as it ends) while the simulator still runs and the recorder
 still writes; the recorder closes its bag before the simulator goes."""
 READY_TIMEOUT = 60.0
@@ -93,6 +94,9 @@ class Supervisor:
             start('controller', plan.controller, [*command, *self.ros_args(plan.controller_params, namespace=robot_ns)])
         if self.args.view:
             start('view', 'view', [executable('view'), *self.ros_args(plan.view_params)])
+        if plan.foxglove_port is not None:
+            start('foxglove', 'foxglove', [executable('foxglove'), '--port', str(plan.foxglove_port),
+                                           *self.ros_args([], sim_time=False)])
 
     def watch(self, done: Callable[[], bool], timeout: float, what: Callable[[], str],
               until_sim_time: float = math.inf) -> None:
@@ -171,6 +175,8 @@ class Supervisor:
             return False
         if self.args.view and not monitor.view_serving():
             return False
+        if self.plan.foxglove_port is not None and not self.foxglove_serving():
+            return False
         robots = monitor.world.names
         wanted = self.plan.robots_to_drive
         if wanted == 'any':
@@ -182,6 +188,11 @@ class Supervisor:
             robots = wanted
         return all(monitor.controllers(robot) for robot in robots)
 
+    def foxglove_serving(self) -> bool:
+        """The bridge's node reads /clock once its server listens (it binds the port before it joins ROS)."""
+        return any(info.node_name == FOXGLOVE_NODE for info in self.monitor.node.get_subscriptions_info_by_topic(
+            '/clock'))
+
     def waiting_for(self) -> str:
         """What is still missing, for the timeout message."""
         monitor = self.monitor
@@ -191,6 +202,8 @@ class Supervisor:
             return 'the recorder did not subscribe to the simulator\'s topics'
         if self.args.view and not monitor.view_serving():
             return 'the view did not come up'
+        if self.plan.foxglove_port is not None and not self.foxglove_serving():
+            return 'the Foxglove bridge did not come up'
         return f'{self.plan.controller} did not connect to every robot it drives (no wheel_cmd/cmd_vel publisher)'
 
     def run(self) -> None:
@@ -216,16 +229,20 @@ class Supervisor:
         self.refuse_other_simulators()
         self.resumed_at = time.monotonic()  # the request's: the simulator may step before its answer is back
         # In lockstep, the controllers this process sees: the simulator's first step waits until it sees them too.
-        seen = sum(1 for robot in self.monitor.world.names if self.monitor.controllers(robot)) if args.lockstep else 0
+        seen = sum(1 for robot in self.monitor.world.names if self.monitor.controllers(robot)) \
+            if args.lockstep else None
         if not self.monitor.set_paused(False, READY_TIMEOUT, controllers=seen):
             raise RunFailed('the simulator did not accept paused:=false')
         robots = self.monitor.world.names
         pace = f'real-time factor {args.real_time_factor:g}' if args.real_time_factor else 'as fast as possible'
-        print(f'[bringup] running {plan.controller}' + (f' on {len(robots)} robots' if len(robots) > 1 else '') +
-              (f' for {args.duration:g} simulated s' if args.duration else ' until Ctrl-C') +
-              f' ({"lockstep" if args.lockstep else "no lockstep"}, {pace})', flush=True)
+        say(f'[bringup] running {plan.controller}' + (f' on {len(robots)} robots' if len(robots) > 1 else '') +
+            (f' for {args.duration:g} simulated s' if args.duration else ' until Ctrl-C') +
+            f' ({"lockstep" if args.lockstep else "no lockstep"}, {pace})')
         if plan.view_url:
-            print(f'[bringup] view: {plan.view_url}  (open it in a browser)', flush=True)
+            say(f'[bringup] view: {plan.view_url}  (open it in a browser)')
+        if plan.foxglove_port:
+            say(f'[bringup] foxglove: ws://{FOXGLOVE_HOST}:{plan.foxglove_port}  (in Foxglove: Open connection, '
+                'Foxglove WebSocket; layout: docs/foxglove_layout.json)')
         # The simulator pauses itself at exactly `pause_at` = duration: the run ends on that very step.
         try:
             self.watch(lambda: bool(args.duration) and self.monitor.sim_time >= args.duration - 1e-6,
@@ -269,6 +286,9 @@ def report(supervisor: Supervisor, sim_time: float, wall_time: float) -> list[st
     if stall >= STALL_NOTE:
         head.append(f'[bringup] note: simulated time stood still for {stall:.1f} s wall at t={at:.3f} s (lockstep '
                     f'waiting for a controller\'s answer, or a busy machine: see the lines above)')
+    integrity = monitor.integrity
+    head.append(f'[bringup] {integrity.message}' if integrity is not None else
+                '[bringup] reproducible: unknown (the simulator\'s lockstep_status never came)')
     if plan.record_dir is not None:
         try:
             figures, motions = summary.from_bag(plan.record_dir)
@@ -277,7 +297,7 @@ def report(supervisor: Supervisor, sim_time: float, wall_time: float) -> list[st
         notes.append(f'[bringup] recorded to {plan.record_dir} (bag summary {plan.record_dir} says more)')
     elif monitor.tally is not None:
         figures = monitor.tally.figures
-        motions = {track.label: summary.motion_of(track.samples) for track in monitor.tracks.values()}
+        motions = summary.motions_of({track.label: track.samples for track in monitor.tracks.values()}, monitor.world)
         time_step = _time_step(plan)
         lost = sum(samples_missing(track, time_step, sim_time) for track in monitor.tracks.values())
         if lost:
@@ -297,7 +317,7 @@ def _time_step(plan: Plan) -> float:
 
 
 def run(args: argparse.Namespace, plan: Plan) -> int:
-    print(f'[bringup] {ros_domain()}', flush=True)
+    say(f'[bringup] {ros_domain()}')
     children = Children()
     supervisor = Supervisor(args, plan, children)
     for signum in (signal.SIGINT, signal.SIGTERM):
@@ -329,9 +349,9 @@ def run(args: argparse.Namespace, plan: Plan) -> int:
     for signum in (signal.SIGINT, signal.SIGTERM):  # all is stopped: a late Ctrl-C must not change the exit code
         signal.signal(signum, signal.SIG_IGN)
     for line in lines + [f'[bringup] note: {note}' for note in notes]:
-        print(line, flush=True)
+        say(line)
     for problem in ([failure] if failure else []) + problems:
-        print(f'[bringup] error: {problem}', file=sys.stderr, flush=True)
+        say(f'[bringup] error: {problem}', sys.stderr)
     return 2 if refused else 1 if failure or problems else 0
 
 

@@ -1,13 +1,14 @@
 """`epuck_ros/Avoid-v0`: one e-puck learning obstacle avoidance, as one Gymnasium environment or N in one process.
 
-Observation, action and reward: see `epuck_ros.envs.worlds`; `info['contacts']`: the contacts with walls and
-obstacles so far in the episode (each counted once, when it began), `info['touching']`: whether the body touches
-something now. An episode starts at a random pose clear of every
-obstacle and is truncated after `duration` simulated seconds (32 ms steps); it never terminates (a contact is not
-an end: the fitness already pays for it). The vector form steps N worlds together in NumPy; as Gymnasium's own
-vector environments, `reset(seed=s)` seeds world i with s + i, so world i replays a lone environment reset with
-seed s + i, and a world's next episode starts on the step after its last (autoreset NEXT_STEP; all worlds end
-together).
+Observation, action (an action beyond [-1, 1] is clipped to it) and reward: see `epuck_ros.envs.worlds`. `step()`'s
+`info` holds `contacts`, the contacts with walls and obstacles so far in the episode (each counted once, when it
+began), and `touching`, whether the body touches one now (what a fitness that judges time in contact needs); the
+vector form gives each as an array with Gymnasium's mask (`_contacts`, `_touching`); `reset()`'s info is empty.
+An episode starts at a random pose clear of every obstacle and is truncated after `duration` simulated seconds
+(32 ms steps); it never terminates (a contact is not an end: the fitness already pays for it). The vector form
+steps N worlds together in NumPy; as Gymnasium's own vector environments, `reset(seed=s)` seeds world i with s + i,
+so world i replays a lone environment reset with seed s + i, and a world's next episode starts on the step after
+its last (autoreset NEXT_STEP; all worlds end together).
 """
 from __future__ import annotations
 
@@ -16,7 +17,7 @@ from typing import Any
 
 import gymnasium as gym
 import numpy as np
-from gymnasium import spaces
+from gymnasium import logger, spaces
 from gymnasium.utils import seeding
 from gymnasium.vector import AutoresetMode, VectorEnv
 
@@ -28,6 +29,20 @@ DEFAULT_DURATION = 20.0
 """Simulated seconds per episode (625 steps)."""
 RENDER_FPS = 31.25
 """Steps per simulated second (32 ms steps)."""
+NO_RENDER_MODE = ('render() returns None: the environment was made without a render mode (make it with '
+                  "render_mode='rgb_array' to get frames)")
+"""What render() warns without a render mode (Gymnasium's own environments warn so too)."""
+
+
+def renders(render_mode: str | None, started: bool) -> bool:
+    """Whether render() draws a frame: with a render mode, after reset() (ResetNeeded before); without one it warns
+    (`NO_RENDER_MODE`) and returns None, as Gymnasium's and PettingZoo's environments do."""
+    if render_mode is None:
+        logger.warn(NO_RENDER_MODE)
+        return False
+    if not started:
+        raise gym.error.ResetNeeded('call reset() before render()')
+    return True
 
 
 def observation_space() -> spaces.Box:
@@ -68,6 +83,9 @@ class AvoidEnv(gym.Env):
         return observation, {}
 
     def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict]:
+        """One 32 ms step; info: `contacts` (with walls and obstacles so far this episode) and `touching` (now)."""
+        if self._worlds.sim is None:
+            raise gym.error.ResetNeeded('call reset() before step()')
         left, right = check_actions(action, (2,)).tolist()
         observation, reward, truncated = self._worlds.step_one(left, right)
         sim = self._worlds.sim
@@ -77,7 +95,8 @@ class AvoidEnv(gym.Env):
                                                        'touching': bool(sim.in_contact[0])}
 
     def render(self) -> np.ndarray | None:
-        if self.render_mode is None or self._worlds.sim is None:
+        """The arena from above (PIXELS x PIXELS rgb): the robot, its rays and its trail this episode."""
+        if not renders(self.render_mode, self._worlds.sim is not None):
             return None
         return self._picture.frame(self._worlds.sim.true_pose, self._worlds.last_activation, [np.array(self._trail)])
 
@@ -143,8 +162,8 @@ class AvoidVectorEnv(VectorEnv):
                 '_touching': every}
 
     def render(self) -> tuple[np.ndarray, ...] | None:
-        """One frame per world."""
-        if self.render_mode is None or self._worlds.sim is None:
+        """One frame per world, as the single environment draws it."""
+        if not renders(self.render_mode, self._worlds.sim is not None):
             return None
         trails = np.stack(self._trails, axis=1)   # (worlds, steps, 2)
         poses, activation = self._worlds.sim.true_pose, self._worlds.last_activation

@@ -3,11 +3,17 @@
 The robots touch and see each other (an ordinary `Simulation`, IR noise drawn by it); each agent's observation,
 action and reward are those of `epuck_ros/Avoid-v0` (see `epuck_ros.envs.worlds`). `reset(seed=...)` places the
 robots clear of everything and of each other (`place_robots`) and seeds the noise, both from the seed; episodes
-are truncated together after `duration` simulated seconds. `parallel_env(robots=N)` is the parallel form,
-`env(robots=N)` the AEC form (agents acting in turn, the world stepping once all have acted).
+are truncated together after `duration` simulated seconds, after which step() is refused until reset(). An action
+for an agent the episode does not have is refused. `step()`'s infos hold, per agent, `contacts` (its contacts so far
+in the episode, each counted once when it began: walls, obstacles and robots), `robot_contacts` (those with another
+robot) and `touching` (whether it touches something now); `reset()`'s are empty, as Avoid-v0's. `render()` draws
+every robot as Avoid-v0 draws its one (render_mode='rgb_array'; without it, a warning and None).
+`parallel_env(robots=N)` is the parallel form, `env(robots=N)` the AEC form (agents acting in turn, the world
+stepping once all have acted).
 """
 from __future__ import annotations
 
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
@@ -17,7 +23,7 @@ from gymnasium.utils import seeding
 from pettingzoo import ParallelEnv
 from pettingzoo.utils.conversions import parallel_to_aec
 
-from epuck_ros.envs.avoid import DEFAULT_DURATION, RENDER_FPS, action_space, observation_space, world_of
+from epuck_ros.envs.avoid import DEFAULT_DURATION, RENDER_FPS, action_space, observation_space, renders, world_of
 from epuck_ros.envs.picture import Picture
 from epuck_ros.envs.worlds import activations, check_actions, episode_steps, observations, step_rewards
 from epuck_ros.model import RobotModel
@@ -76,12 +82,21 @@ class SwarmAvoidEnv(ParallelEnv):
     def step(self, actions: dict[str, np.ndarray]) -> tuple[dict, dict, dict, dict, dict]:
         if self.sim is None:
             raise RuntimeError('call reset() before step()')
+        if not self.agents:
+            raise RuntimeError('the episode has ended (every agent truncated): call reset() before step()')
+        if not isinstance(actions, Mapping):
+            raise ValueError(f'action rejected: expected a dict of actions by agent name, got {type(actions).__name__}')
+        live = set(self.agents)
+        unknown = [str(agent) for agent in actions if agent not in live]
+        if unknown:
+            raise ValueError(f'action rejected: no agent {", ".join(unknown[:5])} in this episode (agents '
+                             f'{self.agents[0]}..{self.agents[-1]})')
         missing = [agent for agent in self.agents if agent not in actions]
         if missing:
             raise ValueError(f'action rejected: no action for {", ".join(missing)}')
         top = self.model.max_wheel_speed
         for index, agent in enumerate(self.possible_agents):
-            if agent in self.agents:
+            if agent in live:
                 left, right = check_actions(actions[agent], (2,)).tolist()
                 self.sim.command_wheels(index, left * top, right * top)
         self.sim.step()
@@ -95,7 +110,14 @@ class SwarmAvoidEnv(ParallelEnv):
         rewards = {agent: reward[int(agent[5:])] for agent in agents}
         self.agents = [] if ended else agents
         return (observation, rewards, {agent: False for agent in agents}, {agent: ended for agent in agents},
-                {agent: {} for agent in agents})
+                self._infos(agents))
+
+    def _infos(self, agents: list[str]) -> dict[str, dict[str, Any]]:
+        """Each agent's contacts so far in the episode, those with robots among them, and whether it touches now."""
+        sim = self.sim
+        contacts, robots, touching = sim.collisions.tolist(), sim.robot_collisions.tolist(), sim.in_contact.tolist()
+        return {agent: {'contacts': contacts[i], 'robot_contacts': robots[i], 'touching': touching[i]}
+                for agent, i in ((agent, int(agent[5:])) for agent in agents)}
 
     def _observe(self) -> dict[str, np.ndarray]:
         self._activation = activations(self.sim.ir_raw, self.model)
@@ -103,7 +125,8 @@ class SwarmAvoidEnv(ParallelEnv):
         return {agent: rows[int(agent[5:])] for agent in self.agents}
 
     def render(self) -> np.ndarray | None:
-        if self.render_mode is None or self.sim is None:
+        """The arena from above with every robot, its rays and its trail this episode, as Avoid-v0 draws one."""
+        if not renders(self.render_mode, self.sim is not None):
             return None
         trails = np.stack(self._trail, axis=1)
         return self._picture.frame(self.sim.true_pose, self._activation, list(trails))

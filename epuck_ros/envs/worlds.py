@@ -10,8 +10,10 @@ of everything), eight normals for the readings at reset, eight more at each step
 Observation (float32, 10 values): the eight IR activations, each 1 - d / 0.0673 for the distance d (m) the raw value
 stands for on the lookup table (`activations`: 0 with nothing seen, 0.70 at 2 cm), then the two wheel
 speeds applied in the last step as fractions of the maximum, in [-1, 1] (the speeds commanded: a blocked robot's
-wheels turn on). Action: the two wheel speeds (left, right) as fractions of the maximum (6.28 rad/s), in [-1, 1].
-Reward: Floreano and Mondada's fitness of the step, V (1 - sqrt(dv)) (1 - i) in [-1, 1] (see `fitness`).
+wheels turn on). Action: the two wheel speeds (left, right) as fractions of the maximum (6.28 rad/s), in [-1, 1]; a
+finite value beyond is clipped to it (as the wheels clamp a speed beyond their maximum), NaN and infinities are
+refused (`check_actions`). Reward: Floreano and Mondada's fitness of the step, V (1 - sqrt(dv)) (1 - i) in [-1, 1]
+(see `fitness`).
 """
 from __future__ import annotations
 
@@ -207,21 +209,27 @@ def observations(activation: np.ndarray, wheel_speeds: np.ndarray, model: RobotM
 
 
 def check_actions(actions: object, shape: tuple[int, ...]) -> np.ndarray:
-    """`actions` as a float array of `shape` ((2,) or (count, 2)); CommandError (a ValueError) saying what is wrong
-    for another shape or a NaN / inf."""
+    """`actions` as a float array of `shape` ((2,) or (count, 2)), each value clipped to the action space's [-1, 1]
+    (the wheels' own clamp: 5 or 1e308 is full speed); CommandError (a ValueError) saying what is wrong for another
+    shape, a NaN or an infinity, or a number no float holds (10**400)."""
     try:
         array = np.asarray(actions, dtype=float)
+    except OverflowError:
+        raise CommandError(f'action rejected: wheel speeds must be finite numbers, got one too large for a float '
+                           f'(shape {shape} expected)') from None
     except (TypeError, ValueError):
         raise CommandError(f'action rejected: expected wheel speeds (fractions of the maximum) of shape {shape}, '
                            f'got {actions!r}') from None
     if array.shape != shape:
         raise CommandError(f'action rejected: expected shape {shape} (left, right wheel speeds as fractions of the '
                            f'maximum), got shape {array.shape}')
-    if len(shape) == 1 and all(map(math.isfinite, array.tolist())):   # one action: plain floats, no NumPy call
-        return array
+    if len(shape) == 1:   # one action: plain floats, no NumPy call
+        left, right = array.tolist()
+        if math.isfinite(left) and math.isfinite(right):
+            return array if -1.0 <= left <= 1.0 and -1.0 <= right <= 1.0 else np.clip(array, -1.0, 1.0)
     if not np.isfinite(array).all():
         rows = array.reshape(-1, 2)
         bad = int(np.flatnonzero(~np.isfinite(rows).all(axis=1))[0])
         where = f' in world {bad}' if len(shape) == 2 else ''
         raise CommandError(f'action rejected: wheel speeds must be finite numbers, got {rows[bad].tolist()}{where}')
-    return array
+    return np.clip(array, -1.0, 1.0)

@@ -11,7 +11,9 @@ import csv
 import json
 import sys
 import time
+from collections.abc import Callable
 from pathlib import Path
+from typing import BinaryIO
 
 import numpy as np
 
@@ -20,9 +22,11 @@ from epuck_ros.evolution.evaluate import evaluate
 from epuck_ros.evolution.ga import initial_population, next_generation
 from epuck_ros.evolution.network import GENES
 from epuck_ros.experiments.cluster import (
-    ClusterError, add_cluster_arguments, check_cluster_arguments, open_client)
+    ClusterError, add_cluster_arguments, check_cluster_arguments, default_workers, open_client)
+from epuck_ros.experiments.interruption import exit_code, interrupts_ignored, terminate_as_interrupt
+from epuck_ros.experiments.output import OutputError, OutputFolder
 
-EXIT_BAD_INPUT, EXIT_INTERRUPTED = 2, 130
+EXIT_FAILED, EXIT_BAD_INPUT = 1, 2
 PAPER_POPULATION, PAPER_GENERATIONS = 80, 100
 """Floreano and Mondada (1994)."""
 LIMITS = {'population': (2, 10000), 'generations': (1, 100000), 'seed': (0, 2 ** 32 - 1)}
@@ -57,35 +61,92 @@ def parse_args(argv: list[str]) -> argparse.Namespace:
 
 def main(argv: list[str] | None = None) -> None:
     args = parse_args(sys.argv[1:] if argv is None else argv)
-    try:
-        args.output.mkdir(parents=True, exist_ok=True)
-        (args.output / 'fitness.csv').touch()
-    except OSError as error:
-        print(f'evolve: -o {args.output}: cannot write there: {error.strerror}', file=sys.stderr)
-        raise SystemExit(EXIT_BAD_INPUT) from None
+    folder = OutputFolder(args.output)
     began = time.monotonic()
     history: list[tuple[int, float, float]] = []
     best: dict = {'fitness': -np.inf}
+    interrupted: KeyboardInterrupt | None = None
     try:
-        with open_client(args.workers, args.scheduler) as client:
-            evolve(args, client, history, best)
-    except ClusterError as error:
+        with terminate_as_interrupt():
+            folder.lock()   # if it exists: nothing is written before the cluster answers
+            workers = min(default_workers() if args.workers is None else args.workers, args.population)
+            with open_client(workers, args.scheduler) as client:
+                folder.make()
+                with EvolutionFiles(folder, args) as files:
+                    evolve(args, client, history, best, files.generation)
+    except (ClusterError, OutputError) as error:
         print(f'evolve: {error}', file=sys.stderr)
         raise SystemExit(EXIT_BAD_INPUT) from None
-    except KeyboardInterrupt:
-        print(f'[evolve] interrupted after {len(history)} generations', file=sys.stderr)
-        if not history:
-            raise SystemExit(EXIT_INTERRUPTED) from None
-    write_outputs(args, history, best)
-    print(f'[evolve] {len(history)} generations of {args.population} in {time.monotonic() - began:.1f} s; '
-          f'best fitness {best["fitness"]:.4f} (generation {best["generation"]}); wrote {args.output}/fitness.csv, '
-          'fitness.png, best_genome.json, evolved_controller.py', file=sys.stderr)
+    except Exception as error:  # noqa: BLE001 - Dask's KilledWorker (not imported without a cluster); else raised
+        if type(error).__name__ != 'KilledWorker':
+            raise
+        print(f'evolve: the Dask workers died under a batch of generation {len(history)}, each time Dask tried '
+              f'it (KilledWorker); {len(history)} generations written to {args.output}', file=sys.stderr)
+        raise SystemExit(EXIT_FAILED) from None
+    except KeyboardInterrupt as interruption:   # Ctrl-C or SIGTERM: what ran is written already
+        interrupted = interruption
+    try:
+        with interrupts_ignored():
+            if history:
+                files.write_best(best, len(history))
+                folder.replace('fitness.png', lambda out: draw_fitness(history, out))
+    except OutputError as error:   # the disk filled up, say
+        print(f'evolve: {error}', file=sys.stderr)
+        raise SystemExit(EXIT_FAILED) from None
+    ran = f'{len(history)} of {args.generations} generations' if interrupted else f'{len(history)} generations'
+    if history:
+        print(f'{"[evolve] interrupted: " if interrupted else "[evolve] "}{ran} of {args.population} in '
+              f'{time.monotonic() - began:.1f} s; best fitness {best["fitness"]:.4f} (generation '
+              f'{best["generation"]}); wrote {args.output}/fitness.csv, fitness.png, best_genome.json, '
+              'evolved_controller.py', file=sys.stderr)
+    else:
+        print('[evolve] interrupted before the first generation ended', file=sys.stderr)
+    if interrupted:
+        raise SystemExit(exit_code(interrupted))
+
+
+class EvolutionFiles:
+    """The files of the generations so far, written as each generation ends (an interrupted or killed evolution
+    keeps them): a row of OUT/fitness.csv per generation, and OUT/best_genome.json and OUT/evolved_controller.py
+    written anew (whole, `OutputFolder.replace`) when the best genome changes and at the end, saying how many
+    generations ran."""
+
+    def __init__(self, folder: OutputFolder, args: argparse.Namespace) -> None:
+        self.folder, self.args = folder, args
+        self._fitness = open(folder.replace('fitness.csv', lambda out: None), 'a', newline='')
+        self._rows = csv.writer(self._fitness)
+        self._rows.writerow(['generation', 'best', 'mean'])
+
+    def __enter__(self) -> EvolutionFiles:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self._fitness.close()
+
+    def generation(self, history: list[tuple[int, float, float]], best: dict, improved: bool) -> None:
+        generation, top, mean = history[-1]
+        self._rows.writerow([generation, repr(top), repr(mean)])
+        self._fitness.flush()
+        if improved:
+            self.write_best(best, len(history))
+
+    def write_best(self, best: dict, generations: int) -> None:
+        """The best genome and its controller, after `generations` generations."""
+        args = self.args
+        settings = {'population': args.population, 'generations': generations, 'duration': args.duration,
+                    'seed': args.seed}
+        if generations < args.generations:
+            settings['generations_asked'] = args.generations
+        text = json.dumps({**best, **settings}, indent=1) + '\n'
+        self.folder.replace('best_genome.json', lambda out: out.write(text.encode()))
+        script = controller_script(best['genome'], best['generation'], best['fitness'], self.args.seed)
+        self.folder.replace('evolved_controller.py', lambda out: out.write(script.encode()))
 
 
 def evolve(args: argparse.Namespace, client: object | None, history: list[tuple[int, float, float]],
-           best: dict) -> None:
+           best: dict, done: Callable[[list, dict, bool], None]) -> None:
     """Run the generations, appending (generation, best, mean) to `history` and keeping the best genome found in
-    `best` (its fitness, generation and weights), so an interruption leaves what was done."""
+    `best` (its fitness, generation and weights); `done(history, best, improved)` after each generation."""
     rng = np.random.default_rng(args.seed)
     population = initial_population(rng, args.population, GENES)
     batches = 1 if client is None else max(1, len(client.scheduler_info()['workers']))
@@ -94,8 +155,10 @@ def evolve(args: argparse.Namespace, client: object | None, history: list[tuple[
         fitness = score(client, population, trial_seed, args.duration, batches)
         top = int(np.argmax(fitness))
         history.append((generation, float(fitness[top]), float(fitness.mean())))
-        if fitness[top] > best['fitness']:
+        improved = bool(fitness[top] > best['fitness'])
+        if improved:
             best.update(fitness=float(fitness[top]), generation=generation, genome=population[top].tolist())
+        done(history, best, improved)
         print(f'[evolve] generation {generation}: best {fitness[top]:.4f} mean {fitness.mean():.4f}',
               file=sys.stderr, flush=True)
         if generation + 1 < args.generations:
@@ -111,19 +174,7 @@ def score(client: object | None, population: np.ndarray, seed: int, duration: fl
     return np.concatenate(client.gather(futures))
 
 
-def write_outputs(args: argparse.Namespace, history: list[tuple[int, float, float]], best: dict) -> None:
-    with open(args.output / 'fitness.csv', 'w', newline='') as out:
-        writer = csv.writer(out)
-        writer.writerow(['generation', 'best', 'mean'])
-        writer.writerows([generation, repr(top), repr(mean)] for generation, top, mean in history)
-    settings = {name: getattr(args, name) for name in ('population', 'generations', 'duration', 'seed')}
-    (args.output / 'best_genome.json').write_text(json.dumps({**best, **settings}, indent=1) + '\n')
-    (args.output / 'evolved_controller.py').write_text(
-        controller_script(best['genome'], best['generation'], best['fitness'], args.seed))
-    draw_fitness(history, args.output / 'fitness.png')
-
-
-def draw_fitness(history: list[tuple[int, float, float]], path: Path) -> None:
+def draw_fitness(history: list[tuple[int, float, float]], out: BinaryIO) -> None:
     """Best and mean fitness per generation, as the paper plots them."""
     import matplotlib
     matplotlib.use('Agg')
@@ -139,7 +190,7 @@ def draw_fitness(history: list[tuple[int, float, float]], path: Path) -> None:
     axes.grid(alpha=0.3)
     axes.legend()
     figure.tight_layout()
-    figure.savefig(path, metadata={'Software': None})
+    figure.savefig(out, format='png', metadata={'Software': None})
 
 
 if __name__ == '__main__':

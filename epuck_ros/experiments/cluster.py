@@ -18,12 +18,19 @@ from contextlib import contextmanager
 from typing import Any, TypeVar
 from urllib.parse import urlsplit
 
+from epuck_ros import untrusted_yaml
+
 T = TypeVar('T')
 PIN_LOCAL_WORKERS = True
 """Whether a local cluster keeps each worker process on a core of its own (`placement.OneCorePerWorker`)."""
 
 CONNECT_TIMEOUT = 5.0
 """Seconds for a TCP connection to a scheduler's address before saying it is unreachable (refused: at once)."""
+WORKERS_PER_CORE = 4
+"""`--workers` at most this many per core of this machine."""
+MAX_FIRST_FRAME = 1 << 20
+"""Bytes; a Dask scheduler's first frame (its handshake) is far smaller. A larger length is no Dask peer's: an SSH
+server's banner read as a length asks for exabytes."""
 SCHEDULER_TIMEOUT = 8.0
 """Seconds for the whole connection to a scheduler, TCP, Dask's handshake and the client's registration: a port
 that accepts but never answers as a scheduler is one line and exit 2 within 10 s of the sweep's start, not a wait
@@ -39,6 +46,12 @@ def default_workers() -> int:
     return os.cpu_count() or 1
 
 
+def max_workers() -> int:
+    """Local workers at most: a trial keeps a core busy, so beyond a few per core workers only cost memory (each
+    is a process of about 100 MB) and start-up time."""
+    return WORKERS_PER_CORE * default_workers()
+
+
 def add_cluster_arguments(parser: argparse.ArgumentParser, work: str) -> None:
     """`--workers` and `--scheduler`, as `sweep` and `evolve` take them; `work` names what runs ('every trial')."""
     parser.add_argument('--workers', type=int, default=None,
@@ -52,24 +65,30 @@ def check_cluster_arguments(parser: argparse.ArgumentParser, args: argparse.Name
     """Refuse (exit 2, one line) what `add_cluster_arguments` cannot take."""
     if args.workers is not None and args.workers < 0:
         parser.error('--workers must be 0 or more')
+    if args.workers is not None and args.workers > max_workers():
+        parser.error(f'--workers must be at most {max_workers()} ({WORKERS_PER_CORE} per core)')
+    if args.workers is not None and args.scheduler is not None:
+        parser.error('--workers and --scheduler: the workers of the cluster at --scheduler run the work; give one')
 
 
 @contextmanager
-def open_client(workers: int | None, scheduler: str | None) -> Iterator[object | None]:
+def open_client(workers: int | None, scheduler: str | None,
+                allowed_failures: int | None = None) -> Iterator[object | None]:
     """A dask.distributed Client for the trials, or None for `workers == 0` (every trial in this process).
-    No scheduler: a local cluster of `workers` processes (default one per core), closed on leaving."""
+    No scheduler: a local cluster of `workers` processes (default one per core), closed on leaving, whose scheduler
+    gives up on a task after `allowed_failures` deaths of the workers running it (default: Dask's, 3)."""
     if scheduler is None and workers == 0:
         yield None
         return
     from dask.distributed import Client, LocalCluster
     if scheduler is not None:
         deadline = time.monotonic() + SCHEDULER_TIMEOUT
+        address = _probe(scheduler, deadline)
         try:
-            _probe(scheduler, deadline)
-            client = Client(scheduler, timeout=max(0.1, deadline - time.monotonic()))
-        except (OSError, TimeoutError, ValueError) as error:
+            client = Client(address, timeout=max(0.1, deadline - time.monotonic()))
+        except Exception as error:  # noqa: BLE001 - whatever the peer made of Dask's handshake: one line
             raise ClusterError(f'cannot reach the Dask scheduler {scheduler} within {SCHEDULER_TIMEOUT:g} s: '
-                               f'{str(error) or "no answer as a Dask scheduler"}') from None
+                               f'{_said(error)}') from None
         try:
             yield client
         finally:
@@ -80,7 +99,8 @@ def open_client(workers: int | None, scheduler: str | None) -> Iterator[object |
     try:
         with _without_ctrl_c():
             cluster = LocalCluster(n_workers=workers or default_workers(), threads_per_worker=1, processes=True,
-                                   dashboard_address=':0', silence_logs=50)
+                                   dashboard_address=':0', silence_logs=50,
+                                   scheduler_kwargs={'allowed_failures': allowed_failures})
     except BaseException:
         _stop_resource_tracker()   # a cluster whose workers failed to start leaves it running as well
         raise
@@ -121,21 +141,55 @@ def _without_ctrl_c() -> Iterator[None]:
         signal.signal(signal.SIGINT, handler)
 
 
-def _probe(scheduler: str, deadline: float) -> None:
-    """Raise ClusterError at once when nothing listens at a tcp:// address (Dask's connect retries until its
-    timeout), TimeoutError when what listens does not answer Dask's handshake before `deadline` (monotonic)."""
+def _probe(scheduler: str, deadline: float) -> str:
+    """The tcp:// address of a Dask scheduler at `scheduler` (tcp://HOST:PORT or HOST:PORT), or ClusterError: at once
+    when nothing listens (Dask's connect retries until its timeout), when what listens first says something that is
+    no Dask frame (an SSH server's banner), or when it does not answer Dask's handshake before `deadline`
+    (monotonic; Dask's own handshake read waits for ever)."""
+    scheme = scheduler.partition('://')[0] if '://' in scheduler else 'tcp'
+    if scheme != 'tcp':
+        why = {'tls': 'tls:// needs certificates, which sweep and evolve do not take',
+               'ucx': 'ucx:// needs UCX, which this package does not install'}.get(scheme, f'not {scheme}://')
+        raise ClusterError(f'--scheduler {scheduler}: only tcp://HOST:PORT addresses are taken ({why})')
     parts = urlsplit(scheduler if '://' in scheduler else f'tcp://{scheduler}')
     try:
         port = parts.port
     except ValueError:
         port = None
-    if parts.scheme != 'tcp' or not parts.hostname or port is None:
-        return   # another transport (tls://, ucx://, inproc://): Dask's connect says what is wrong
+    if not parts.hostname or port is None or parts.path not in ('', '/') or parts.query or parts.fragment:
+        raise ClusterError(f'--scheduler {scheduler}: expected tcp://HOST:PORT')
     try:
-        socket.create_connection((parts.hostname, port), timeout=CONNECT_TIMEOUT).close()
+        with socket.create_connection((parts.hostname, port), timeout=CONNECT_TIMEOUT) as connection:
+            connection.settimeout(max(0.1, deadline - time.monotonic()))
+            first = b''
+            while len(first) < 8:   # a Dask peer speaks first: the length of its handshake frame
+                chunk = connection.recv(8 - len(first))
+                if not chunk:
+                    break
+                first += chunk
+    except TimeoutError:
+        raise ClusterError(f'cannot reach the Dask scheduler {scheduler} within {SCHEDULER_TIMEOUT:g} s: no answer as '
+                           'a Dask scheduler') from None
     except OSError as error:
         raise ClusterError(f'cannot reach the Dask scheduler {scheduler}: {error.strerror or error}') from None
-    asyncio.run(_handshake(f'tcp://{parts.netloc}', max(0.1, deadline - time.monotonic())))
+    if len(first) < 8 or int.from_bytes(first, 'little') > MAX_FIRST_FRAME:
+        shown = untrusted_yaml.cut(repr(first.decode('ascii', 'replace')), 40) if first else 'nothing'
+        raise ClusterError(f'{scheduler} is not a Dask scheduler: it said {shown} where a Dask peer starts its '
+                           'handshake')
+    address = f'tcp://{parts.netloc}'
+    try:
+        asyncio.run(_handshake(address, max(0.1, deadline - time.monotonic())))
+    except Exception as error:  # noqa: BLE001 - whatever the peer made of the handshake: one line
+        raise ClusterError(f'cannot reach the Dask scheduler {scheduler} within {SCHEDULER_TIMEOUT:g} s: '
+                           f'{_said(error)}') from None
+    return address
+
+
+def _said(error: Exception) -> str:
+    """An error of Dask's connection in a few words."""
+    text = untrusted_yaml.cut(str(error), 200)
+    return text if isinstance(error, (OSError, TimeoutError)) and text else \
+        f'no answer as a Dask scheduler ({type(error).__name__}{": " + text if text else ""})'
 
 
 async def _handshake(address: str, seconds: float) -> None:

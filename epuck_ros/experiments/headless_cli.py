@@ -2,25 +2,41 @@
 
 The run is that of `bringup --controller SCRIPT --lockstep --real-time-factor 0` with the same world, seed and
 duration (`trial.run`), at the core's speed; the script's output goes to the terminal as usual, and the end is
-`bringup`'s summary, computed by the same code. Exit code: 0 (also after Ctrl-C), 1 when the script failed (its
-traceback above), 2 for a bad command line.
+`bringup`'s summary, computed by the same code. Exit code: 0, 1 when the script failed (its traceback above), 2 for
+a bad command line or a recording the disk cannot hold, 130 (Ctrl-C) or 143 (SIGTERM) for a run cut short.
 """
 from __future__ import annotations
 
 import argparse
+import math
+import os
 import sys
 import time
 from pathlib import Path
+from typing import TYPE_CHECKING
 
+import numpy as np
+
+from epuck_ros.bag.shapes import Motion, classify_runs
 from epuck_ros.bringup import summary
 from epuck_ros.conversions import nanoseconds_from_stamp, stamp_from_seconds
+from epuck_ros.experiments.interruption import exit_code, terminate_as_interrupt
+from epuck_ros.experiments.record_budget import LARGE, RecordRefused, check_room, estimate
 from epuck_ros.experiments.spec import MAX_DURATION, MAX_ROBOTS
 from epuck_ros.experiments.trial import DEFAULT_WORLD, Script, Trial, run
+from epuck_ros.model import TIME_STEP
+from epuck_ros.simulation import MAX_SEED, Simulation
 from epuck_ros.webots.headless import ScriptError
-from epuck_ros.world import WorldError
+from epuck_ros.webots.script_file import FileMissing, FileProblem, read_script
+from epuck_ros.world import World, WorldError
+
+if TYPE_CHECKING:
+    from epuck_ros.experiments.recording import TrialRecorder
 
 PROGRAM = 'webots_controller'
 EXIT_FAILED, EXIT_BAD_INPUT = 1, 2
+MAX_SHAPE_SAMPLES = 2_000_000
+"""Robot-steps of ground truth kept for the shapes driven, at most (64 MB): one robot for an hour is 112,500."""
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -47,17 +63,21 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def check(parser: argparse.ArgumentParser, args: argparse.Namespace) -> Trial:
-    if not args.script.is_file():
+    try:
+        read_script(args.script)
+    except FileMissing:
         parser.error(f'no such controller script: {args.script}')
+    except FileProblem as problem:
+        parser.error(f'controller script {args.script}: {problem}')
     if not 0 < args.duration <= MAX_DURATION:
         parser.error(f'--duration must be above 0 and at most {MAX_DURATION:g} simulated seconds')
     if not 0 <= args.robots <= MAX_ROBOTS:
         parser.error(f'--robots must be from 1 to {MAX_ROBOTS}')
-    if not 0 <= args.seed < 2**63:
-        parser.error('--seed must be from 0 to 2**63 - 1')
+    if not 0 <= args.seed <= MAX_SEED:
+        parser.error(f'--seed must be from 0 to {MAX_SEED} (as bringup --seed)')
     if args.world != DEFAULT_WORLD and not Path(args.world).is_file():
         parser.error(f'--world: no such file: {args.world}')
-    if args.record is not None and args.record.exists():
+    if args.record is not None and os.path.lexists(args.record):
         parser.error(f'--record {args.record}: already exists (pick a new folder)')
     world = args.world if args.world == DEFAULT_WORLD else str(Path(args.world).resolve())
     trial = Trial(Script(str(args.script.resolve())), world, args.robots if args.robots > 1 else 0, args.seed,
@@ -69,41 +89,83 @@ def check(parser: argparse.ArgumentParser, args: argparse.Namespace) -> Trial:
     return trial
 
 
+def start_recording(parser: argparse.ArgumentParser, args: argparse.Namespace, world: World) -> TrialRecorder:
+    """The recorder of --record, once the disk is known to hold it (said first when the bag will be large)."""
+    from epuck_ros.experiments.recording import TrialRecorder
+    try:
+        size = estimate([(len(world.robots), args.duration)])
+        line = check_room(args.record.parent, size, f'--record {args.record}')
+        if size >= LARGE:
+            print(f'[{PROGRAM}] {line}', flush=True)
+        return TrialRecorder(args.record, world)
+    except RecordRefused as error:
+        parser.error(str(error))
+    except OSError as error:
+        parser.error(f'--record {args.record}: cannot write there: {error.strerror or error}')
+
+
+class Tracks:
+    """Every robot's ground truth at each step, for the shape it drove (`summary.trajectory_of_track`): kept in arrays
+    of 32 bytes per robot-step, and only when the run's robot-steps are at most MAX_SHAPE_SAMPLES (a large or long
+    run is summed up without its shapes; distance and contacts are counted as it runs, whatever its size)."""
+
+    def __init__(self, robots: int, duration: float) -> None:
+        steps = math.ceil(duration / TIME_STEP) + 2   # the first step, and the one at or after the duration
+        self.kept = robots * steps <= MAX_SHAPE_SAMPLES
+        self.stamps = np.empty(steps if self.kept else 0, np.int64)
+        self.poses = np.empty((len(self.stamps), robots, 3))
+        self.count = 0
+
+    def add(self, stamp: int, poses: np.ndarray) -> None:
+        if self.kept and self.count == len(self.stamps):   # more steps than the duration makes: no shapes, not
+            self.kept = False                               # shapes of a part of the run
+        if self.kept:
+            self.stamps[self.count] = stamp
+            self.poses[self.count] = poses
+            self.count += 1
+
+    def motions(self, labels: list[str], world: World) -> dict[str, Motion]:
+        """Each robot's shape under its label in `summary.lines`, in `world` with the others; none when the samples
+        were not kept."""
+        if not self.kept:
+            return {}
+        poses, stamps = self.poses[:self.count], self.stamps[:self.count]
+        return classify_runs({label: summary.trajectory_of_track(stamps, poses[:, i, 0], poses[:, i, 1], poses[:, i, 2])
+                              for i, label in enumerate(labels)}, world)
+
+
 def main(argv: list[str]) -> None:
     parser = build_parser()
     args = parser.parse_args(argv)
     trial = check(parser, args)
-    samples: dict[str, list[tuple[int, float, float, float]]] = {}
-    recorder = None
-    if args.record is not None:
-        from epuck_ros.experiments.recording import TrialRecorder
-        recorder = TrialRecorder(args.record, trial.load_world())
+    world = trial.load_world()
+    tracks = Tracks(len(world.robots), trial.duration)
+    recorder = start_recording(parser, args, world) if args.record is not None else None
 
-    def each_step(sim: object) -> None:
-        stamp = nanoseconds_from_stamp(*stamp_from_seconds(sim.time))
-        for name, (x, y, yaw) in zip(sim.names, sim.true_pose.tolist()):
-            samples.setdefault(name, []).append((stamp, x, y, yaw))
-        if recorder is not None:
-            recorder.step(sim)
+    def each_step(sim: Simulation) -> None:
+        tracks.add(nanoseconds_from_stamp(*stamp_from_seconds(sim.time)), sim.true_pose)
 
     began = time.perf_counter()
     try:
-        sim, tally = run(trial, each_step=each_step)
+        with terminate_as_interrupt():
+            sim, tally = run(trial, each_step=each_step, recorder=recorder)
     except ScriptError as error:
         print(f'{PROGRAM}: {error}', file=sys.stderr)
         raise SystemExit(EXIT_FAILED) from None
-    except KeyboardInterrupt:   # Ctrl-C ends the run, as it ends one through bringup (the bag is closed)
+    except KeyboardInterrupt as interruption:   # Ctrl-C or SIGTERM: the run is cut short (the bag is closed)
         print(f'[{PROGRAM}] interrupted' + (f'; recorded to {args.record}' if recorder is not None else ''),
               flush=True)
-        return
+        raise SystemExit(exit_code(interruption)) from None
     finally:
         if recorder is not None:
             recorder.close()
     wall = time.perf_counter() - began
     several = len(sim.names) > 1
-    motions = {name if several else '': summary.motion_of(track) for name, track in samples.items()}
     lines = [f'simulated {sim.time:.2f} s in {wall:.2f} s wall ({sim.time / wall:.0f}x real time), headless']
-    lines += summary.lines(tally.figures, motions)
+    lines += summary.lines(tally.figures, tracks.motions([name if several else '' for name in sim.names], sim.world))
+    if not tracks.kept:
+        lines.append(f'shapes not classified: {len(sim.names)} robots x {sim.steps} steps, more than the '
+                     f'{MAX_SHAPE_SAMPLES} samples kept for them (`bag summary` of a --record bag classifies them)')
     if args.record is not None:
         lines.append(f'recorded to {args.record} (bag summary {args.record} says more)')
     print('\n'.join(f'[{PROGRAM}] {line}' for line in lines), flush=True)

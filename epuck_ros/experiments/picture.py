@@ -1,7 +1,7 @@
 """OUT/sweep.png: per controller, distance and contacts across seeds (one line per world and robot count)."""
 from __future__ import annotations
 
-from pathlib import Path
+from typing import BinaryIO
 
 import matplotlib
 
@@ -10,7 +10,7 @@ import matplotlib.pyplot as plt  # noqa: E402 - after choosing the file backend
 from matplotlib.ticker import MaxNLocator  # noqa: E402
 
 
-def draw_sweep(rows: list[dict], path: Path) -> None:
+def draw_sweep(rows: list[dict], out: BinaryIO) -> None:
     """Two rows of panels (distance, contacts), a column per controller; a robot's row is a point at its seed."""
     good = [row for row in rows if not row['error']]
     controllers = sorted({row['controller'] for row in good}) or ['(no trial ran)']
@@ -40,5 +40,5 @@ def draw_sweep(rows: list[dict], path: Path) -> None:
     failed = len({row['trial'] for row in rows if row['error']})
     figure.suptitle(f'sweep: {len({row["trial"] for row in rows})} trials' + (f', {failed} failed' if failed else ''))
     figure.tight_layout()
-    figure.savefig(path, dpi=100)
+    figure.savefig(out, format='png', dpi=100)
     plt.close(figure)

@@ -1,135 +1,200 @@
-"""A headless trial written as a rosbag2 MCAP bag: the messages the simulator would publish for each step, with the
-same topics, types, frame ids and stamps, serialised by rosbags' typestore and written by `bag.writer.BagWriter`,
-so `bag` (summary, plot, play) and rosbags' AnyReader read it as they read a recorded run.
+"""A headless trial written as the rosbag2 MCAP bag `bringup --record` writes of the same run.
 
-What the simulator node publishes is fixed in `nodes/robot_ports.py` (per robot: odom, ground_truth, 8 Range on
-proximity, joint_states, ir_raw, collisions) and `nodes/sim_node.py` (/clock last, the latched world and
-world_markers); the constants are taken from there. The controllers' own topics (wheel_cmd) are not simulated
-here, so a headless bag has none.
+The simulator's side is made by the simulator's own code: its robots' ports (`RobotPorts`, `SensePorts`), its TF
+(`TfPorts`), its world (`publish_world`) and its /clock, each bound to a `BagNode`, whose publishers write into the
+bag instead of sending over DDS. So a headless bag has the topics, types, bytes and frames of a recorded run by
+construction: robot_description, /tf_static and /tf, odom, ground_truth, proximity, joint_states, ir_raw and
+collisions per robot, the senses a controller read while it read them (as the simulator publishes them: from the step
+after it asked), world, world_markers and /clock; each topic offered with the QoS a recorder reads from the graph.
+A sense is published from the step its controller asked for it on, as the simulator publishes a newly wanted sense's
+current step at once, and `lockstep_status` says the run held (a headless trial is lockstep, always).
+The controllers' side as their nodes publish it: each robot's `wheel_cmd`, one answer per step before the last (the
+answer to the last step drives nothing; a behaviour's node ends with a stop), its array naming the step it answers
+(`layout.dim[0].label` = `conversions.stamp_label`), and a script's `leds` whenever it changes them.
+What only a run over ROS has is not in it: /rosout, /parameter_events, /simulators (the processes' log lines,
+bringup's resume and pause, the simulators' announcements). Log times are the steps' stamps.
 """
 from __future__ import annotations
 
+import logging
+import threading
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-import yaml
-from rosbags.typesys import Stores, get_typestore
+from rclpy.qos import QoSProfile, ReliabilityPolicy
+from rosgraph_msgs.msg import Clock
+from std_msgs.msg import Float64MultiArray, Int32MultiArray
 
 from epuck_ros.bag.qos import QosProfile
 from epuck_ros.bag.writer import BagWriter
-from epuck_ros.conversions import nanoseconds_from_stamp, quaternion_from_yaw, stamp_from_seconds
-from epuck_ros.markers import world_markers
-from epuck_ros.model import SENSOR_NAMES, RobotModel
-from epuck_ros.nodes.robot_ports import (JOINT_NAMES, POSE_COVARIANCE, TWIST_COVARIANCE, WORLD_FRAME, frame_prefix,
-                                         topic_prefix)
-from epuck_ros.nodes.serialized import exact_cdr
+from epuck_ros.conversions import nanoseconds_from_stamp, stamp_from_seconds
+from epuck_ros.integrity import HELD
+from epuck_ros.model import RobotModel
+from epuck_ros.nodes.ack_window import COMMAND_QOS, history_steps
+from epuck_ros.nodes.lockstep_report import LockstepReport
+from epuck_ros.nodes.qos import LATCHED
+from epuck_ros.nodes.robot_ports import WORLD_FRAME, RobotPorts, topic_prefix
+from epuck_ros.nodes.sense_ports import ON_DEMAND_TOPICS, SensePorts
+from epuck_ros.nodes.serialized import Patch, array_bytes, exact_cdr
+from epuck_ros.nodes.sim_node import publish_world
+from epuck_ros.nodes.tf_ports import TfPorts
 from epuck_ros.simulation import Simulation
+from epuck_ros.webots.link import COMMAND_TOPIC, LED_QOS
 from epuck_ros.world import World
 
-TYPES = get_typestore(Stores.ROS2_JAZZY)
-STREAM = [QosProfile(depth=10)]
-LATCHED = [QosProfile(depth=1, durability='transient_local')]
-INFRARED = 1
-"""sensor_msgs/Range's INFRARED."""
+READ = dict.fromkeys(ON_DEMAND_TOPICS, True)
+"""Every sense topic has a reader (the recorder): the senses the simulation computes are published."""
 
 
-def _t(name: str) -> Any:
-    return TYPES.types[name]
+def offered(qos: QoSProfile) -> QosProfile:
+    """A publisher's QoS as a recorder reads it from the graph: Fast DDS tells a remote publisher's reliability and
+    durability, not its history or depth (`history: unknown`, `depth: 0` in every recorded bag)."""
+    return QosProfile(history='unknown', depth=0, reliability=qos.reliability.name.lower(),
+                      durability=qos.durability.name.lower())
 
 
-def _diagonal(values: list[float]) -> np.ndarray:
-    matrix = np.zeros(36)
-    matrix[::7][:len(values)] = values
-    return matrix
+class _BagPublisher:
+    """What a port's publisher does, into the bag: messages or their CDR bytes, at the node's current step."""
+
+    def __init__(self, node: BagNode, msg_type: type, topic: str, qos: QoSProfile) -> None:
+        self._node, self.topic_name = node, node.resolve_topic_name(topic)
+        self._type = f'{msg_type.__module__.split(".")[0]}/msg/{msg_type.__name__}'
+        self._qos = [offered(qos)]
+
+    def publish(self, msg: Any) -> None:
+        self._node.write(self.topic_name, self._type, self._qos, msg if isinstance(msg, bytes) else exact_cdr(msg))
+
+    def get_subscription_count(self) -> int:
+        """The recorder reads every topic."""
+        return 1
+
+
+class _NoSubscription:
+    """A port's command subscription: nothing publishes to it here."""
+
+    def get_publisher_count(self) -> int:
+        return 0
+
+
+class BagNode:
+    """Stands for the simulator's node to its ports: their publishers write into `bag`, each message logged at the
+    current step's stamp (`now_ns`); what they publish before the first step waits for it, as a recorder holds what
+    comes before the first /clock. A topic enters the bag with its first message."""
+
+    def __init__(self, bag: BagWriter) -> None:
+        self._bag = bag
+        self.now_ns: int | None = None
+        self._held: list[tuple[str, bytes]] = []
+
+    def create_publisher(self, msg_type: type, topic: str, qos: QoSProfile, **_: Any) -> _BagPublisher:
+        return _BagPublisher(self, msg_type, topic, qos)
+
+    def create_subscription(self, *_: Any, **__: Any) -> _NoSubscription:
+        return _NoSubscription()
+
+    def get_logger(self) -> logging.Logger:
+        return logging.getLogger('epuck_ros.recording')
+
+    def resolve_topic_name(self, topic: str) -> str:
+        return topic if topic.startswith('/') else '/' + topic
+
+    def write(self, topic: str, type_name: str, qos: list[QosProfile], data: bytes) -> None:
+        if topic not in self._bag.topics:
+            self._bag.add_topic(topic, type_name, qos)
+        if self.now_ns is None:
+            self._held.append((topic, data))
+        else:
+            self._bag.write(topic, data, self.now_ns)
+
+    def step(self, stamp: tuple[int, int]) -> None:
+        """From now on messages are of the step stamped `stamp`; those held are written with the first."""
+        self.now_ns = nanoseconds_from_stamp(*stamp)
+        for topic, data in self._held:
+            self._bag.write(topic, data, self.now_ns)
+        self._held.clear()
 
 
 class TrialRecorder:
-    """`step(sim)` after every step the simulator publishes (trial.run's `each_step`); `close()` at the end."""
+    """`step(sim)` after every step the simulator publishes (trial.run's), `answered` for each controller's answer,
+    `leds` when a script sets them, `stop` when behaviours end; `close()` at the end. Thread-safe: a script answers
+    from its own thread."""
 
     def __init__(self, path: Path, world: World, model: RobotModel = RobotModel()) -> None:
         self._bag = BagWriter(path)
+        self._node = BagNode(self._bag)
         self._world, self._model = world, model
-        self._several = len(world.robots) > 1
-        self._collisions: list[int] | None = None
-        self._started = False
+        self._lock = threading.Lock()
+        self._ports: list[RobotPorts] = []
+        self._senses: list[SensePorts] = []
+        self._controllers: list[tuple[_BagPublisher, _BagPublisher]] = []
+        self._collisions: list[int] = []
+        self._stamp = (0, 0)
 
-    def _topic(self, name: str, type_name: str, qos: list[QosProfile] = STREAM) -> None:
-        self._bag.add_topic(name, type_name, qos)
-
-    def _write(self, topic: str, message: Any, stamp: int) -> None:
-        self._bag.write(topic, bytes(TYPES.serialize_cdr(message, message.__msgtype__)), stamp)
-
-    def _start(self, sim: Simulation, stamp: int) -> None:
-        self._started = True
-        self._topic('/world', 'std_msgs/msg/String', LATCHED)
-        self._write('/world', _t('std_msgs/msg/String')(data=yaml.safe_dump(self._world.to_dict(), sort_keys=False)),
-                    stamp)
-        self._topic('/world_markers', 'visualization_msgs/msg/MarkerArray', LATCHED)
-        self._bag.write('/world_markers', exact_cdr(world_markers(self._world, WORLD_FRAME)), stamp)
-        self._topic('/clock', 'rosgraph_msgs/msg/Clock')
-        for name in sim.names:
-            topics = topic_prefix(name, self._several)
-            for topic, type_name in (('odom', 'nav_msgs/msg/Odometry'), ('ground_truth', 'nav_msgs/msg/Odometry'),
-                                     ('proximity', 'sensor_msgs/msg/Range'),
-                                     ('joint_states', 'sensor_msgs/msg/JointState'),
-                                     ('ir_raw', 'std_msgs/msg/Float64MultiArray')):
-                self._topic('/' + topics + topic, type_name)
-            self._topic('/' + topics + 'collisions', 'std_msgs/msg/UInt32', LATCHED)
-        self._collisions = [-1] * len(sim.names)
+    def _start(self, sim: Simulation) -> None:
+        """The simulator's ports, as the sim node makes them (their latched messages go out at once)."""
+        node, several = self._node, len(sim.names) > 1
+        stream = QoSProfile(depth=history_steps(len(sim.names)), reliability=ReliabilityPolicy.RELIABLE)
+        self._ports = [RobotPorts(node, index, name, several, stream, LATCHED, lambda *_: None, model=self._model)
+                       for index, name in enumerate(sim.names)]
+        self._senses = [SensePorts(node, index, name, several, stream, sim) for index, name in enumerate(sim.names)]
+        self._tf = TfPorts(node, self._ports, sim, several, stream, LATCHED, WORLD_FRAME, self._model)
+        publish_world(node, self._world, '')
+        LockstepReport(node, sim.names, HELD, 0.0, lambda: sim.time)
+        self._clock = node.create_publisher(Clock, '/clock', stream)
+        self._clock_message = Patch(Clock(), [('clock.sec', 'i'), ('clock.nanosec', 'I')])   # as the sim node's
+        self._controllers = [(node.create_publisher(Float64MultiArray, topic_prefix(name, several) + COMMAND_TOPIC,
+                                                    COMMAND_QOS),
+                              node.create_publisher(Int32MultiArray, topic_prefix(name, several) + 'leds', LED_QOS))
+                             for name in sim.names]
+        self._collisions = [0] * len(sim.names)
 
     def step(self, sim: Simulation) -> None:
-        sec, nanosec = stamp_from_seconds(sim.time)
-        stamp = nanoseconds_from_stamp(sec, nanosec)
-        if not self._started:
-            self._start(sim, stamp)
-        time = _t('builtin_interfaces/msg/Time')(sec=sec, nanosec=nanosec)
-        for robot, name in enumerate(sim.names):
-            topics, frames = topic_prefix(name, self._several), frame_prefix(name, self._several)
-            self._write('/' + topics + 'odom', _odometry(time, frames + 'odom', frames + 'base_link',
-                                                         sim.odom_pose[robot], sim.odom_twist[robot], True), stamp)
-            self._write('/' + topics + 'ground_truth', _odometry(time, WORLD_FRAME, frames + 'base_link',
-                                                                 sim.true_pose[robot], sim.true_twist[robot], False),
-                        stamp)
-            data = sim.ir_raw[robot].astype(np.float64)
-            self._write('/' + topics + 'ir_raw', _t('std_msgs/msg/Float64MultiArray')(
-                layout=_t('std_msgs/msg/MultiArrayLayout')(dim=[], data_offset=0), data=data), stamp)
-            for sensor, value in zip(SENSOR_NAMES, sim.ir_range[robot].tolist()):
-                self._write('/' + topics + 'proximity', _t('sensor_msgs/msg/Range')(
-                    header=_header(time, frames + sensor), radiation_type=INFRARED,
-                    field_of_view=self._model.ir_aperture, min_range=0.0, max_range=self._model.ir_range,
-                    range=value, variance=0.0), stamp)
-            self._write('/' + topics + 'joint_states', _t('sensor_msgs/msg/JointState')(
-                header=_header(time, ''), name=list(JOINT_NAMES),
-                position=sim.wheel_angles[robot].astype(np.float64),
-                velocity=sim.wheel_speeds[robot].astype(np.float64), effort=np.zeros(0)), stamp)
-            count = int(sim.collisions[robot])
-            if count != self._collisions[robot]:
-                self._collisions[robot] = count
-                self._write('/' + topics + 'collisions', _t('std_msgs/msg/UInt32')(data=count), stamp)
-        self._write('/clock', _t('rosgraph_msgs/msg/Clock')(clock=time), stamp)
+        """The step just taken, published as the sim node publishes it; /clock last."""
+        with self._lock:
+            if not self._ports:
+                self._start(sim)
+            self._stamp = stamp = stamp_from_seconds(sim.time)
+            self._node.step(stamp)
+            for ports, senses in zip(self._ports, self._senses):
+                ports.publish(sim, stamp)
+                _follow(senses, sim)
+                if senses.publishing:
+                    senses.publish(sim, stamp)
+            self._tf.publish(sim, stamp)
+            for robot, count in enumerate(sim.collisions.tolist()):
+                if count != self._collisions[robot]:
+                    self._collisions[robot] = count
+                    self._ports[robot].publish_collisions(count)
+            self._clock.publish(self._clock_message.bytes(stamp))
+
+    def sense_wanted(self, robot: int, kind: str, sim: Simulation) -> None:
+        """Robot `robot`'s controller asked for sense `kind` (read at once): its message of the current step."""
+        with self._lock:
+            senses = self._senses[robot]
+            _follow(senses, sim)
+            senses.publish(sim, self._stamp, [kind])
+
+    def answered(self, robot: int, left: float, right: float) -> None:
+        """Robot `robot`'s controller answered the current step with these wheel speeds (rad/s), naming it."""
+        with self._lock:
+            self._controllers[robot][0].publish(array_bytes((float(left), float(right)), self._stamp))
+
+    def leds(self, robot: int, values: Sequence[int]) -> None:
+        """A script set its LEDs (the ten values, as the Webots shim publishes them)."""
+        with self._lock:
+            self._controllers[robot][1].publish(Int32MultiArray(data=[int(value) for value in values]))
+
+    def stop(self) -> None:
+        """The behaviours' nodes end: each commands a zero wheel speed (unnamed: it answers no step)."""
+        with self._lock:
+            for command, _ in self._controllers:
+                command.publish(array_bytes((0.0, 0.0)))
 
     def close(self) -> None:
         self._bag.close()
 
 
-def _header(time: Any, frame_id: str) -> Any:
-    return _t('std_msgs/msg/Header')(stamp=time, frame_id=frame_id)
-
-
-def _odometry(time: Any, frame_id: str, child: str, pose: np.ndarray, twist: np.ndarray, covariances: bool) -> Any:
-    """As robot_ports publishes it: a planar pose's quaternion is a rotation about z; odometry has covariances."""
-    x, y, yaw = pose.tolist()
-    geometry = 'geometry_msgs/msg/'
-    point = _t(geometry + 'Point')(x=x, y=y, z=0.0)
-    z, w = quaternion_from_yaw(yaw)
-    orientation = _t(geometry + 'Quaternion')(x=0.0, y=0.0, z=z, w=w)
-    linear, angular = twist.tolist()
-    velocity = _t(geometry + 'Twist')(linear=_t(geometry + 'Vector3')(x=linear, y=0.0, z=0.0),
-                                      angular=_t(geometry + 'Vector3')(x=0.0, y=0.0, z=angular))
-    return _t('nav_msgs/msg/Odometry')(
-        header=_header(time, frame_id), child_frame_id=child,
-        pose=_t(geometry + 'PoseWithCovariance')(pose=_t(geometry + 'Pose')(position=point, orientation=orientation),
-                                                 covariance=_diagonal(POSE_COVARIANCE if covariances else [])),
-        twist=_t(geometry + 'TwistWithCovariance')(twist=velocity,
-                                                   covariance=_diagonal(TWIST_COVARIANCE if covariances else [])))
+def _follow(senses: SensePorts, sim: Simulation) -> None:
+    """The robot's sense topics publish what the simulation computes for it (the recorder reads them all)."""
+    senses.follow({kind: bool(wanted[senses.index]) for kind, wanted in sim.senses.wanted.items()}, READ)

@@ -21,9 +21,10 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from epuck_ros import untrusted_yaml
 from epuck_ros.bag.tally import RunTally
 from epuck_ros.behaviours import BEHAVIOURS, Behaviour, Observation, WheelCommand
-from epuck_ros.behaviours.base import ranges_from_raw
+from epuck_ros.behaviours.base import ConfigError, describe, ranges_from_raw
 from epuck_ros.conversions import nanoseconds_from_seconds, quaternion_from_yaw, yaw_from_quaternion
 from epuck_ros.experiments.isolation import ChildFailed, call_in_child
 from epuck_ros.lockstep import Lockstep
@@ -32,17 +33,22 @@ from epuck_ros.simulation import Simulation
 from epuck_ros.world import World, default_world, load_world, place_robots
 
 if TYPE_CHECKING:
+    from epuck_ros.experiments.recording import TrialRecorder
     from epuck_ros.webots.headless import ScriptSeat, ScriptStage
 
 DEFAULT_WORLD = 'default'
 """A spec's name for the built-in world (`sim` with no `world` parameter)."""
 DEFAULT_TIME_LIMIT = 600.0
 """Wall seconds a trial with a script may take by default (a spec's `time_limit`)."""
+DEFAULT_MEMORY_LIMIT = 2048.0
+"""Megabytes a trial with a script may take by default (a spec's `memory_limit`)."""
 Policy = Callable[[Observation], WheelCommand]
 """A plain Python controller: an observation in, wheel speeds (rad/s) out."""
 COLUMNS = ('trial', 'controller', 'world', 'robots', 'seed', 'robot', 'distance_m', 'contacts_obstacles',
-           'contacts_robots', 'final_x', 'final_y', 'final_yaw', 'sim_time', 'wall_s', 'error')
-"""The columns of a trial's rows (`trials.csv`)."""
+           'contacts_robots', 'final_x', 'final_y', 'final_yaw', 'sim_time', 'wall_s', 'error', 'trial_key')
+"""The columns of a trial's rows (`trials.csv`); `trial_key` is `Trial.key`."""
+SETTING_TYPES = {float: 'a number', int: 'a whole number', bool: 'true or false', str: 'text'}
+"""A behaviour setting's type is its default's (behaviours.base.setting): what a spec or a caller must give."""
 
 
 @dataclass(frozen=True)
@@ -70,16 +76,18 @@ class Script:
 
     path: str
     name: str = ''
-    """How the spec names it (the `controller` column)."""
+    """How the sweep names it (the `controller` column); '' = the file's name."""
+    digest: str = ''
+    """The SHA-256 of its source when the spec read it (part of its trials' keys)."""
 
     @property
     def label(self) -> str:
         return self.name or Path(self.path).name
 
-    def stage(self, sim: Simulation, over: Callable[[], bool]) -> ScriptStage:
+    def stage(self, sim: Simulation, over: Callable[[], bool], recorder: TrialRecorder | None = None) -> ScriptStage:
         """The script's seats on `sim`, one per robot; `over()`: the run has taken its last step."""
         from epuck_ros.webots.headless import ScriptStage   # the shim's Robot imports rclpy (no DDS is started)
-        return ScriptStage(Path(self.path), sim, over)
+        return ScriptStage(Path(self.path), sim, over, recorder=recorder)
 
 
 @dataclass(frozen=True)
@@ -98,6 +106,11 @@ class Trial:
     """How the spec named the world (its `world` column)."""
     time_limit: float = DEFAULT_TIME_LIMIT
     """Wall seconds a trial with a script may take before its process is killed (the trial then fails)."""
+    memory_limit: float = DEFAULT_MEMORY_LIMIT
+    """Megabytes of resident memory a trial with a script may take beyond what its process started with (its
+    processes together), before it is killed (the trial then fails)."""
+    key: str = field(default='', compare=False)
+    """What identifies its rows across runs of a sweep (the spec's hash of what they depend on), or ''."""
     record: str = ''
     """A folder to write the trial to as a rosbag2 MCAP bag (`recording`); '' = none. A retry writes it anew."""
 
@@ -115,11 +128,22 @@ def run_trial(trial: Trial, policy: Policy | None = None) -> list[dict[str, Any]
         if isinstance(trial.controller, Script) and policy is None:
             import numpy.random  # noqa: F401 - loaded by numpy on first use (the noise): here once, not in every child
             import epuck_ros.webots.headless  # noqa: F401 - imported here once, not in every child
-            return call_in_child(_rows, trial, trial.time_limit)
+            return call_in_child(_rows, trial, trial.time_limit, trial.memory_limit * 1e6)
         return _rows(trial, policy)
     except Exception as error:  # noqa: BLE001 - whatever went wrong is the trial's result
         what = str(error) if isinstance(error, ChildFailed) else f'{type(error).__name__}: {error}'
-        return [_row(trial, '', error=what, wall=time.perf_counter() - began)]
+        return failed_rows(trial, what, time.perf_counter() - began)
+
+
+def failed_rows(trial: Trial, error: str, wall: float = math.nan) -> list[dict[str, Any]]:
+    """A failed trial's rows: one per robot, as its rows would have been (names, robot count), each saying `error`;
+    one row with no robot's name if even its world cannot be made."""
+    try:
+        names = trial.load_world().names
+    except Exception:  # noqa: BLE001 - the error said is the trial's, not this one
+        names = ('',)
+    return [_row(trial, name, error=error, wall=wall, robots=len(names) if name else trial.robots)
+            for name in names]
 
 
 def _rows(trial: Trial, policy: Policy | None = None) -> list[dict[str, Any]]:
@@ -129,7 +153,7 @@ def _rows(trial: Trial, policy: Policy | None = None) -> list[dict[str, Any]]:
         shutil.rmtree(trial.record, ignore_errors=True)   # what a run cut short (a killed worker) left
         recorder = TrialRecorder(Path(trial.record), trial.load_world())
         try:
-            sim, tally = run(trial, policy, recorder.step)
+            sim, tally = run(trial, policy, recorder=recorder)
         finally:
             recorder.close()
     else:
@@ -139,10 +163,11 @@ def _rows(trial: Trial, policy: Policy | None = None) -> list[dict[str, Any]]:
             for i, (name, figures) in enumerate(zip(sim.names, tally.figures))]
 
 
-def run(trial: Trial, policy: Policy | None = None,
-        each_step: Callable[[Simulation], None] | None = None) -> tuple[Simulation, RunTally]:
+def run(trial: Trial, policy: Policy | None = None, each_step: Callable[[Simulation], None] | None = None,
+        recorder: TrialRecorder | None = None) -> tuple[Simulation, RunTally]:
     """Step the trial to its end: the simulation as it ended and the tally of its ground truth (what `bag
-    summary` and `bringup` count); `each_step(sim)` sees every step as the simulator publishes it."""
+    summary` and `bringup` count); `each_step(sim)` sees every step as the simulator publishes it, `recorder` every
+    step and what the controllers send."""
     world = trial.load_world()
     sim = Simulation(world, RobotModel(), time_step=TIME_STEP, seed=trial.seed, noise=trial.noise)
     several = len(world.robots) > 1
@@ -156,9 +181,12 @@ def run(trial: Trial, policy: Policy | None = None,
 
     def publish(resend: bool) -> None:
         sim.step()
+        if recorder is not None:
+            recorder.step(sim)
         _published(sim, tally, labels, each_step)
 
-    stage = trial.controller.stage(sim, over) if isinstance(trial.controller, Script) and policy is None else None
+    stage = trial.controller.stage(sim, over, recorder) if isinstance(trial.controller, Script) and policy is None \
+        else None
     controllers = stage.seats if stage is not None else [policy or trial.controller.make() for _ in sim.names]
     # What each controller's node subscribes (a plain policy gets everything), and how each is asked: looked up
     # once, not at every step (this loop runs once per robot per step, beside a core that is itself fast).
@@ -166,22 +194,26 @@ def run(trial: Trial, policy: Policy | None = None,
                getattr(controller, 'needs_proximity', True)) for robot, controller in enumerate(controllers)]
     # Stepped as the sim node steps, through a Lockstep that waits for every robot (each has its controller). The
     # scripts answer from their own threads, and the thread of a step's last answer takes the next step itself.
-    lockstep = stage.lockstep_for(publish) if stage is not None else Lockstep(len(sim.names), publish, timeout=0.0)
+    lockstep = stage.lockstep_for(publish) if stage is not None else Lockstep(len(sim.names), publish, over_dds=False)
     lockstep.claim()
+    answered = recorder.answered if recorder is not None and stage is None else None   # a script's: its own thread
     try:
-        _step_to_end(sim, lockstep, robots, over, stage)
+        _step_to_end(sim, lockstep, robots, over, stage, answered)
     finally:   # a script's step() returns -1
         if stage is not None:
             stage.close()
+    if answered is not None:   # a behaviour's node commands a stop as it ends
+        recorder.stop()
     if stage is not None:   # a script may fail after the end, too
         stage.check()
     return sim, tally
 
 
 def _step_to_end(sim: Simulation, lockstep: Lockstep, robots: list[tuple[int, Callable, bool, bool]],
-                 over: Callable[[], bool], stage: Any) -> None:
+                 over: Callable[[], bool], stage: Any, answered: Callable[[int, float, float], None] | None) -> None:
     """The first step with the wheels still, then each step's answers and the next step until `over()`: every robot
-    answers each step (a script from its own thread, which may take the next steps itself: the lent claim)."""
+    answers each step (a script from its own thread, which may take the next steps itself: the lent claim);
+    `answered` is told each answer given here."""
     lockstep.step()
     while not over():
         now = _stamp_seconds(sim.time)
@@ -191,6 +223,8 @@ def _step_to_end(sim: Simulation, lockstep: Lockstep, robots: list[tuple[int, Ca
             command = update(Observation(now, odom, ranges))
             if command is not None:   # None: a script that answers from its thread
                 sim.command_wheels(robot, command.left, command.right)
+                if answered is not None:
+                    answered(robot, command.left, command.right)
                 lockstep.answer(robot)
         if not lockstep.await_answers():   # every robot answered (the scripts' threads may have stepped on)
             raise RuntimeError('lockstep: a robot did not answer its step')
@@ -238,11 +272,23 @@ def _row(trial: Trial, robot: str, figures: Any = None, pose: Sequence[float] = 
         'contacts_obstacles': figures.world_contacts if figures else '',
         'contacts_robots': figures.robot_contacts if figures else '',
         'final_x': pose[0], 'final_y': pose[1], 'final_yaw': pose[2], 'sim_time': sim_time, 'wall_s': wall,
-        'error': error}
+        'error': error, 'trial_key': trial.key}
 
 
 def controller_from(name: str, parameters: Mapping[str, Any] | None = None) -> Controller:
-    """A Controller for behaviour `name` with `parameters` (checked as its Config checks them: ConfigError)."""
+    """A Controller for behaviour `name` with `parameters`: each of the type of its default (a whole number for a
+    number too) and checked as its Config checks them; ConfigError naming the setting otherwise."""
+    if name not in BEHAVIOURS:
+        raise ConfigError(f'no behaviour {name!r} (known: {", ".join(BEHAVIOURS)})')
+    defaults = {setting: value for setting, value, *_ in describe(BEHAVIOURS[name].defaults)}
+    for setting, value in (parameters or {}).items():
+        if setting not in defaults:
+            raise ConfigError(f'{setting}: {name} has no such setting (known: {", ".join(defaults)})')
+        expected = type(defaults[setting])
+        accepted = (int, float) if expected is float else expected   # a whole number is a number too
+        if isinstance(value, bool) is not (expected is bool) or not isinstance(value, accepted):
+            raise ConfigError(f'{setting}: expected {SETTING_TYPES[expected]}, got '
+                              f'{untrusted_yaml.cut(repr(value), 60)}')
     controller = Controller(name, tuple(sorted((parameters or {}).items())))
     controller.make()
     return controller

@@ -43,6 +43,11 @@ killed process that DDS has not yet noticed); the node is told so it can warn. T
 waited for again until its number of readers changes."""
 POLL = 0.0005
 """Wall seconds between two looks at the acknowledgements while waiting."""
+READERS_WAIT = 10.0
+"""Wall seconds the first step waits at most for the readers the graph shows to be matched (`await_readers`): a
+reader whose QoS cannot match is in the graph for ever."""
+READERS_POLL = 0.05
+"""Wall seconds between two looks at the matched readers before the first step."""
 _NOW = Duration(nanoseconds=0)
 
 
@@ -114,6 +119,19 @@ class AckWindow:
             if pending:
                 time.sleep(POLL)
         self._acked = step
+
+    def await_readers(self, graph_readers: Callable[[str], int], keep_waiting: Callable[[], bool]) -> None:
+        """Before the first step: until every publisher has matched as many readers as the graph shows on its topic
+        (`graph_readers(topic)`), so each reader the graph shows gets the first step (a recorder started with the
+        simulator missed it when its subscription was in the graph, but not yet matched by the simulator). At most
+        READERS_WAIT, and only while `keep_waiting()`."""
+        deadline = time.monotonic() + READERS_WAIT
+        publishers = list(self._publishers())
+        while publishers and self._running and keep_waiting() and time.monotonic() < deadline:
+            publishers = [publisher for publisher in publishers
+                          if publisher.get_subscription_count() < graph_readers(publisher.topic_name)]
+            if publishers:
+                time.sleep(READERS_POLL)
 
     def due(self, step: int) -> bool:
         """Whether `published(step)` would look at the acknowledgements (and perhaps wait for them)."""

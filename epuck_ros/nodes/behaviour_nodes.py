@@ -1,14 +1,19 @@
 """`forward`, `spin`, `circle`, `rectangle`, `avoid`: one node class around the pure behaviours.
 
 Each executable is a row of `epuck_ros.behaviours.BEHAVIOURS`: the node declares that behaviour's settings
-as read-only parameters, turns `odom` and the IR readings into an `Observation`, and on a ROS-clock timer
-(so it follows `use_sim_time`) publishes the behaviour's wheel speeds on `wheel_cmd` as the course's
-`setVelocity` pair [left, right] in rad/s. When it ends (Ctrl-C, SIGTERM) it commands a stop first.
+as read-only parameters, turns each step's `odom` and IR readings into an `Observation`, and answers the step
+with the behaviour's wheel speeds on `wheel_cmd`, the course's `setVelocity` pair [left, right] in rad/s, naming
+the step it answers (`BehaviourNode`). When it ends (Ctrl-C, SIGTERM) it commands a stop first.
 
 One robot: the node's namespace is the robot's (`avoid --ros-args -r __ns:=/epuck3`). Several robots in one
 process: `avoid --robots epuck0 epuck1` (or `--robots all`, every robot of the simulator's world) makes one
 node per robot, named like the executable, in the namespace `<namespace>/<robot>`, all on one executor;
 `-p` parameters apply to every one of them.
+
+Logging: each node says its settings at start (the first node only, when one process drives several robots: they
+share them), and at INFO what leaves the robot standing (waiting for an input, the goal reached); the behaviour's
+other state changes (cruising, turning, a new side) at DEBUG, since some change every few steps:
+`--ros-args --log-level avoid:=debug` (the executable's name; `bringup --verbose`) shows them for every robot's node.
 
 The nodes spin on rclpy's EventsExecutor (experimental in Jazzy, in rclpy since 7.1.4): it queues each ready
 entity's event in C++ instead of rebuilding a wait set of every node's subscriptions, timers and parameter
@@ -27,9 +32,11 @@ from typing import Any
 
 import rclpy
 from nav_msgs.msg import Odometry
+from rosgraph_msgs.msg import Clock as RosClock
 from rclpy.clock import Clock, ClockType
 from rclpy.duration import Duration
 from rclpy.exceptions import InvalidNamespaceException, ParameterException
+from rclpy.logging import LoggingSeverity
 from rclpy.experimental import EventsExecutor
 from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy
@@ -38,20 +45,23 @@ from rclpy.validate_namespace import validate_namespace
 from sensor_msgs.msg import Range
 from std_msgs.msg import Float64MultiArray, String
 
-from epuck_ros.behaviours import BEHAVIOURS, BehaviourSpec, ConfigError, Observation
+from epuck_ros.behaviours import BEHAVIOURS, BehaviourSpec, ConfigError, Observation, WheelCommand
 from epuck_ros.behaviours.base import describe, ranges_from_raw
-from epuck_ros.conversions import nanoseconds_from_stamp, yaw_from_quaternion
+from epuck_ros.conversions import nanoseconds_from_stamp, stamp_from_nanoseconds, yaw_from_quaternion
 from epuck_ros.model import SENSOR_NAMES, TIME_STEP
 from epuck_ros.nodes.ack_window import COMMAND_QOS
 from epuck_ros.nodes.dds_profile import use_package_profile, warn_if_not_fast_dds
 from epuck_ros.nodes.params import ParamSpec, Usage, declare_parameters, prepare_arguments, user_arguments
 from epuck_ros.nodes.qos import LATCHED
-from epuck_ros.nodes.serialized import Patch, float64_values
+from epuck_ros.nodes.serialized import array_bytes, array_values
 from epuck_ros.nodes.spinning import handle_shutdown_signals, shutdown_requested, spin_until_shutdown
 from epuck_ros.world import WorldError, world_from_yaml
 
 CONTROL_PERIOD = TIME_STEP
-"""Seconds between two commands: the course's controllers run once per Webots basicTimeStep (32 ms)."""
+"""Seconds between two decisions: the course's controllers run once per Webots basicTimeStep (32 ms)."""
+STEP_SLACK_NS = 1_000
+"""Nanoseconds a step may fall short of a whole control period and still be the next decision's (stamps are whole
+nanoseconds of a float time)."""
 QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
 GRAPH_POLL_PERIOD = 0.1
 """Wall seconds between two looks at the graph for an `ir_raw` publisher (until there is one)."""
@@ -61,6 +71,8 @@ the graph shows a simulator's publishers one by one, and the `ir_raw` one may co
 STOP_ACK_TIMEOUT = 1.0
 """Wall seconds an ending process waits for its robots' last (zero) wheel commands to be acknowledged."""
 ALL_ROBOTS = 'all'
+MAX_NAMES_SHOWN = 10
+"""Robot names the start-up line lists at most (a swarm's thousands would make one line of tens of KB)."""
 
 
 class RangeAssembler:
@@ -91,9 +103,9 @@ def parameter_specs(spec: BehaviourSpec) -> list[ParamSpec]:
     """The behaviour's settings as read-only parameters (a behaviour is built once from them), and the period."""
     settings = [ParamSpec(name, value, description, None if low is None else (low, high), read_only=True)
                 for name, value, description, (low, high) in describe(spec.defaults)]
-    period = ParamSpec('control_period', CONTROL_PERIOD, 'seconds (ROS clock) between two wheel commands; the course: '
-                       'one Webots step, 0.032 (avoid on ir_raw answers every ir_raw message)', (0.001, 1.0),
-                       read_only=True)
+    period = ParamSpec('control_period', CONTROL_PERIOD, 'seconds of the data\'s time between two decisions; every '
+                       'step is answered (with the last decision between two); the course: one Webots step, 0.032',
+                       (0.001, 1.0), read_only=True)
     return [*settings, period]
 
 
@@ -106,36 +118,35 @@ ROBOTS_HELP = '''  --robots NAME [NAME ...] | all
 def usage(name: str, spec: BehaviourSpec) -> Usage:
     return Usage(
         program=name,
-        summary=f'{spec.summary}. Publishes wheel_cmd [left, right] rad/s every control_period (ROS clock: '
-                f'use_sim_time:=true follows the simulator), from odom and the IR readings (ir_raw, or the eight '
-                f'proximity Range messages where nobody publishes ir_raw); commands a stop when it ends.',
+        summary=f'{spec.summary}. Answers each simulator step with wheel_cmd [left, right] rad/s naming that step '
+                f'(layout label stamp=SEC.NANOSEC: lockstep pairs it with the step), from odom and the IR readings '
+                f'(ir_raw, or the eight proximity Range messages where nobody publishes ir_raw) of that step, or each '
+                f'/clock tick (use_sim_time:=true) for a behaviour that reads nothing; commands a stop when it ends.',
         example=f'{name} --robots all --ros-args -p use_sim_time:=true {spec.example}'.rstrip(),
         options=ROBOTS_HELP)
 
 
 class BehaviourNode(Node):
-    """One robot's controller: subscribes what the behaviour needs, publishes `wheel_cmd` every control period.
+    """One robot's controller: subscribes what the behaviour needs, answers each step with `wheel_cmd`.
 
-    Each command answers exactly one step. `/clock` (the tick) and the sensor topics travel separately, so a
-    tick can arrive before or after its data; the node acts on a tick once every input it needs is there for
-    it (`_act_when_ready`), which makes lockstep runs repeat to the bit:
-    - stamped inputs (`odom`, the `proximity` Ranges) are there once their stamp reaches the tick;
-    - `ir_raw` has no header: it counts as there when one arrived since the last command. In lockstep that is
-      exactly this step's: the simulator publishes the next step only once this command answered the current
-      one, so the only unanswered `ir_raw` is the current step's, whichever of it and the tick comes first.
-    A behaviour that needs the IR alone (avoid) does not wait for the tick at all once `ir_raw` flows: it answers
-    each message as it arrives, one command per simulator step (whatever `control_period`). `/clock` reaches the
-    node after the step's `ir_raw` (the simulator sends it last), and waiting for it costs more than the step
-    itself (bench_lockstep in the README).
-    The command's time is then the previous command's plus one period, or the clock if that is later (a step
-    answered late, outside lockstep): in lockstep exactly the step's time, whichever of `ir_raw` and `/clock`
-    came first.
+    The step protocol (epuck_ros/lockstep.py): every message of a simulator step names the step (odom's and the
+    Ranges' stamps, `ir_raw`'s label), and the node answers step T once it has every input it needs from T, with a
+    `wheel_cmd` that names T (`stamp=SEC.NANOSEC` in its layout). Nothing is paired by arrival order or counts, so a
+    lockstep run repeats to the bit however late any message comes, and a step sent again is answered once. A
+    behaviour that needs no input (spin, circle) answers each `/clock` tick. `control_period` longer than a step:
+    the behaviour decides every period and each step between is answered with the last decision (lockstep waits for
+    every step's answer). All this when the node follows simulated time (`use_sim_time`); on its own clock (a real
+    robot's driver) it commands every `control_period` from the newest readings, naming no step.
     One `ir_raw` message carries all eight readings (the `proximity` path takes eight callbacks per step), so
-    the node reads `proximity` only while the graph shows no `ir_raw` publisher (a real robot's driver).
+    the node reads `proximity` only while the graph shows no `ir_raw` publisher (a real robot's driver); an
+    `ir_raw` that names no step is taken as the node's clock says.
     """
 
-    def __init__(self, name: str, spec: BehaviourSpec, namespace: str | None = None) -> None:
+    def __init__(self, name: str, spec: BehaviourSpec, namespace: str | None = None, announce: bool = True) -> None:
+        """`announce`: say the settings at INFO (else at DEBUG: the process's other nodes have said them)."""
         super().__init__(name, cli_args=None if namespace is None else ['--ros-args', '-r', f'__ns:={namespace}'])
+        if rclpy.logging.get_logger(name).is_enabled_for(LoggingSeverity.DEBUG):
+            self.get_logger().set_level(LoggingSeverity.DEBUG)   # `--log-level avoid:=debug`: every robot's node
         settings = declare_parameters(self, parameter_specs(spec))
         period = settings.pop('control_period')
         self.behaviour = spec.make(replace(spec.defaults, **settings))
@@ -143,33 +154,38 @@ class BehaviourNode(Node):
         self._ranges: tuple[float, ...] | None = None
         self._odom_stamp: int | None = None  # nanoseconds of the data above
         self._ranges_stamp: int | None = None
-        self._fresh_raw = False
-        """An ir_raw message arrived since the last command."""
-        self._pending_tick: int | None = None
-        self._last_tick: int | None = None
-        self._raw_drives = False
-        """`ir_raw` messages come and the behaviour needs nothing else: each one is answered as it arrives."""
-        self._late_ticks = 0
+        self._answered: int | None = None
+        """The step (ns) last answered."""
+        self._decided: int | None = None
+        """The step (ns) of the last decision, and the decision: answers until the next one (`control_period`)."""
+        self._decision: WheelCommand | None = None
+        self._period_ns = round(period * 1e9)
         self._assembler = RangeAssembler()
         self._range_subscription = None
         self._graph_timer = None
         self._proximity_polls = 0
         """Looks at the graph that showed a `proximity` publisher and no `ir_raw` one."""
+        self._stepped = self.get_parameter('use_sim_time').value
+        """Answers each simulator step (see the class); else commands every control_period of its own clock."""
         if self.behaviour.needs_odom:
             self.create_subscription(Odometry, 'odom', self._on_odom, QOS)
         if self.behaviour.needs_proximity:
             self.create_subscription(Float64MultiArray, 'ir_raw', self._on_ir_raw, QOS, raw=True)
             self._graph_timer = self.create_timer(GRAPH_POLL_PERIOD, self._choose_ir_topic,
                                                   clock=Clock(clock_type=ClockType.STEADY_TIME))
+        if not self._stepped:
+            self.create_timer(period, self._on_tick)
+        elif not (self.behaviour.needs_odom or self.behaviour.needs_proximity):
+            self.create_subscription(RosClock, '/clock', self._on_clock, QOS)
         # Last: a lockstep simulator waits for the answers of a robot whose wheel_cmd has a publisher.
         self._publisher = self.create_publisher(Float64MultiArray, 'wheel_cmd', COMMAND_QOS)
-        self._command = Patch(Float64MultiArray(data=[0.0, 0.0]), [('data[0]', 'd'), ('data[1]', 'd')])
-        """wheel_cmd as CDR bytes (see `serialized`): a step's command costs no message conversion."""
         self._logged_status = ''
-        self._period_ns = round(period * 1e9)
-        self._tick_timer = self.create_timer(period, self._on_tick)
         summary = ', '.join(f'{setting}={value}' for setting, value in settings.items())
-        self.get_logger().info(f'{spec.summary}; {summary}, control_period={period}')
+        line = f'{spec.summary}; {summary}, control_period={period}'
+        if announce:
+            self.get_logger().info(line)
+        else:
+            self.get_logger().debug(line)
 
     def _choose_ir_topic(self) -> None:
         """`ir_raw` once it has a publisher; until then `proximity` once that has had one for FALLBACK_DELAY (a
@@ -192,28 +208,19 @@ class BehaviourNode(Node):
         q = pose.orientation
         self._odom = (pose.position.x, pose.position.y, yaw_from_quaternion(q.x, q.y, q.z, q.w))
         self._odom_stamp = nanoseconds_from_stamp(msg.header.stamp.sec, msg.header.stamp.nanosec)
-        self._act_when_ready()
+        self._act_when_complete()
 
     def _on_ir_raw(self, data: bytes) -> None:
-        """A behaviour on the IR alone answers each `ir_raw` message at once (see the class)."""
-        raw = float64_values(data)  # received as bytes: see `serialized`
-        if raw is None or len(raw) != len(SENSOR_NAMES):
-            got = 'bytes that are no Float64MultiArray' if raw is None else f'messages of {len(raw)} values'
+        read = array_values(data)  # received as bytes: see `serialized`
+        if read is None or len(read[0]) != len(SENSOR_NAMES):
+            got = 'bytes that are no Float64MultiArray' if read is None else f'messages of {len(read[0])} values'
             self.get_logger().warning(f'ir_raw: ignoring {got}, expected {len(SENSOR_NAMES)} values (ps0..ps7)',
                                       once=True)
             return
+        raw, stamp = read
         self._ranges = ranges_from_raw(raw)
-        if self.behaviour.needs_odom:
-            self._fresh_raw = True
-            self._act_when_ready()
-            return
-        if not self._raw_drives:  # from now on the messages drive the node; its ticks cost time for nothing
-            self._raw_drives = True
-            self.destroy_timer(self._tick_timer)
-        tick = self._pending_tick if self._pending_tick is not None else self.get_clock().now().nanoseconds
-        if self._last_tick is not None:
-            tick = max(tick, self._last_tick + self._period_ns)
-        self._act(tick)
+        self._ranges_stamp = self.get_clock().now().nanoseconds if stamp is None else nanoseconds_from_stamp(*stamp)
+        self._act_when_complete()
 
     def _on_range(self, msg: Range) -> None:
         stamp = (msg.header.stamp.sec, msg.header.stamp.nanosec)
@@ -226,52 +233,58 @@ class BehaviourNode(Node):
             return
         if ranges is not None:
             self._ranges = ranges
-            self._ranges_stamp = nanoseconds_from_stamp(msg.header.stamp.sec, msg.header.stamp.nanosec)
-            self._act_when_ready()
+            self._ranges_stamp = nanoseconds_from_stamp(*stamp)
+            self._act_when_complete()
+
+    def _on_clock(self, msg: RosClock) -> None:
+        """A behaviour without inputs answers each tick of simulated time."""
+        self._act(nanoseconds_from_stamp(msg.clock.sec, msg.clock.nanosec))
 
     def _on_tick(self) -> None:
-        if self._pending_tick is not None:  # its data never came complete: act on what there is
-            if self._odom is not None or self._ranges is not None:
-                self._late_ticks += 1
-                self.get_logger().warning(
-                    f'acting on t={self._pending_tick * 1e-9:.3f} s without that step\'s data: it came late (a '
-                    'busy machine, or a simulator faster than this node: use lockstep); said once, counted',
-                    once=True)
-            self._act(self._pending_tick)
-        self._pending_tick = self.get_clock().now().nanoseconds
-        self._act_when_ready()
+        """On the node's own clock: a command every control_period from the newest readings, naming no step."""
+        now = self.get_clock().now().nanoseconds
+        self._publish(self._decide(now), None)
 
-    def _has_data_for(self, tick: int) -> bool:
-        if self.behaviour.needs_odom and (self._odom_stamp is None or self._odom_stamp < tick):
-            return False
-        if self.behaviour.needs_proximity and self._range_subscription is None:
-            return self._fresh_raw
-        if self.behaviour.needs_proximity:
-            return self._ranges_stamp is not None and self._ranges_stamp >= tick
-        return True
+    def _act_when_complete(self) -> None:
+        """Answer the newest step once every input the behaviour needs is of that step (see the class)."""
+        if not self._stepped:
+            return
+        stamps = [stamp for stamp, needed in ((self._odom_stamp, self.behaviour.needs_odom),
+                                              (self._ranges_stamp, self.behaviour.needs_proximity)) if needed]
+        if None not in stamps and len(set(stamps)) == 1:
+            self._act(stamps[0])
 
-    def _act_when_ready(self) -> None:
-        """Act on the pending tick once every input the behaviour needs is there for it (see the class)."""
-        if self._pending_tick is not None and self._has_data_for(self._pending_tick):
-            self._act(self._pending_tick)
+    def _act(self, step: int) -> None:
+        """Answer step `step` (ns): a new decision every control_period, the last one in between."""
+        if self._answered is not None and step <= self._answered:
+            return   # a step sent again, or an older message come late: answered already
+        self._answered = step
+        if self._decision is None or step - self._decided >= self._period_ns - STEP_SLACK_NS:
+            self._decision = self._decide(step)
+        self._publish(self._decision, step)
 
-    def _act(self, tick: int) -> None:
-        self._pending_tick = None
-        self._last_tick = tick
-        self._fresh_raw = False
-        now = tick * 1e-9
-        command = self.behaviour.update(Observation(now, self._odom, self._ranges))
+    def _decide(self, now: int) -> WheelCommand:
+        """The behaviour's command at time `now` (ns) from the newest readings."""
+        self._decided = now
+        command = self.behaviour.update(Observation(now * 1e-9, self._odom, self._ranges))
         if self.behaviour.status != self._logged_status:
             self._logged_status = self.behaviour.status
-            self.get_logger().info(f'{self._logged_status} (t={now:.3f} s)')
-        self._publisher.publish(self._command.bytes((command.left, command.right)))
+            line = f'{self._logged_status} (t={now * 1e-9:.3f} s)'
+            if self.behaviour.waiting_for or self.behaviour.done:   # the robot stands still: said at INFO
+                self.get_logger().info(line)
+            else:   # (two calls: rclpy refuses one call site logging at two severities)
+                self.get_logger().debug(line)
+        return command
+
+    def _publish(self, command: WheelCommand, step: int | None) -> None:
+        """`wheel_cmd`, naming `step` (ns) when it answers one."""
+        self._publisher.publish(array_bytes((command.left, command.right),
+                                            None if step is None else stamp_from_nanoseconds(step)))
 
     def stop_robot(self) -> None:
         """The last word, as teleop_twist_keyboard's: a zero wheel command, so that a robot without a command
         timeout does not drive on after its controller is gone (`wait_until_stopped` makes sure it arrived)."""
-        if self._late_ticks:
-            self.get_logger().warning(f'{self._late_ticks} tick(s) acted on without their step\'s data')
-        self._publisher.publish(self._command.bytes((0.0, 0.0)))
+        self._publisher.publish(array_bytes((0.0, 0.0)))
 
     def wait_until_stopped(self, timeout: float) -> None:
         """Wait until every reader acknowledged the zero command: a busy reader may have dropped it on arrival, and
@@ -328,7 +341,8 @@ def _world_robots(probe: Node) -> list[str] | None:
         return None
     world = world_from_yaml(received[-1].data, source=probe.resolve_topic_name('world'))
     names = [robot.name for robot in world.robots]
-    probe.get_logger().info(f'driving {len(names)} robot(s): {" ".join(names)}')
+    shown = names if len(names) <= MAX_NAMES_SHOWN else [*names[:MAX_NAMES_SHOWN - 1], '...', names[-1]]
+    probe.get_logger().info(f'driving {len(names)} robot(s): {" ".join(shown)}')
     return names
 
 
@@ -343,7 +357,7 @@ def main(name: str, args: list[str] | None = None) -> None:
     nodes: list[BehaviourNode] = []
     try:
         for namespace in robot_namespaces(name, robots):
-            nodes.append(BehaviourNode(name, spec, namespace))
+            nodes.append(BehaviourNode(name, spec, namespace, announce=not nodes))
         if nodes and not shutdown_requested():
             spin_until_shutdown(*nodes, executor_type=EventsExecutor)
     except (ConfigError, ParameterException, InvalidNamespaceException, WorldError) as error:

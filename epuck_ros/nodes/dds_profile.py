@@ -1,13 +1,12 @@
 """Every process of the package loads one Fast DDS profile file (fastdds_profiles.xml) unless the user chose one.
 
-Why, in short (the file itself has the figures):
-- discovery: a participant that misses another's first announcements (about half of the starts on these
-  machines) learns of it only at the next periodic announcement, 3 s later by default; every 0.5 s instead
-  (benchmarks/bench_startup.py);
-- acknowledgements: reliable writers send a heartbeat every 50 ms instead of 3 s and readers answer it at once,
-  so a behaviour's last zero command and the simulator's ack window (nodes/ack_window.py) are acknowledged
+Why, in short (the file itself has the settings and figures):
+- discovery: a participant that misses another's first announcements learns of it only at the next periodic
+  announcement, seconds later by default; the profile announces far more often (benchmarks/bench_startup.py);
+- acknowledgements: reliable writers send heartbeats far more often than by default and readers answer them at
+  once, so a behaviour's last zero command and the simulator's ack window (nodes/ack_window.py) are acknowledged
   within milliseconds (benchmarks/bench_lockstep.py);
-- liveliness: a participant that stops announcing is dropped after 2 s, not 20 s;
+- liveliness: a participant that stops announcing is dropped within seconds, not tens of seconds;
 - the simulator's own profile (fastdds_sim_profiles.xml, `use_simulator_profile`) adds that its endpoints never
   match each other: it never reads its own topics, and matching every new one of a swarm's thousands against all
   the others made a big swarm's start-up many times longer (benchmarks/bench_swarm_startup.py).

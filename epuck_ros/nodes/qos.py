@@ -1,7 +1,15 @@
 """The QoS profiles this package's topics share, defined once so a publisher and its readers always match."""
 from __future__ import annotations
 
-from rclpy.qos import DurabilityPolicy, QoSProfile
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+
+from epuck_ros.nodes.ack_window import HISTORY_BUDGET
 
 LATCHED = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
 """Published once, kept for late readers (ROS 1's latched topics): the world, its markers, contact counts."""
+
+LED_QOS = QoSProfile(depth=HISTORY_BUDGET, reliability=ReliabilityPolicy.RELIABLE,
+                     durability=DurabilityPolicy.TRANSIENT_LOCAL)
+"""A controller's LEDs: latched (a view started later still draws them), with the history of its wheel_cmd
+(COMMAND_QOS): a script may set them every step, and a reliable writer replaces a sample a recorder has not
+acknowledged yet once its history is full (a history of one lost LED messages in recordings; README, Bags)."""

@@ -3,7 +3,12 @@
     record [-o DIR] [--compression none|zstd|lz4] [--max-duration S] [TOPIC ...] [--ros-args ...]
 
 Topics (all visible ones when none is named) are found from the graph every `DISCOVERY_PERIOD`
-seconds, so topics that appear later are recorded too. Messages are subscribed raw — the CDR
+seconds, so topics that appear later are recorded too. The simulator's on-demand sense topics (camera, ground and
+light sensors, IMU: `nodes/sense_ports.py`) are recorded as they are published, without asking for them: the
+simulator computes a sense while something else reads it (a controller, the view, an echo) or its `senses` parameter
+says so, and a recorder alone must not make it render a camera every step. Such a topic enters the bag with its first
+message. `--senses` / `--all-senses` (or naming the topic) ask for them: those subscriptions are made by a second node,
+`SENSE_ASKER_NODE`, which the simulator counts as a reader that asks. Messages are subscribed raw — the CDR
 bytes go to the bag untouched — with a QoS that matches every publisher, and a thread writes
 the bag so callbacks only enqueue. log_time is the node's clock (simulated time under
 ``use_sim_time``); publish_time is the publisher's source timestamp, as rosbag2 records them.
@@ -43,6 +48,7 @@ from epuck_ros.bag.qos import QosProfile
 from epuck_ros.bag.reader import Bag, BagError
 from epuck_ros.bag.writer import COMPRESSIONS, BackgroundWriter, BagExistsError, BagWriteError, BagWriter
 from epuck_ros.nodes.dds_profile import use_package_profile, warn_if_not_fast_dds
+from epuck_ros.nodes.sense_ports import ON_DEMAND_TOPICS, RECORDER_NODE, SENSE_TOPICS
 
 DISCOVERY_PERIOD = 0.2
 """s of wall time between two looks at the graph (rosbag2 polls every 0.1 s)."""
@@ -60,6 +66,9 @@ BACKLOG_PER_CALLBACK = 256
 a turn, and a topic that arrives faster than it is written cannot hold the executor (the stop flag, the others)."""
 NOTHING_RECORDED_WARNING = 5.0
 """s of wall time without a single message before `record` says it may be on the wrong domain."""
+SENSE_ASKER_NODE = 'recorder_senses'
+"""The recorder's node for the sense topics it asks for (`--senses`, a named sense topic): any node but RECORDER_NODE
+makes the simulator compute a sense it reads."""
 DEFAULT_BAG_FOLDER = Path('bags')
 EXIT_WRITE_FAILED = 1
 
@@ -94,6 +103,12 @@ def subscription_qos(offered: list[QoSProfile]) -> QoSProfile:
         durability=DurabilityPolicy.TRANSIENT_LOCAL if latched else DurabilityPolicy.VOLATILE)
 
 
+def sense_of(topic: str) -> str | None:
+    """Which on-demand sense topic `topic` is (a key of sense_ports.ON_DEMAND_TOPICS, any robot's), None for others."""
+    return next((kind for kind, name in ON_DEMAND_TOPICS.items() if topic == '/' + name or topic.endswith('/' + name)),
+                None)
+
+
 def message_class(type_name: str) -> type:
     """``pkg/msg/Type`` -> the generated Python class (raw subscriptions still need its type support)."""
     package, _, name = type_name.split('/')
@@ -103,12 +118,22 @@ def message_class(type_name: str) -> type:
 class Recorder(Node):
     """Subscribes to the wanted topics as they appear and hands every message to the bag writer."""
 
-    def __init__(self, writer: BagWriter, topics: list[str], max_duration: float | None) -> None:
+    def __init__(self, writer: BagWriter, topics: list[str], max_duration: float | None,
+                 senses: frozenset[str] = frozenset()) -> None:
+        """`senses`: the on-demand senses (keys of sense_ports.SENSE_TOPICS) to ask the simulator for; a named sense
+        topic is asked for too."""
         # No /rosout: the recorder's own log lines would end up in the bag, and its closing line
         # would fail to publish once Ctrl-C has shut the context down.
-        super().__init__('recorder', enable_rosout=False)
+        super().__init__(RECORDER_NODE, enable_rosout=False)
         self._bag = BackgroundWriter(writer)
         self._wanted = {self.resolve_topic_name(t) for t in topics} or None
+        self._senses = senses
+        asks = senses or any(sense_of(topic) for topic in self._wanted or ())
+        self.asker = Node(SENSE_ASKER_NODE, context=self.context, enable_rosout=False,
+                          start_parameter_services=False) if asks else None
+        """The node of the sense subscriptions that ask for their sense (see the module)."""
+        self._unregistered: dict[str, tuple[str, list[QosProfile]]] = {}
+        """Sense topics recorded without asking, not in the bag until their first message: (type, offered QoS)."""
         self._max_duration_ns = None if max_duration is None else int(max_duration * 1e9)
         self._first_ns: int | None = None
         self._use_sim_time = self.get_parameter('use_sim_time').value
@@ -162,16 +187,24 @@ class Recorder(Node):
             self._skip(topic, f'type {types[0]} is not installed here')
             return
         self._recording.add(topic)
-        self._bag.add_topic(topic, types[0], [offered_profile(q) for q in offered])
+        sense = sense_of(topic)
+        asked = sense is not None and (sense in self._senses or self._wanted is not None)
+        profiles = [offered_profile(q) for q in offered]
+        if sense is not None and not asked:
+            self._unregistered[topic] = (types[0], profiles)
+        else:
+            self._bag.add_topic(topic, types[0], profiles)
+        node = self.asker if asked else self
         events = SubscriptionEventCallbacks(message_lost=partial(self._on_lost, topic))
         try:
-            subscription = self.create_subscription(msg_class, topic, partial(self._on_message, topic),
+            subscription = node.create_subscription(msg_class, topic, partial(self._on_message, topic),
                                                     subscription_qos(offered), raw=True, event_callbacks=events)
         except UnsupportedEventTypeError:  # an RMW without message-lost events: stamp gaps still tell
-            subscription = self.create_subscription(msg_class, topic, partial(self._on_message, topic),
+            subscription = node.create_subscription(msg_class, topic, partial(self._on_message, topic),
                                                     subscription_qos(offered), raw=True)
         self._subscription_of[topic] = subscription
-        self.get_logger().info(f'subscribed to {topic} ({types[0]})')
+        how = '' if sense is None else ', asking for it' if asked else ', recorded while something asks for it'
+        self.get_logger().info(f'subscribed to {topic} ({types[0]}{how})')
 
     def _on_lost(self, topic: str, info: QoSMessageLostInfo) -> None:
         self._lost[topic] = self._lost.get(topic, 0) + info.total_count_change
@@ -216,7 +249,7 @@ class Recorder(Node):
             return
         if self._before_clock:
             self._write_held(now)
-        self._bag.write(topic, data, now, info.get('source_timestamp') or now)
+        self._write(topic, data, now, info.get('source_timestamp') or now)
         if self._max_duration_ns is not None:
             self._first_ns = now if self._first_ns is None else self._first_ns
             if now - self._first_ns >= self._max_duration_ns:
@@ -224,8 +257,18 @@ class Recorder(Node):
 
     def _write_held(self, stamp: int) -> None:
         for topic, data, published in self._before_clock:
-            self._bag.write(topic, data, stamp, published or stamp)
+            self._write(topic, data, stamp, published or stamp)
         self._before_clock.clear()
+
+    def _write(self, topic: str, data: bytes, log_time: int, publish_time: int) -> None:
+        if topic in self._unregistered:   # a sense topic's first message: into the bag from now on
+            self._bag.add_topic(topic, *self._unregistered.pop(topic))
+        self._bag.write(topic, data, log_time, publish_time)
+
+    def destroy_node(self) -> None:
+        if self.asker is not None:
+            self.asker.destroy_node()
+        super().destroy_node()
 
     def close(self) -> None:
         """Write what is queued, the MCAP summary and metadata.yaml; then say what may be missing."""
@@ -266,8 +309,18 @@ def parse_arguments(argv: list[str]) -> argparse.Namespace:
                'and stamp gaps.\n'
                'Exit codes: 0 done, 1 the bag could not be written (e.g. disk full), 2 bad arguments or\n'
                'an existing output folder.\n\n'
-               'example: record -o bags/manual /odom /ground_truth --ros-args -p use_sim_time:=true')
-    parser.add_argument('topics', nargs='*', metavar='TOPIC', help='topics to record (default: all)')
+               'Senses on demand: the simulator computes a camera, ground, light or IMU topic only while\n'
+               'something asks for it (a controller that enabled the device, the view, an echo, or the sim\n'
+               'parameter senses). record takes such a topic whenever it is published, from its first\n'
+               'message on, but does not ask for it, so an IR-only run is recorded without its camera;\n'
+               '--senses, --all-senses or naming the topic ask for it (the simulator then renders it).\n\n'
+               'examples: record -o bags/manual /odom /ground_truth --ros-args -p use_sim_time:=true\n'
+               '          record -o bags/seen --senses camera --ros-args -p use_sim_time:=true')
+    parser.add_argument('topics', nargs='*', metavar='TOPIC',
+                        help='topics to record (default: all; a sense topic named here is asked for)')
+    parser.add_argument('--senses', type=_sense_list, default=frozenset(), metavar='KIND[,KIND]',
+                        help=f'ask the simulator for these senses of every robot ({", ".join(SENSE_TOPICS)})')
+    parser.add_argument('--all-senses', action='store_true', help='ask the simulator for every sense')
     parser.add_argument('-o', '--output', type=Path,
                         help='bag folder to create (default: bags/rosbag2_YYYY_MM_DD-HH_MM_SS)')
     parser.add_argument('--compression', choices=sorted(COMPRESSIONS), default='none',
@@ -275,6 +328,8 @@ def parse_arguments(argv: list[str]) -> argparse.Namespace:
     parser.add_argument('--max-duration', type=float, metavar='SECONDS',
                         help="stop after this long on the node's clock (simulated time with use_sim_time)")
     options = parser.parse_args(argv)
+    if options.all_senses:
+        options.senses = frozenset(SENSE_TOPICS)
     if options.max_duration is not None and not 0 < options.max_duration < math.inf:
         parser.error(f'--max-duration must be a finite positive number of seconds, not {options.max_duration}')
     for topic in options.topics:
@@ -283,6 +338,16 @@ def parse_arguments(argv: list[str]) -> argparse.Namespace:
         except InvalidTopicNameException as error:
             parser.error(f'invalid topic name {topic!r}: {str(error).splitlines()[0]}')
     return options
+
+
+def _sense_list(text: str) -> frozenset[str]:
+    """`--senses camera,ground`: the kinds, each one the simulator has."""
+    kinds = frozenset(word.strip() for word in text.split(',') if word.strip())
+    unknown = sorted(kinds - set(SENSE_TOPICS))
+    if unknown or not kinds:
+        raise argparse.ArgumentTypeError(f'{unknown[0] if unknown else text!r} is no sense: '
+                                         f'choose from {", ".join(SENSE_TOPICS)}')
+    return kinds
 
 
 def main(args: list[str] | None = None) -> None:
@@ -303,7 +368,7 @@ def main(args: list[str] | None = None) -> None:
     node = None
     failure = None
     try:
-        node = Recorder(writer, options.topics, options.max_duration)
+        node = Recorder(writer, options.topics, options.max_duration, options.senses)
         warn_if_not_fast_dds(node.get_logger())
         spin_until_finished(node, stop)
     except (KeyboardInterrupt, ExternalShutdownException):
@@ -332,6 +397,8 @@ def spin_until_finished(node: Recorder, stop: threading.Event | None = None) -> 
     take the messages DDS already holds for the recorder (for at most DRAIN_LIMIT s) so none is lost."""
     executor = SingleThreadedExecutor()
     executor.add_node(node)
+    if node.asker is not None:
+        executor.add_node(node.asker)
     while not node.finished and not (stop is not None and stop.is_set()) and rclpy.ok():
         executor.spin_once(timeout_sec=STOP_LATENCY)   # a signal does not wake the wait: look at `stop` anyway
     if stop is None or not stop.is_set() or node.failure is not None:

@@ -20,10 +20,10 @@ from rclpy.qos import QoSProfile
 from sensor_msgs.msg import JointState, Range
 from std_msgs.msg import Float64MultiArray, UInt32
 
-from epuck_ros.conversions import quaternion_from_yaw
+from epuck_ros.conversions import nanoseconds_from_stamp, quaternion_from_yaw
 from epuck_ros.description import JOINT_NAMES
 from epuck_ros.model import SENSOR_NAMES, RobotModel
-from epuck_ros.nodes.serialized import PatchCache, float64_values
+from epuck_ros.nodes.serialized import PatchCache, array_bytes, array_values
 from epuck_ros.simulation import Simulation
 
 WORLD_FRAME = 'world'
@@ -43,8 +43,9 @@ ODOMETRY_FIELDS = STAMP_FIELDS + [
     ('pose.pose.orientation.w', 'd'), ('twist.twist.linear.x', 'd'), ('twist.twist.angular.z', 'd')]
 """What changes in an Odometry from one step to the next (the rest is serialised once)."""
 
-CommandHandler = Callable[[int, str, str, float, float], None]
-"""(robot index, topic, 'wheels' or 'twist', first value, second value): what the node does with a command."""
+CommandHandler = Callable[[int, str, str, float, float, 'int | None'], None]
+"""(robot index, topic, 'wheels' or 'twist', first value, second value, the step it answers in nanoseconds or None
+when it names none): what the node does with a command."""
 
 
 def topic_prefix(name: str, several: bool) -> str:
@@ -85,8 +86,7 @@ class RobotPorts:
         self.publish_collisions(0)
 
         if cmd_vel_stamped:
-            self._twist_sub = node.create_subscription(
-                TwistStamped, topics + 'cmd_vel', lambda msg: self._twist(msg.twist), 10)
+            self._twist_sub = node.create_subscription(TwistStamped, topics + 'cmd_vel', self._stamped_twist, 10)
         else:
             self._twist_sub = node.create_subscription(Twist, topics + 'cmd_vel', self._twist, 10)
         self._wheels_sub = node.create_subscription(Float64MultiArray, topics + 'wheel_cmd', self._wheels, 10,
@@ -118,22 +118,28 @@ class RobotPorts:
         joints = JointState(name=JOINT_NAMES, position=[0.0, 0.0], velocity=[0.0, 0.0])
         self._joints = patches.patch(joints, STAMP_FIELDS + [('position[0]', 'd'), ('position[1]', 'd'),
                                                              ('velocity[0]', 'd'), ('velocity[1]', 'd')], None)
-        self._raw = patches.patch(Float64MultiArray(data=[0.0] * len(SENSOR_NAMES)),
-                                  [(f'data[{i}]', 'd') for i in range(len(SENSOR_NAMES))], None)
 
     # --- commands ---------------------------------------------------------------------------------------
 
     def _twist(self, msg: Twist) -> None:
-        self._on_command(self.index, self._twist_sub.topic_name, 'twist', msg.linear.x, msg.angular.z)
+        self._on_command(self.index, self._twist_sub.topic_name, 'twist', msg.linear.x, msg.angular.z, None)
+
+    def _stamped_twist(self, msg: TwistStamped) -> None:
+        """A TwistStamped answers the step its header names (as Jazzy's diff_drive_controller takes cmd_vel)."""
+        twist, stamp = msg.twist, msg.header.stamp
+        self._on_command(self.index, self._twist_sub.topic_name, 'twist', twist.linear.x, twist.angular.z,
+                         nanoseconds_from_stamp(stamp.sec, stamp.nanosec))
 
     def _wheels(self, data: bytes) -> None:
-        values = float64_values(data)  # received as bytes: see `serialized`
-        if values is None or len(values) != 2:
-            got = 'bytes that are no Float64MultiArray' if values is None else f'{len(values)} values'
+        read = array_values(data)  # received as bytes: see `serialized`
+        if read is None or len(read[0]) != 2:
+            got = 'bytes that are no Float64MultiArray' if read is None else f'{len(read[0])} values'
             self._logger.warning(f'{self._wheels_sub.topic_name} refused: data must be [left, right] rad/s, got {got}',
                                  throttle_duration_sec=WARN_PERIOD)
             return
-        self._on_command(self.index, self._wheels_sub.topic_name, 'wheels', *values)
+        (left, right), stamp = read
+        self._on_command(self.index, self._wheels_sub.topic_name, 'wheels', left, right,
+                         None if stamp is None else nanoseconds_from_stamp(*stamp))
 
     def has_controller(self) -> bool:
         """Some node publishes on this robot's wheel_cmd or cmd_vel (a matched publisher): lockstep waits for it."""
@@ -151,7 +157,7 @@ class RobotPorts:
         if self._truth_pub.get_subscription_count():
             self._truth_pub.publish(self._truth.bytes(_odometry(stamp, sim.true_pose[robot], sim.true_twist[robot])))
         if self._raw_pub.get_subscription_count():
-            self._raw_pub.publish(self._raw.bytes(sim.ir_raw[robot].tolist()))
+            self._raw_pub.publish(array_bytes(sim.ir_raw[robot].tolist(), stamp))
         if self._range_pub.get_subscription_count():
             for patch, value in zip(self._ranges, sim.ir_range[robot].tolist()):
                 self._range_pub.publish(patch.bytes((*stamp, value)))

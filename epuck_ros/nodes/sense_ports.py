@@ -1,17 +1,23 @@
 """One robot's sense topics on the simulator node: camera/image_raw and camera/camera_info, ground_raw, light_raw,
 imu (design.md, "Senses"); each sense is computed only while it is wanted.
 
-Wanted means a subscriber on its topic (so an echo, RViz or a recorder just works), or the `senses` parameter.
+Wanted means a subscriber on its topic that asks for it (so an echo, RViz or a controller just works), or the `senses`
+parameter. A recorder's subscriber does not ask (`RECORDER_NODE`): it records a sense while something else asks for
+it, so recording an IR-only run renders no camera (it rendered and recorded one every step, the bag several times as
+large). A topic is published while its sense is wanted and it has a subscriber of either kind.
 From SENSE_TOPICS_ON_DEMAND_FROM robots a topic's publisher is made only once a subscriber to it is in the graph
 (`SensePorts`).
 The node looks at the subscriber counts every SENSE_POLL wall seconds (`update_wants`), not every step: a swarm's
-thousands of topics would cost more than its steps. A sense newly wanted is read at once from the current state,
-so the next step's messages carry it. Messages are serialised once and patched each step (`serialized`), the
-image's pixels copied into the tail of its CDR bytes.
+thousands of topics would cost more than its steps. A sense newly wanted is read at once from the current state and
+its message of the current step published at once: a lockstep controller that has just subscribed waits for that
+message before it answers the step, so the sense is sure to be read on the next step (the step protocol, see
+epuck_ros/lockstep.py). Every message names its step: a header's stamp, or for the raw arrays the layout's label
+(`conversions.stamp_label`). Messages are serialised once and patched each step (`serialized`), the image's pixels
+copied into the tail of its CDR bytes.
 """
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Iterable, Mapping
 
 from rclpy.node import Node
 from rclpy.publisher import Publisher
@@ -20,9 +26,10 @@ from sensor_msgs.msg import CameraInfo, Image, Imu
 from std_msgs.msg import Float64MultiArray
 
 from epuck_ros.description import IMU_FRAME
-from epuck_ros.model import CAMERA_FOV, GROUND_SENSOR_NAMES, LIGHT_SENSOR_NAMES
+from epuck_ros.model import CAMERA_FOV
 from epuck_ros.nodes.robot_ports import STAMP_FIELDS, frame_prefix, quiet_publisher, topic_prefix
-from epuck_ros.nodes.serialized import Patch, exact_cdr
+from epuck_ros.conversions import stamp_from_seconds
+from epuck_ros.nodes.serialized import Patch, array_bytes, exact_cdr
 from epuck_ros.sensors.camera import camera_matrix
 from epuck_ros.sensors.imu import rates_from_gyro_values
 from epuck_ros.simulation import Simulation
@@ -40,10 +47,14 @@ SENSE_TOPICS_ON_DEMAND_FROM = 200
 """Robots from which the simulator makes a sense topic's publisher only once the topic has a reader
 (`SensePorts`' on_demand): below, their publishers cost little at start and every topic is in the graph."""
 _CAMERA_INFO = 'camera_info'
-_PUBLISHED = {**SENSE_TOPICS, _CAMERA_INFO: 'camera/camera_info'}
+ON_DEMAND_TOPICS = {**SENSE_TOPICS, _CAMERA_INFO: 'camera/camera_info'}
 """Every sense topic of a robot by kind (the camera has two); `_TYPES`: their message types."""
 _TYPES = {'camera': Image, _CAMERA_INFO: CameraInfo, 'ground': Float64MultiArray, 'light': Float64MultiArray,
           'imu': Imu}
+RECORDER_NODE = 'recorder'
+"""The node name of `record` (nodes/record_node.py): its subscribers record a sense topic without asking for it."""
+_UNKNOWN_NODE = '_NODE_NAME_UNKNOWN_'
+"""The node name the graph gives an endpoint whose node it has not heard of yet."""
 IMU_FIELDS = STAMP_FIELDS + [(f'{vector}.{axis}', 'd') for vector in ('angular_velocity', 'linear_acceleration')
                              for axis in 'xyz']
 
@@ -83,18 +94,24 @@ class SensePorts:
         frames = frame_prefix(name, several, frames_prefix)
         width, height = sim.senses.camera_size
         self._node, self._qos = node, stream_qos
-        self.topics = {kind: topics + topic for kind, topic in _PUBLISHED.items()}
+        self.topics = {kind: topics + topic for kind, topic in ON_DEMAND_TOPICS.items()}
         """Each of its topics (relative to the node's namespace) by kind: SENSE_TOPICS' and 'camera_info'."""
-        self._publishers: dict[str, Publisher | None] = dict.fromkeys(_PUBLISHED)
+        self._publishers: dict[str, Publisher | None] = dict.fromkeys(ON_DEMAND_TOPICS)
         if not on_demand:
-            for kind in _PUBLISHED:
+            for kind in ON_DEMAND_TOPICS:
                 self.offer(kind)
         self._frames, self._size = frames, (width, height)
         self._made = False
+        self._wanted = {kind: False for kind in SENSE_TOPICS}
+        self._asking = {kind: 0 for kind in SENSE_TOPICS}
+        self._readers: dict[str, tuple[int, int]] = {}
+        """Per kind, (matched readers, readers that ask) as last settled by the graph (`_readers_of`)."""
         self.subscribed = {kind: False for kind in SENSE_TOPICS}
+        """Per sense, whether its topic is published after each step: the sense is wanted and the topic read."""
         self._info_subscribed = False
+        """The same for camera/camera_info: read, and asked for or the camera wanted."""
         self.publishing = False
-        """Some sense topic of this robot has a subscriber: the node calls `publish` after each step."""
+        """Some sense topic of this robot is published: the node calls `publish` after each step."""
 
     def offers(self, kind: str) -> bool:
         """Whether the topic of `kind` has its publisher."""
@@ -119,44 +136,79 @@ class SensePorts:
         info.p = [k[0], 0.0, k[2], 0.0, 0.0, k[4], k[5], 0.0, 0.0, 0.0, 1.0, 0.0]
         info.header.frame_id = frames + 'camera'
         self._info = Patch(info, STAMP_FIELDS)
-        self._ground = Patch(Float64MultiArray(data=[0.0] * len(GROUND_SENSOR_NAMES)),
-                             [(f'data[{i}]', 'd') for i in range(len(GROUND_SENSOR_NAMES))])
-        self._light = Patch(Float64MultiArray(data=[0.0] * len(LIGHT_SENSOR_NAMES)),
-                            [(f'data[{i}]', 'd') for i in range(len(LIGHT_SENSOR_NAMES))])
         imu = Imu()
         imu.header.frame_id = frames + IMU_FRAME
         imu.orientation_covariance[0] = -1.0   # REP 145: no orientation estimate
         self._imu = Patch(imu, IMU_FIELDS)
         self._made = True
 
-    def update_wants(self, want: Callable[[str, int, bool], None], forced: frozenset[str]) -> None:
-        """Tell the simulation which of this robot's senses are wanted now (`forced`: by the parameter)."""
+    def update_wants(self, want: Callable[[str, int, bool], None], forced: frozenset[str]) -> list[str]:
+        """Tell the simulation which of this robot's senses are wanted now (`forced`: by the parameter); the senses
+        that have just got a reader that asks for them, or whose publication starts (the node publishes their
+        current step at once: a lockstep controller that subscribed waits for that message)."""
+        readers = {kind: self._readers_of(kind) for kind in ON_DEMAND_TOPICS}
+        new = []
         for kind in SENSE_TOPICS:
-            publisher = self._publishers[kind]
-            subscribed = publisher is not None and publisher.get_subscription_count() > 0
-            if subscribed != self.subscribed[kind]:
-                self.subscribed[kind] = subscribed
-                want(kind, self.index, subscribed or kind in forced)
-        info = self._publishers[_CAMERA_INFO]
-        self._info_subscribed = info is not None and info.get_subscription_count() > 0
+            count, asking = readers[kind]
+            wanted = asking > 0 or kind in forced
+            if wanted != self._wanted[kind]:
+                self._wanted[kind] = wanted
+                want(kind, self.index, wanted)
+            if asking > self._asking[kind] or (count and wanted and not self.subscribed[kind]):
+                new.append(kind)
+            self._asking[kind] = asking
+        self.follow(self._wanted, {kind: count > 0 for kind, (count, _) in readers.items()},
+                    readers[_CAMERA_INFO][1] > 0)
+        return new
+
+    def follow(self, wanted: Mapping[str, bool], read: Mapping[str, bool], info_asked: bool = False) -> None:
+        """Publish, after each step, the topics of the `wanted` senses that are `read` (by kind, camera_info's
+        with the camera's or when `info_asked`). A headless trial's bag (experiments/recording.py) follows what
+        the simulation computes, as its recorder reads every topic."""
+        for kind in SENSE_TOPICS:
+            self.subscribed[kind] = read[kind] and wanted[kind]
+        self._info_subscribed = read[_CAMERA_INFO] and (info_asked or wanted['camera'])
         self.publishing = self._info_subscribed or any(self.subscribed.values())
         if self.publishing and not self._made:
             self._make_messages()
 
-    def publish(self, sim: Simulation, stamp: tuple[int, int]) -> None:
-        """This robot's sense messages for the senses with subscribers (their readings are those of this step)."""
+    def _readers_of(self, kind: str) -> tuple[int, int]:
+        """How many readers the topic of `kind` has, and how many of them ask for it: any reader but a recorder's
+        (RECORDER_NODE). The graph is asked only when the number of matched readers changed, until it shows that
+        many with their nodes' names; meanwhile the readers known to ask are not counted fewer than before."""
+        publisher = self._publishers[kind]
+        count = 0 if publisher is None else publisher.get_subscription_count()
+        settled = self._readers.get(kind)
+        if settled is not None and settled[0] == count:
+            return settled
+        if count == 0:
+            self._readers[kind] = (0, 0)
+            return 0, 0
+        names = [info.node_name for info in self._node.get_subscriptions_info_by_topic(publisher.topic_name)]
+        asking = sum(1 for name in names if name != RECORDER_NODE and not name.startswith(_UNKNOWN_NODE))
+        if len(names) == count and not any(name.startswith(_UNKNOWN_NODE) for name in names):
+            self._readers[kind] = (count, asking)
+        elif settled is not None:
+            asking = max(asking, settled[1])
+        return count, asking
+
+    def publish(self, sim: Simulation, stamp: tuple[int, int], kinds: Iterable[str] = SENSE_TOPICS) -> None:
+        """This robot's sense messages of `kinds` that are published (their readings are those of this step)."""
         robot, senses, subscribed, publishers = self.index, sim.senses, self.subscribed, self._publishers
-        if subscribed['camera'] and senses.images is not None:
-            publishers['camera'].publish(self._image.bytes(stamp, senses.images[robot].tobytes()))
-        if self._info_subscribed:
+        for kind in kinds:
+            if not subscribed[kind]:
+                continue
+            if kind == 'camera' and senses.images is not None:
+                publishers['camera'].publish(self._image.bytes(stamp, senses.images[robot].tobytes()))
+            elif kind == 'ground':
+                publishers['ground'].publish(array_bytes(senses.ground_raw[robot].tolist(), stamp))
+            elif kind == 'light':
+                publishers['light'].publish(array_bytes(senses.light_raw[robot].tolist(), stamp))
+            elif kind == 'imu':
+                rates = rates_from_gyro_values(senses.gyro[robot]).tolist()
+                publishers['imu'].publish(self._imu.bytes((*stamp, *rates, *senses.accelerometer[robot].tolist())))
+        if self._info_subscribed and 'camera' in kinds:
             publishers[_CAMERA_INFO].publish(self._info.bytes(stamp))
-        if subscribed['ground']:
-            publishers['ground'].publish(self._ground.bytes(senses.ground_raw[robot].tolist()))
-        if subscribed['light']:
-            publishers['light'].publish(self._light.bytes(senses.light_raw[robot].tolist()))
-        if subscribed['imu']:
-            rates = rates_from_gyro_values(senses.gyro[robot]).tolist()
-            publishers['imu'].publish(self._imu.bytes((*stamp, *rates, *senses.accelerometer[robot].tolist())))
 
 
 class SenseFeeds:
@@ -208,7 +260,11 @@ class SenseFeeds:
         self._update(self.ports[self._turn])
 
     def _update(self, ports: SensePorts) -> None:
+        """One robot's wants; a sense just subscribed is published at once for the current step (see the module)."""
         was = ports.publishing
-        ports.update_wants(lambda kind, robot, wanted: self._sim.senses.want(kind, [robot], wanted), self._forced)
+        new = ports.update_wants(lambda kind, robot, wanted: self._sim.senses.want(kind, [robot], wanted),
+                                 self._forced)
         if ports.publishing != was:
             self._publishing = [ports for ports in self.ports if ports.publishing]
+        if new and self._sim.steps:   # no step published yet: the first one will carry it
+            ports.publish(self._sim, stamp_from_seconds(self._sim.time), new)

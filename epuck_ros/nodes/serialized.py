@@ -13,9 +13,13 @@ CDR (a JointState of 120 bytes came as 124 or 132) and whose alignment padding i
 refuses such a message ("CDR message size mismatch") and every copy would carry the stale bytes. rosbags' typestore
 writes the exact CDR with zero padding, as Fast DDS does for `publish(msg)` on the wire.
 
-The other way round, `float64_values` reads the numbers of a Float64MultiArray received as bytes (`raw=True`):
-rclpy would build a message object, its layout and an array for them, many times the cost of reading the
-numbers, on both sides of every lockstep round trip (`ir_raw`, `wheel_cmd`).
+A Float64MultiArray that names its step (`ir_raw`, `ground_raw`, `light_raw`, a stamped `wheel_cmd`: one
+dimension labelled `conversions.stamp_label`) is written whole by `array_bytes`: its label's length changes with the
+time, so it cannot be a Patch; packing it is a few struct calls (test_serialized checks it against rosbags' bytes).
+
+The other way round, `array_values` reads the numbers of a Float64MultiArray received as bytes (`raw=True`) and
+the step its label names: rclpy would build a message object, its layout and an array for them, many times the
+cost of reading the numbers, on both sides of every lockstep round trip (`ir_raw`, `wheel_cmd`).
 """
 from __future__ import annotations
 
@@ -27,11 +31,22 @@ import numpy as np
 from rosbags.serde import SerdeError
 from rosbags.typesys import Stores, get_typestore
 
+from epuck_ros.conversions import stamp_from_label, stamp_label
+
 _LITTLE_ENDIAN_CDR = b'\x00\x01'
 _ARRAY_HEAD = struct.Struct('<2xHIII')
 """Float64MultiArray's CDR up to its numbers: encapsulation (2 bytes kind, 2 options), layout.dim count,
 layout.data_offset, data count; with no dims the float64s follow at byte 20 (8-aligned after the header)."""
 _ARRAY_DATA = 20
+_ENCAPSULATION = _LITTLE_ENDIAN_CDR + b'\x00\x00'
+_NO_DIMS = struct.Struct('<III')
+"""A Float64MultiArray without dimensions after its encapsulation: dim count (0), data_offset, data count."""
+_ONE_DIM = struct.Struct('<4sII')
+"""The start of a Float64MultiArray with one dimension: encapsulation, dim count (1), its label's length (with NUL)."""
+_AFTER_LABEL = struct.Struct('<IIII')
+"""After the label, 4-aligned: the dimension's size and stride, layout.data_offset, the data count."""
+_HEADER = 4
+"""CDR aligns relative to the end of the 4-byte encapsulation header."""
 _MARKERS = {'d': 1.234567890123e-271, 'f': 1.2345678e-31, 'i': 0x5A3C1E2F, 'I': 0x6B4D2F31}
 """Values no field of our messages holds, whose bytes cannot occur by chance (a different one for each field)."""
 
@@ -151,8 +166,8 @@ def _as_rosbags(msg: Any) -> Any:
             else:
                 values[name] = [_as_rosbags(item) if hasattr(item, 'get_fields_and_field_types') else item
                                 for item in value]
-        else:
-            values[name] = value
+        else:   # rclpy holds an octet (DiagnosticStatus.level) as one byte, rosbags as its number
+            values[name] = value[0] if kind == 'octet' else value
     return _TYPESTORE.types[_type_name(msg)](**values)
 
 
@@ -180,17 +195,59 @@ def _resolve(msg: Any, path: str) -> tuple[Any, str, int | None]:
     return msg, name, int(rest.rstrip(']')) if bracket else None
 
 
-def float64_values(data: bytes) -> tuple[float, ...] | None:
-    """The numbers of a serialised std_msgs/Float64MultiArray, None if the bytes are not one (a publisher may send
-    any bytes). One with a layout, or big-endian, is read by rosbags, never by rclpy: rclpy's C deserialiser prints
-    a line to stderr for each bad message, which a publisher of bad bytes would turn into a flood (the caller's
+def array_bytes(values: Sequence[float], stamp: tuple[int, int] | None = None) -> bytes:
+    """A std_msgs/Float64MultiArray of `values` as its exact little-endian CDR; with `stamp` (sec, nanosec), named by
+    that step: one dimension (size and stride the count) labelled `stamp_label(*stamp)`, data_offset 0."""
+    count = len(values)
+    numbers = struct.pack(f'<{count}d', *values)
+    if stamp is None:
+        return b''.join((_ENCAPSULATION, _NO_DIMS.pack(0, 0, count), bytes(4 if count else 0), numbers))
+    label = stamp_label(*stamp).encode() + b'\x00'
+    end = _ONE_DIM.size + len(label)
+    middle = _AFTER_LABEL.pack(count, count, 0, count)
+    pad_label = -(end - _HEADER) % 4
+    end += pad_label + _AFTER_LABEL.size
+    pad_data = -(end - _HEADER) % 8 if count else 0
+    return b''.join((_ONE_DIM.pack(_ENCAPSULATION, 1, len(label)), label, bytes(pad_label), middle, bytes(pad_data),
+                     numbers))
+
+
+def array_values(data: bytes) -> tuple[tuple[float, ...], tuple[int, int] | None] | None:
+    """The numbers of a serialised std_msgs/Float64MultiArray and the step its label names (None: it names none),
+    or None if the bytes are not one (a publisher may send any bytes). Our own two layouts (none, and one labelled
+    dimension) are read here; any other, or big-endian, by rosbags, never by rclpy: rclpy's C deserialiser prints a
+    line to stderr for each bad message, which a publisher of bad bytes would turn into a flood (the caller's
     throttled warning is all they should cost). rosbags reads XCDR1, the encoding ROS 2 Jazzy's middlewares send
     for this type; XCDR2 is refused like any other bytes that are no Float64MultiArray."""
     if data[:2] == _LITTLE_ENDIAN_CDR and len(data) >= _ARRAY_DATA:
         _, dims, _, count = _ARRAY_HEAD.unpack_from(data)
         if dims == 0 and len(data) >= _ARRAY_DATA + 8 * count:
-            return struct.unpack_from(f'<{count}d', data, _ARRAY_DATA)
+            return struct.unpack_from(f'<{count}d', data, _ARRAY_DATA), None
+        if dims == 1:
+            read = _one_labelled_dimension(data)
+            if read is not None:
+                return read
     try:
-        return tuple(float(value) for value in _TYPESTORE.deserialize_cdr(data, _FLOAT64_ARRAY).data)
+        msg = _TYPESTORE.deserialize_cdr(data, _FLOAT64_ARRAY)
     except SerdeError:
         return None
+    dims = msg.layout.dim
+    return tuple(float(value) for value in msg.data), stamp_from_label(dims[0].label) if len(dims) == 1 else None
+
+
+def _one_labelled_dimension(data: bytes) -> tuple[tuple[float, ...], tuple[int, int] | None] | None:
+    """`array_values` of the layout `array_bytes` writes with a stamp; None for anything else (rosbags reads it)."""
+    _, _, length = _ONE_DIM.unpack_from(data)
+    end = _ONE_DIM.size + length
+    if length == 0 or end > len(data) or data[end - 1] != 0:
+        return None
+    label = data[_ONE_DIM.size:end - 1]
+    end += -(end - _HEADER) % 4
+    if end + _AFTER_LABEL.size > len(data):
+        return None
+    _, _, offset, count = _AFTER_LABEL.unpack_from(data, end)
+    end += _AFTER_LABEL.size
+    end += -(end - _HEADER) % 8 if count else 0
+    if offset != 0 or end + 8 * count > len(data):
+        return None
+    return struct.unpack_from(f'<{count}d', data, end), stamp_from_label(label.decode(errors='replace'))

@@ -15,7 +15,6 @@ import os
 import sys
 import threading
 import time
-from collections.abc import Sequence
 
 import rclpy
 import yaml
@@ -31,13 +30,16 @@ from std_msgs.msg import String
 from std_srvs.srv import Empty, Trigger
 from visualization_msgs.msg import MarkerArray
 
-from epuck_ros.conversions import stamp_from_seconds
-from epuck_ros.lockstep import OWN_RATE_AFTER, OWN_RATE_WAIT, Lockstep
+from epuck_ros.description import frame_prefix
+from epuck_ros.conversions import nanoseconds_from_seconds, stamp_from_seconds
+from epuck_ros.integrity import HELD, NOT_LOCKSTEP
+from epuck_ros.lockstep import Answer, Lockstep
 from epuck_ros.markers import world_markers
 from epuck_ros.model import TIME_STEP, RobotModel
 from epuck_ros.nodes.ack_window import AckWindow, history_steps, window_steps
 from epuck_ros.nodes.dds_profile import use_package_profile, use_simulator_profile, warn_if_not_fast_dds
 from epuck_ros.nodes.domain_watch import DISCOVERY_WINDOW, DomainWatch
+from epuck_ros.nodes.lockstep_report import LockstepReport
 from epuck_ros.nodes.pacing import Controls, Pacer, Settings
 from epuck_ros.nodes.params import ParamSpec, Usage, command_line_value, declare_parameters, prepare_arguments
 from epuck_ros.nodes.qos import LATCHED
@@ -47,7 +49,7 @@ from epuck_ros.nodes.sense_ports import SENSE_POLL, SENSE_TOPICS, SenseError, Se
 from epuck_ros.nodes.serialized import Patch, PatchCache
 from epuck_ros.nodes.spinning import end_process, handle_shutdown_signals, shutdown_requested, spin_until_shutdown
 from epuck_ros.nodes.tf_ports import TfPorts
-from epuck_ros.simulation import CommandError, Simulation, StepEvents
+from epuck_ros.simulation import MAX_SEED, CommandError, Simulation, StepEvents
 from epuck_ros.world import World, WorldError, default_world, load_world, place_robots
 
 __all__ = ['JOINT_NAMES', 'SIM_PARAMETERS', 'SimNode', 'main']
@@ -64,13 +66,16 @@ SIM_PARAMETERS = [
     ParamSpec('pause_at', 0.0, 'simulated time (s) at which the simulation pauses by itself, exactly; 0 = never',
               (0.0, 1e9)),
     ParamSpec('lockstep', False, 'step only once every robot that has a controller (a publisher on its wheel_cmd or '
-                                 'cmd_vel) has answered the last step, or after lockstep_timeout: runs are the same '
-                                 'whatever the load of the machine', read_only=True),
-    ParamSpec('lockstep_timeout', 1.0, 'wall seconds a lockstep simulation waits for the answers before stepping '
-                                       'anyway', (0.001, 60.0), read_only=True),
-    ParamSpec('lockstep_controllers', 0, 'in lockstep, the first step waits until this many robots have a connected '
-                                         'controller (0 = no wait): whoever starts the controllers saw them before '
-                                         'the simulator may have; bringup sets it as it resumes', (0, 100000)),
+                                 'cmd_vel) has answered the last step, by name (a stamped answer): runs are the same '
+                                 'whatever the load of the machine (lockstep_status says whether one was)',
+              read_only=True),
+    ParamSpec('lockstep_timeout', 0.0, 'wall seconds a lockstep step waits for the answers of the controllers in '
+                                       'lockstep before it goes on without them (the run is then no longer '
+                                       'reproducible); 0 = as long as it takes', (0.0, 3600.0), read_only=True),
+    ParamSpec('lockstep_controllers', 1, 'in lockstep, the first step waits until this many robots have a connected '
+                                         'controller (0 = no wait; by default a lockstep simulation waits for one): '
+                                         'whoever starts the controllers saw them before the simulator may have; '
+                                         'bringup and the epuck_sim fixture set it as they resume', (0, 100000)),
     ParamSpec('discovery_window', DISCOVERY_WINDOW, 'wall seconds from the start during which the simulator looks for '
                                                     'another simulator on the ROS domain before its first step; '
                                                     'bringup, which has watched the domain since before it started '
@@ -78,7 +83,7 @@ SIM_PARAMETERS = [
     ParamSpec('world', '', 'path to a world YAML file; empty = the built-in 1 m x 1 m arena', read_only=True),
     ParamSpec('robots', 0, 'number of robots: 0 = those of the world; N = N robots epuck0.. placed clear of '
                            'everything, seeded by seed', (0, 100000), read_only=True),
-    ParamSpec('seed', 0, 'seed of every random draw (noise, placement): same seed, same run', (0, 2**31 - 1),
+    ParamSpec('seed', 0, 'seed of every random draw (noise, placement): same seed, same run', (0, MAX_SEED),
               read_only=True),
     ParamSpec('noise', True, 'IR sensor noise (Webots lookup table, relative Gaussian) on or off', read_only=True),
     ParamSpec('cmd_timeout', 0.5, 'simulated seconds without a command before a robot stops; 0 = never',
@@ -116,6 +121,10 @@ class SimNode(Node):
         super().__init__('sim')
         created = time.monotonic()
         values = declare_parameters(self, SIM_PARAMETERS)
+        try:   # `sim1` as `sim1/`: frames sim1/odom, not sim1odom
+            values['frame_prefix'] = frame_prefix(values['frame_prefix'])
+        except ValueError as error:
+            raise PrefixError(f'frame_prefix: {error}') from None
         self._stop_listening_to_own_clock()
         world = _world(values)
         self._sim = Simulation(world, RobotModel(), time_step=values['time_step'], seed=values['seed'],
@@ -145,15 +154,19 @@ class SimNode(Node):
         _stop_if_asked()
         self._tf = TfPorts(self, self.ports, self._sim, len(self.ports) > 1, stream, LATCHED,
                            values['frame_prefix'] + WORLD_FRAME)
-        self._publish_world(world, values['frame_prefix'])
+        publish_world(self, world, values['frame_prefix'])
         self.create_service(Empty, 'reset', self._on_reset)
         self.create_service(Trigger, 'step', self._on_step)
         self._clock_pub = quiet_publisher(self, Clock, '/clock', stream)
         self._domain = DomainWatch(self, created, created if started is None else started, values['discovery_window'])
         self._clock_message = Patch(Clock(), [('clock.sec', 'i'), ('clock.nanosec', 'I')])
         self._acks = AckWindow(self._stream_publishers, window_steps(history), self._on_ack_stall, self._kept_all)
+        self._report = LockstepReport(self, self._sim.names, HELD if self._lockstep_on else NOT_LOCKSTEP,
+                                      self._lockstep_timeout, lambda: self._sim.time)
+        report = self._report
         self._lockstep = Lockstep(len(self.ports), self._take_step, self._lockstep_timeout, driven=self._driven,
-                                  lend=self._lend_on_answers, on_own_rate=self._on_own_rate, on_resend=self._on_resend)
+                                  lend=self._lend_on_answers, on_stall=report.stall, on_resend=report.resend,
+                                  on_free=report.free, on_timeout=report.timeout)
         self._lockstep.require_controllers(values['lockstep_controllers'])
         warn_if_not_fast_dds(self.get_logger())
         self._say_ready(world, values)
@@ -180,13 +193,6 @@ class SimNode(Node):
             ports.append(RobotPorts(self, index, name, several, stream, LATCHED, self._on_command,
                                     values['frame_prefix'], values['cmd_vel_stamped'], patches=patches))
         return ports
-
-    def _publish_world(self, world: World, frame_prefix: str) -> None:
-        """The world, latched: as YAML, and as markers for RViz."""
-        quiet_publisher(self, String, 'world', LATCHED).publish(
-            String(data=yaml.safe_dump(world.to_dict(), sort_keys=False)))
-        quiet_publisher(self, MarkerArray, 'world_markers', LATCHED).publish(
-            world_markers(world, frame_prefix + WORLD_FRAME))
 
     def _say_ready(self, world: World, values: dict) -> None:
         shown = ', '.join(world.names[:5]) + (', ...' if len(world.names) > 5 else '')
@@ -236,22 +242,38 @@ class SimNode(Node):
             elif param.name == 'lockstep_controllers':
                 self._lockstep.require_controllers(param.value)
 
-    def _on_command(self, robot: int, topic: str, kind: str, first: float, second: float) -> None:
+    def _on_command(self, robot: int, topic: str, kind: str, first: float, second: float, named: int | None) -> None:
+        """A command; in lockstep, paired with the current step by the step it names (`Lockstep.classify`): a repeat
+        of an answer is dropped, as is one naming a step not reached yet."""
         apply = self._sim.command_wheels if kind == 'wheels' else self._sim.command_twist
-        try:
-            with self._lock:
-                apply(robot, first, second)
-        except CommandError as error:
-            self.get_logger().warning(f'{topic} refused: {error}', throttle_duration_sec=WARN_PERIOD)
-            return
-        if self._lockstep_on:
+        refused = ''
+        with self._lock:   # the step cannot change between the verdict and the command (a step holds the lock)
+            current = nanoseconds_from_seconds(self._sim.time)
+            verdict = self._lockstep.classify(robot, named, current) if self._lockstep_on else None
+            if verdict in (Answer.REPEATED, Answer.FUTURE):
+                refused = '' if verdict is Answer.REPEATED else \
+                    f'it names t={named * 1e-9:.3f} s, which the simulation has not reached (t={self._sim.time:.3f} ' \
+                    f's): is the controller\'s use_sim_time off?'
+            else:
+                try:
+                    apply(robot, first, second)
+                except CommandError as error:   # still this step's answer: the robot keeps its last command
+                    refused = str(error)
+        if refused:
+            self.get_logger().warning(f'{topic} refused: {refused}', throttle_duration_sec=WARN_PERIOD)
+        if verdict is Answer.BESIDE:
+            if not self._controls.settings.paused:   # paused, it drives nothing before whoever resumes
+                self._report.beside(robot, topic)
+        elif verdict is not None and verdict not in (Answer.REPEATED, Answer.FUTURE):
             # The step's last answer may take the next step here, in this thread (`_lend_on_answers`): handing the
             # step to the loop thread was one more thread wake-up per lockstep round trip.
-            self._lockstep.answer(robot)
+            self._lockstep.answer(robot, verdict, named)
 
     def _on_reset(self, request: Empty.Request, response: Empty.Response) -> Empty.Response:
         with self._lock:
             self._sim.reset()
+            if not self._controls.settings.paused:
+                self._report.broken('reset while running, at no particular step (pause first: paused:=true)')
         self.get_logger().info('reset: every robot back at its start pose, odometry zeroed')
         return response
 
@@ -305,8 +327,10 @@ class SimNode(Node):
                 self._acks.restart(self._sim.steps)
                 self._controls.wait_while_idle(IDLE_POLL)
                 continue
-            if self._lockstep_on and not self._lockstep.await_controllers(self._stepping, self._report_controllers):
+            if self._lockstep_on and not self._lockstep.await_controllers(self._stepping, self._report.controllers):
                 continue
+            if not self._sim.steps:
+                self._acks.await_readers(self.count_subscribers, self._stepping)
             self._lockstep.step(resend)
             resend = self._lockstep_on and not self._lockstep.await_answers()
             self._acks.published(self._sim.steps)
@@ -372,24 +396,13 @@ class SimNode(Node):
     def _stepping(self) -> bool:
         return self._running.is_set() and not self._controls.idle()
 
-    def _report_controllers(self, required: int, driven: Sequence[int]) -> None:
-        connected = ', '.join(self._sim.names[robot] for robot in driven) or 'none'
-        self.get_logger().info(f'lockstep: waiting for {required} controller{"s" * (required != 1)} before the first '
-                               f'step (lockstep_controllers); connected: {connected}')
 
-    def _on_resend(self) -> None:
-        self.get_logger().info(f'lockstep: no answer to t={self._sim.time:.3f} s yet, sending it again')
-
-    def _on_own_rate(self, robot: int) -> None:
-        """Say once why lockstep no longer waits a `lockstep_timeout` for this robot's controller, and what to do."""
-        rate = self._controls.settings.real_time_factor
-        pace = 'as fast as possible' if rate == 0.0 else f'at real_time_factor {rate:g}'
-        self.get_logger().warning(
-            f'lockstep: the controller of {self._sim.names[robot]} answered {OWN_RATE_AFTER} steps in a row only '
-            f'after lockstep_timeout ({self._lockstep_timeout:g} s): it runs at its own rate (a timer?), not once '
-            f'per step; from now on each step waits at most {OWN_RATE_WAIT * 1000:g} ms for it (the run '
-            f'goes on {pace}, no longer the same to the bit). To keep lockstep, publish one command per step '
-            f'(on each /clock tick or ir_raw message).')
+def publish_world(node: Node, world: World, frame_prefix: str) -> None:
+    """The world, latched: as YAML, and as markers for RViz (also into a headless trial's bag)."""
+    quiet_publisher(node, String, 'world', LATCHED).publish(
+        String(data=yaml.safe_dump(world.to_dict(), sort_keys=False)))
+    quiet_publisher(node, MarkerArray, 'world_markers', LATCHED).publish(
+        world_markers(world, frame_prefix + WORLD_FRAME))
 
 
 def _world(values: dict) -> World:
@@ -418,6 +431,10 @@ def _senses(value: str) -> frozenset[str]:
     if unknown:
         raise SenseError(f'senses: unknown sense {unknown[0]!r} (senses: {", ".join(SENSE_TOPICS)})')
     return words
+
+
+class PrefixError(ValueError):
+    """A `frame_prefix` that is no ROS names separated by slashes; the message says so."""
 
 
 class StartInterrupted(Exception):
@@ -457,7 +474,7 @@ def main(args: list[str] | None = None) -> None:
         if node.refusal:
             print(f'sim: cannot start: {node.refusal}', file=sys.stderr)
             code = 2
-    except (WorldError, ParameterException, SenseError) as error:
+    except (WorldError, ParameterException, SenseError, PrefixError) as error:
         print(f'sim: cannot start: {error}', file=sys.stderr)
         code = 2
     except StartInterrupted:

@@ -4,23 +4,25 @@ Built once from a World and its Appearance. Walls and box edges are segments, cy
 ray query returns the distance to every one of them (objects on the leading axis, NumPy over every ray), so a
 sensor picks the nearest (the camera) or asks whether anything tall enough stands in the way (light occlusion).
 The floor is painted once into a texture (`FLOOR_RESOLUTION` per texel, at most `MAX_TEXELS` a side), which the
-camera and the ground sensors sample by index: constant cost whatever the paint.
+camera and the ground sensors sample by index: constant cost whatever the paint. Painting costs each segment and disc
+its own bounding box, a polygon its bounding box and a look per edge and row (`appearance.paint_work`, which the
+world loader bounds).
 """
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
+from functools import partial
 
 import numpy as np
 
-from epuck_ros.world.appearance import ROBOT_COLOR, Appearance, Paint
+from epuck_ros.world.appearance import MAX_TEXELS, ROBOT_COLOR, Appearance, Paint, floor_step, texel_span
 from epuck_ros.model import BODY_TOP, RobotModel
 from epuck_ros.spatial import close_pairs
 from epuck_ros.world import World
 
-FLOOR_RESOLUTION = 0.002
-"""m per floor texel: a 1 m arena is 500 x 500 texels; a 2 cm line is 10 texels wide."""
-MAX_TEXELS = 2048
-"""Texels per side at most: a huge arena gets coarser texels rather than a huge texture."""
+CROSSINGS_AT_ONCE = 1 << 20
+"""Edge-row crossings of a polygon worked on at once: bounds painting's memory whatever the polygon."""
 ROBOT_VIEW_RANGE = 1.0
 """m; other robots farther than this are not drawn by the camera nor block light (cost bounded in swarms)."""
 
@@ -124,11 +126,12 @@ def _box_corners(x: float, y: float, size_x: float, size_y: float, yaw: float) -
 
 class FloorTexture:
     """The arena's floor as an RGB image (float 0..1), texel (row j, column i) centred at
-    (-half_x + (i + 0.5) * step, -half_y + (j + 0.5) * step); points off the floor take the nearest edge texel."""
+    (-half_x + (i + 0.5) * step, -half_y + (j + 0.5) * step); points off the floor take the nearest edge texel.
+    `max_texels`: texels per side at most (a picture needs fewer than the senses)."""
 
     def __init__(self, arena_size: tuple[float, float], color: tuple[float, float, float],
-                 paint: tuple[Paint, ...]) -> None:
-        self.step = max(FLOOR_RESOLUTION, max(arena_size) / MAX_TEXELS)
+                 paint: tuple[Paint, ...], max_texels: int = MAX_TEXELS) -> None:
+        self.step = floor_step(arena_size, max_texels)
         self.half_x, self.half_y = arena_size[0] / 2.0, arena_size[1] / 2.0
         self.columns = max(1, math.ceil(arena_size[0] / self.step))
         self.rows = max(1, math.ceil(arena_size[1] / self.step))
@@ -157,39 +160,66 @@ class FloorTexture:
 
     def _grid(self, x0: float, y0: float, x1: float, y1: float) -> tuple[slice, slice, np.ndarray, np.ndarray] | None:
         """Texel rows and columns whose centres may lie within the box, and those centres' coordinates."""
-        i0 = max(0, int(math.floor((x0 + self.half_x) / self.step)))
-        i1 = min(self.columns, int(math.ceil((x1 + self.half_x) / self.step)) + 1)
-        j0 = max(0, int(math.floor((y0 + self.half_y) / self.step)))
-        j1 = min(self.rows, int(math.ceil((y1 + self.half_y) / self.step)) + 1)
+        i0, i1 = texel_span(x0, x1, self.half_x, self.step, self.columns)
+        j0, j1 = texel_span(y0, y1, self.half_y, self.step, self.rows)
         if i0 >= i1 or j0 >= j1:
             return None
         xs = -self.half_x + (np.arange(i0, i1) + 0.5) * self.step
         ys = -self.half_y + (np.arange(j0, j1) + 0.5) * self.step
         return slice(j0, j1), slice(i0, i1), xs[None, :], ys[:, None]
 
+    def _fill(self, x0: float, y0: float, x1: float, y1: float, inside: Callable, color: tuple) -> None:
+        """Paint the texels of the box [x0, x1] x [y0, y1] where `inside(xs (1, I), ys (J, 1))` holds."""
+        grid = self._grid(x0, y0, x1, y1)
+        if grid is not None:
+            rows, columns, xs, ys = grid
+            self.image[rows, columns][inside(xs, ys)] = color
+
     def _paint(self, item: Paint) -> None:
         points = np.array(item.points, dtype=float)
-        reach = item.radius if item.kind == 'disc' else item.width / 2.0
-        grid = self._grid(points[:, 0].min() - reach, points[:, 1].min() - reach,
-                          points[:, 0].max() + reach, points[:, 1].max() + reach)
+        if item.kind == 'disc':
+            (cx, cy), radius = points[0], item.radius
+            self._fill(cx - radius, cy - radius, cx + radius, cy + radius,
+                       lambda xs, ys: (xs - cx) ** 2 + (ys - cy) ** 2 <= radius ** 2, item.color)
+        elif item.kind == 'polygon':
+            self._polygon(points, item.color)
+        else:
+            reach = item.width / 2.0
+            for (ax, ay), (bx, by) in zip(points[:-1].tolist(), points[1:].tolist()):   # each its own box
+                self._fill(min(ax, bx) - reach, min(ay, by) - reach, max(ax, bx) + reach, max(ay, by) + reach,
+                           partial(_near_segment, ax, ay, bx - ax, by - ay, reach), item.color)
+
+    def _polygon(self, points: np.ndarray, color: tuple) -> None:
+        """Even-odd rule, row by row: a texel is inside when an odd number of edges cross its row to its right.
+        Each edge is looked at only on the rows it spans; the texels of a row then count the crossings beyond
+        them (a suffix sum), so the cost is the crossings plus the bounding box, not edges times the box."""
+        grid = self._grid(*points.min(axis=0), *points.max(axis=0))
         if grid is None:
             return
         rows, columns, xs, ys = grid
-        if item.kind == 'disc':
-            inside = (xs - points[0, 0]) ** 2 + (ys - points[0, 1]) ** 2 <= item.radius ** 2
-        elif item.kind == 'polygon':
-            inside = np.zeros((len(ys), xs.shape[1]), dtype=bool)
-            for (ax, ay), (bx, by) in zip(points, np.roll(points, -1, axis=0)):   # even-odd rule
-                if ay == by:
-                    continue
-                crosses = (ay > ys) != (by > ys)
-                at_x = ax + (ys - ay) * (bx - ax) / (by - ay)
-                inside ^= crosses & (xs < at_x)
-        else:
-            inside = np.zeros((len(ys), xs.shape[1]), dtype=bool)
-            for (ax, ay), (bx, by) in zip(points[:-1], points[1:]):
-                ex, ey = bx - ax, by - ay
-                length2 = ex * ex + ey * ey
-                along = np.clip(((xs - ax) * ex + (ys - ay) * ey) / length2, 0.0, 1.0) if length2 else 0.0
-                inside |= (xs - ax - along * ex) ** 2 + (ys - ay - along * ey) ** 2 <= reach ** 2
-        self.image[rows, columns][inside] = item.color
+        xs, ys = xs[0], ys[:, 0]
+        ax, ay = points[:, 0], points[:, 1]
+        bx, by = np.roll(ax, -1), np.roll(ay, -1)
+        first = np.searchsorted(ys, np.minimum(ay, by), side='left')   # rows with min <= y < max: crossed
+        last = np.searchsorted(ys, np.maximum(ay, by), side='left')
+        counts = np.zeros((len(ys), len(xs) + 1), dtype=np.int64)   # crossings with k texel centres left of them
+        spans = last - first
+        edges = np.flatnonzero(spans > 0)
+        per_chunk = max(1, CROSSINGS_AT_ONCE // len(ys))   # an edge spans len(ys) rows at most
+        for start in range(0, len(edges), per_chunk):
+            chosen = edges[start:start + per_chunk]
+            lengths = spans[chosen]
+            edge = np.repeat(chosen, lengths)
+            row = first[edge] + np.arange(len(edge)) - np.repeat(np.cumsum(lengths) - lengths, lengths)
+            at_x = ax[edge] + (ys[row] - ay[edge]) * (bx[edge] - ax[edge]) / (by[edge] - ay[edge])
+            np.add.at(counts, (row, np.searchsorted(xs, at_x, side='left')), 1)
+        beyond = np.cumsum(counts[:, ::-1], axis=1)[:, ::-1]   # beyond[j, k]: crossings with at least k centres left
+        self.image[rows, columns][beyond[:, 1:] % 2 == 1] = color
+
+
+def _near_segment(ax: float, ay: float, ex: float, ey: float, reach: float, xs: np.ndarray,
+                  ys: np.ndarray) -> np.ndarray:
+    """Whether texel centres lie within `reach` of the segment from (ax, ay) along (ex, ey)."""
+    length2 = ex * ex + ey * ey
+    along = np.clip(((xs - ax) * ex + (ys - ay) * ey) / length2, 0.0, 1.0) if length2 else 0.0
+    return (xs - ax - along * ex) ** 2 + (ys - ay - along * ey) ** 2 <= reach ** 2

@@ -2,9 +2,9 @@
 
 A node (a topic with a subscriber, a Webots controller that enabled the device, a parameter) says which robots
 want which sense (`want`); after every step the part reads exactly those, from the new true poses. Nothing is
-computed and no random number drawn while nobody wants anything, so IR-only runs stay what they were to the
-bit; each kind draws its noise from its own stream (`sensors.lookup.sensor_rng`), so turning one on never
-changes another's readings.
+computed while nobody wants anything, so IR-only runs stay what they were to the bit. A reading's noise depends
+on (seed, sense, step, robot) alone (`step_noise`): not on who else wants a sense, nor since when, nor on readings
+taken at once when a sense is newly wanted, so a controller reads the same values whoever listens.
 """
 from __future__ import annotations
 
@@ -18,9 +18,10 @@ from epuck_ros.sensors import imu
 from epuck_ros.sensors.camera import Camera
 from epuck_ros.sensors.ground import GroundSensors
 from epuck_ros.sensors.light import LightSensors
-from epuck_ros.sensors.lookup import sensor_rng
+from epuck_ros.sensors.lookup import STREAMS
 from epuck_ros.sensors.scene import Scene
 from epuck_ros.stepping.state import RobotArrays
+from epuck_ros.stepping.step_noise import StepNoise
 from epuck_ros.world import World
 
 KINDS = ('camera', 'ground', 'light', 'imu')
@@ -46,7 +47,8 @@ class Senses:
         self._camera: Camera | None = None
         self._ground: GroundSensors | None = None
         self._light: LightSensors | None = None
-        self._rngs: dict[str, np.random.Generator] = {}
+        self.step = 0
+        """The number of steps the state read has been through (the simulation sets it): the noise's coordinate."""
         self.wanted: dict[str, np.ndarray] = {kind: np.zeros(count, dtype=bool) for kind in KINDS}
         self._rows: dict[str, np.ndarray] = {kind: np.empty(0, dtype=np.int64) for kind in KINDS}
         self.active = False
@@ -112,12 +114,9 @@ class Senses:
             readings['imu'] = (tuple(self.accelerometer[robot].tolist()), tuple(self.gyro[robot].tolist()))
         return readings
 
-    def _rng(self, kind: str) -> np.random.Generator | None:
-        if not self.noise:
-            return None
-        if kind not in self._rngs:
-            self._rngs[kind] = sensor_rng(self._seed, kind)
-        return self._rngs[kind]
+    def _noise(self, kind: str, rows: np.ndarray) -> StepNoise | None:
+        """The noise of `kind` for these robots at this step (None: exact values)."""
+        return StepNoise(self._seed, STREAMS[kind], self.step, rows) if self.noise else None
 
     def reset(self) -> None:
         """The robots are back at their starts: the wanted senses read there (the IMU from rest)."""
@@ -139,17 +138,17 @@ class Senses:
         if kind == 'ground':
             if self._ground is None:
                 self._ground = GroundSensors(self.scene)
-            self.ground_raw[rows] = self._ground.read(true[rows], self._rng('ground'))
+            self.ground_raw[rows] = self._ground.read(true[rows], self._noise('ground', rows))
         elif kind == 'light':
             if self._light is None:
                 self._light = LightSensors(self.scene)
-            self.light_raw[rows] = self._light.read(true[rows], self._rng('light'), others, rows)
+            self.light_raw[rows] = self._light.read(true[rows], self._noise('light', rows), others, rows)
         elif kind == 'imu':
             twist = state.true_twist
             previous = twist if self._previous_twist is None else self._previous_twist
             self.accelerometer[rows] = imu.accelerometer_values(
-                imu.acceleration(twist[rows], previous[rows], self.time_step), self._rng('accelerometer'))
-            self.gyro[rows] = imu.gyro_values(imu.angular_velocity(twist[rows]), self._rng('gyro'))
+                imu.acceleration(twist[rows], previous[rows], self.time_step), self._noise('accelerometer', rows))
+            self.gyro[rows] = imu.gyro_values(imu.angular_velocity(twist[rows]), self._noise('gyro', rows))
             self._previous_twist = twist.copy()
         else:
             self.images[rows] = self.camera.render(true[rows], others, rows)

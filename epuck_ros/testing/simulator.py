@@ -7,6 +7,7 @@ rclpy context, spun in a background thread, so the test's code stays plain and b
 from __future__ import annotations
 
 import itertools
+import math
 import os
 import subprocess
 import sys
@@ -19,9 +20,12 @@ from collections.abc import Callable, Mapping
 from typing import IO, Any
 
 from epuck_ros.conversions import seconds_from_stamp, yaw_from_quaternion
+from epuck_ros.integrity import STATUS_TOPIC, Integrity, integrity_from
 
 POLL = 0.05
 """Wall seconds between two looks at the graph or the simulator's parameters while waiting."""
+LATEST_TIME = 1e9
+"""The latest simulated time `run_until` can reach: the simulator's `pause_at` range."""
 STOP_TIMEOUT = 10.0
 """Wall seconds the simulator has to end after Ctrl-C before it is killed."""
 
@@ -33,24 +37,35 @@ class SimulatorUnderTest:
                  log_dir: Path | None = None, start_timeout: float = 30.0, env: Mapping[str, str] | None = None,
                  **parameters: object) -> None:
         """`parameters` go to `sim` (`-p name:=value`); `env` adds to the environment of the simulator and of
-        `self.env` (e.g. another ROS_AUTOMATIC_DISCOVERY_RANGE; LOCALHOST by default)."""
+        `self.env` (e.g. another ROS_AUTOMATIC_DISCOVERY_RANGE; LOCALHOST by default). A misuse is a TypeError or
+        ValueError naming it, before anything starts."""
         from epuck_ros.world import default_world, load_world, place_robots
+        for name, value in (('robots', robots), ('seed', seed)):
+            if not isinstance(value, int) or isinstance(value, bool):
+                raise TypeError(f'epuck_sim: {name} must be an int, got {value!r}')
+            if value < 0:
+                raise ValueError(f'epuck_sim: {name} must be 0 or more, got {value}')
         layout = load_world(str(world)) if world else default_world()
         if robots > 0:
             layout = place_robots(layout, robots, seed)
         self.names: tuple[str, ...] = layout.names
         """The robots' names, in the simulator's order."""
         self.start_poses = {robot.name: robot.pose for robot in layout.robots}
+        from epuck_ros.nodes.dds_profile import PROFILES_FILE, PROFILES_VARIABLE, use_package_profile
+        use_package_profile()   # this process's participant (made below) announces itself every 0.5 s, not 3 s
         self.domain, self._domain_claim = claim_free_domain()
         self.env = {**os.environ, 'ROS_DOMAIN_ID': str(self.domain), 'ROS_AUTOMATIC_DISCOVERY_RANGE': 'LOCALHOST',
-                    **(env or {})}
-        """The environment for the test's own processes: the simulator's domain, discovery on this machine."""
+                    PROFILES_VARIABLE: os.environ.get(PROFILES_VARIABLE, str(PROFILES_FILE)), **(env or {})}
+        """The environment for the test's own processes: the simulator's domain, discovery on this machine, the
+        package's DDS profile (a node that misses the simulator's first announcement hears the next 0.5 s later,
+        not 3 s: most of the time a test took to see its node connected)."""
         self._lock = threading.Lock()
         self._clock = 0.0
         self._truth: dict[str, tuple[float, float, float, float]] = {}
         self._controlled: set[str] = set()
         """The robots `wait_for_controller` saw driven: the first `run_until` waits until the simulator sees them."""
         self._context = None
+        self._stopped = False
         self._thread: threading.Thread | None = None
         self.process: subprocess.Popen | None = None
         self.log_path = Path(log_dir or tempfile.mkdtemp(prefix='epuck_sim_')) / f'sim-domain{self.domain}.log'
@@ -72,6 +87,7 @@ class SimulatorUnderTest:
 
     def wait_for_controller(self, robot: str | int | None = None, timeout: float = 30.0) -> None:
         """Return once a publisher on the robot's `wheel_cmd` or `cmd_vel` is matched (None: every robot's)."""
+        self._check_running()
         robots = self.names if robot is None else (self._name(robot),)
         topics = {name: [self._topic(name, 'wheel_cmd'), self._topic(name, 'cmd_vel')] for name in robots}
         self._wait(lambda: all(any(self._node.count_publishers(t) for t in pair) for pair in topics.values()),
@@ -79,19 +95,28 @@ class SimulatorUnderTest:
         self._controlled.update(robots)
 
     def run_until(self, t: float, timeout: float = 120.0) -> float:
-        """Run simulated time forward to the first step at or after `t` seconds and pause there; returns that time.
+        """Run simulated time forward to the first step at or after `t` seconds and pause there; returns that time
+        (the current one if it is `t` already).
 
-        Returns once the simulator has paused and every robot's ground truth of that step has arrived."""
+        Returns once the simulator has paused and every robot's ground truth of that step has arrived. A `t` that is
+        no finite number, is in the past or beyond LATEST_TIME is a ValueError, and nothing happens."""
         from rclpy.parameter import Parameter
-        if t <= self.time + 1e-9:
-            return self.time
+        self._check_running()
+        if not isinstance(t, (int, float)) or isinstance(t, bool) or not math.isfinite(t):
+            raise ValueError(f'run_until: t must be a finite number of simulated seconds, got {t!r}')
+        now = self.time
+        if t < now - 1e-9:
+            raise ValueError(f'run_until({t:g}): the simulation is at t={now:.3f} s already; time only runs forward')
+        if t > LATEST_TIME:
+            raise ValueError(f'run_until({t:g}): beyond the latest time the simulator can pause at ({LATEST_TIME:g} s)')
+        if t <= now + 1e-9:
+            return now
         # Before the first step: the controllers seen here, which the simulator may not have matched yet.
-        first = [Parameter('lockstep_controllers', value=len(self._controlled))] if self.time == 0.0 else []
-        result = self._call(self._parameters.set_parameters(
+        first = [Parameter('lockstep_controllers', value=len(self._controlled))] if now == 0.0 else []
+        result = self._call(self._parameters.set_parameters_atomically(   # all of them, or none
             first + [Parameter('pause_at', value=float(t)), Parameter('paused', value=False)]), timeout)
-        refused = [r.reason for r in result.results if not r.successful]
-        if refused:
-            raise ValueError(f'the simulator refused to run to t={t}: {"; ".join(refused)}')
+        if not result.result.successful:
+            raise ValueError(f'the simulator refused to run to t={t}: {result.result.reason}')
         self._wait(lambda: self.time >= t - 1e-9, timeout, f'simulated time did not reach {t} s')
         self._wait(self._paused, timeout, f'the simulator did not pause at {t} s')
         now = self.time
@@ -101,22 +126,42 @@ class SimulatorUnderTest:
 
     def ground_truth(self, robot: str | int | None = None) -> tuple[float, float, float]:
         """(x, y, yaw) of the robot in the world (None: the first robot), as of the last step."""
+        self._check_running()
         name = self._name(robot)
         with self._lock:
             stamped = self._truth.get(name)
         return self.start_poses[name] if stamped is None else stamped[1:]
 
     def contacts(self, robot: str | int | None = None, timeout: float = 30.0) -> int:
-        """The number of the robot's contacts with obstacles or robots so far (None: the first robot).
-
-        Read from a new subscription to its latched `collisions`: the simulator publishes a count after the step's
-        `/clock`, so a subscription kept from the start could still have it on its way."""
+        """The number of the robot's contacts with obstacles or robots so far (None: the first robot), from its
+        latched `collisions`."""
         from std_msgs.msg import UInt32
-        received: list[int] = []
-        subscription = self._node.create_subscription(UInt32, self._topic(self._name(robot), 'collisions'),
-                                                      lambda msg: received.append(msg.data), self._latched)
+        self._check_running()
+        name = self._name(robot)
+        return self._latest(UInt32, self._topic(name, 'collisions'), timeout, f'no collision count of {name}').data
+
+    @property
+    def reproducible(self) -> bool:
+        """Whether the run so far is reproducible: every step answered, by name, by every driven robot's controller
+        (the simulator's `lockstep_status`); `integrity()` says why not."""
+        return self.integrity().reproducible
+
+    def integrity(self, timeout: float = 30.0) -> Integrity:
+        """The simulator's verdict on the run so far (epuck_ros/integrity.py): reproducible, or why not and since
+        when."""
+        from diagnostic_msgs.msg import DiagnosticStatus
+        self._check_running()
+        status = self._latest(DiagnosticStatus, '/' + STATUS_TOPIC, timeout, 'no lockstep_status from the simulator')
+        return integrity_from(status.message, {value.key: value.value for value in status.values})
+
+    def _latest(self, msg_type: type, topic: str, timeout: float, what: str) -> Any:
+        """The latest message of a latched topic, from a new subscription: the simulator publishes such a topic after
+        the step's `/clock`, so a subscription kept from the start could still have it on its way."""
+        from epuck_ros.nodes.qos import LATCHED
+        received: list[Any] = []
+        subscription = self._node.create_subscription(msg_type, topic, received.append, LATCHED)
         try:
-            self._wait(lambda: bool(received), timeout, f'no collision count of {self._name(robot)}')
+            self._wait(lambda: bool(received), timeout, what)
         finally:
             self._node.destroy_subscription(subscription)
         return received[-1]
@@ -130,6 +175,7 @@ class SimulatorUnderTest:
     def stop(self) -> None:
         """Stop the simulator (Ctrl-C, then SIGKILL after STOP_TIMEOUT) and the test's node; safe to call twice."""
         from epuck_ros.bringup.processes import interrupt
+        self._stopped = True
         if self._context is not None:
             self._context.try_shutdown()
             if self._thread is not None:
@@ -148,8 +194,9 @@ class SimulatorUnderTest:
 
     def _start_process(self, world: str | os.PathLike | None, robots: int, seed: int,
                        parameters: dict[str, object]) -> None:
+        # discovery_window 0: the domain is claimed for this simulator alone, no other can be on it
         values: dict[str, object] = {'lockstep': True, 'paused': True, 'real_time_factor': 0.0, 'seed': seed,
-                                     'robots': robots, **parameters}
+                                     'robots': robots, 'discovery_window': 0.0, **parameters}
         if world:
             values['world'] = str(Path(world).resolve())
         args = ['--ros-args'] + [arg for name, value in values.items() for arg in ('-p', f'{name}:={_text(value)}')]
@@ -165,7 +212,6 @@ class SimulatorUnderTest:
         from rclpy.executors import SingleThreadedExecutor
         from rclpy.node import Node
         from rclpy.parameter_client import AsyncParameterClient
-        from rclpy.qos import DurabilityPolicy, QoSProfile
         from rosgraph_msgs.msg import Clock
 
         self._context = Context()
@@ -173,7 +219,6 @@ class SimulatorUnderTest:
         self._node = Node(f'epuck_sim_fixture_{os.getpid()}', context=self._context)
         self._executor = SingleThreadedExecutor(context=self._context)
         self._executor.add_node(self._node)
-        self._latched = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
         self._node.create_subscription(Clock, '/clock', self._on_clock, 10)
         for name in self.names:
             self._node.create_subscription(Odometry, self._topic(name, 'ground_truth'),
@@ -208,10 +253,17 @@ class SimulatorUnderTest:
         result = self._call(self._parameters.get_parameters(['paused']), STOP_TIMEOUT)
         return bool(result.values and result.values[0].bool_value)
 
+    def _check_running(self) -> None:
+        if self._stopped:
+            raise RuntimeError('epuck_sim: this simulator was stopped (sim.stop()); start another with epuck_sim()')
+
     def _name(self, robot: str | int | None) -> str:
+        """The name of `robot` (a name, an index, or None: the first robot); KeyError naming the robots if none."""
         if robot is None:
             return self.names[0]
-        if isinstance(robot, int):
+        if isinstance(robot, int) and not isinstance(robot, bool):
+            if not -len(self.names) <= robot < len(self.names):
+                raise KeyError(f'no robot {robot}: there are {len(self.names)} ({", ".join(self.names)}), from 0')
             return self.names[robot]
         if robot not in self.names:
             raise KeyError(f'no robot {robot!r}: the robots are {", ".join(self.names)}')

@@ -16,6 +16,7 @@ import threading
 import time
 from collections.abc import Callable
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from epuck_ros.behaviours import Observation, WheelCommand
 from epuck_ros.conversions import nanoseconds_from_stamp, stamp_from_seconds
@@ -24,6 +25,9 @@ from epuck_ros.simulation import Simulation
 from epuck_ros.webots.link import StepData
 from epuck_ros.webots.robot import KILL_DELAY, SINGLE_ROBOT_NAME, bind_thread
 from epuck_ros.webots.runner import run_script
+
+if TYPE_CHECKING:
+    from epuck_ros.experiments.recording import TrialRecorder
 
 
 class ScriptError(RuntimeError):
@@ -35,9 +39,10 @@ class ScriptStage:
     answer (`lockstep_for`), and the count of steps taken, which each script's step() waits on."""
 
     def __init__(self, script: Path, sim: Simulation, over: Callable[[], bool],
-                 arguments: tuple[str, ...] = ()) -> None:
-        """`over()`: the run has taken its last step (the simulator pauses there)."""
-        self.sim, self._over = sim, over
+                 arguments: tuple[str, ...] = (), recorder: TrialRecorder | None = None) -> None:
+        """`over()`: the run has taken its last step (the simulator pauses there); `recorder` is told what the scripts
+        send while it is not (over ROS, what answers the last step may come after the recording stopped)."""
+        self.sim, self._over, self._recorder = sim, over, recorder
         self.lockstep: Lockstep | None = None
         self._lock = threading.Lock()
         self._changed = threading.Condition(self._lock)
@@ -64,7 +69,7 @@ class ScriptStage:
                 if self._waiting:
                     self._changed.notify_all()
 
-        self.lockstep = Lockstep(len(self.seats), step, timeout=float('inf'), lend=self.lend)
+        self.lockstep = Lockstep(len(self.seats), step, timeout=float('inf'), lend=self.lend, over_dds=False)
         return self.lockstep
 
     def step_after(self, seen: int) -> bool:
@@ -94,6 +99,10 @@ class ScriptStage:
                 self.failure, self.closed = error, True
                 self._changed.notify_all()
             self.lockstep.close()   # the loop stops waiting for this step's answers
+
+    def recorder(self) -> TrialRecorder | None:
+        """The recorder to tell what a script sends now: None without one, or once the run is over."""
+        return None if self._recorder is None or self._over() else self._recorder
 
     def script_ended(self, robot: int) -> None:
         """Robot `robot`'s script has ended before the run: its wheels stand still from the step it left unanswered
@@ -147,6 +156,9 @@ class CoreLink:
         stage = self._stage
         if stage.closed:
             return None
+        recorder = stage.recorder()
+        if recorder is not None:
+            recorder.answered(self._robot, left, right)
         stage.answer(self._robot, left, right)
         return self._step_after(self._seen)
 
@@ -169,9 +181,15 @@ class CoreLink:
         if kind not in self._wanted:
             self._wanted.add(kind)
             self._stage.sim.senses.want(kind, [self._robot])
+            recorder = self._stage.recorder()
+            if recorder is not None:   # the simulator publishes the step in hand at once (its reader waits for it)
+                recorder.sense_wanted(self._robot, kind, self._stage.sim)
 
     def publish_leds(self, values: list[int]) -> None:
-        """No view to tell in a headless run."""
+        """Into the trial's bag, if it is recorded (no view to tell in a headless run)."""
+        recorder = self._stage.recorder()
+        if recorder is not None:
+            recorder.leds(self._robot, values)
 
     def close(self) -> None:
         """Nothing to release: no node, no sockets."""

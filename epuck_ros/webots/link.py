@@ -1,15 +1,17 @@
 """The controller's one rclpy node: it answers each simulator step with wheel speeds and gathers the next step.
 
 Webots runs a controller in lockstep: `step()` hands the motor commands over, the world advances, the sensors
-are read. Over ROS the same exchange is: publish `wheel_cmd` (the answer to the step the controller has seen),
-then wait until the simulator's next step is complete here: its `/clock`, its `joint_states` (stamped with
-that time) and its `ir_raw` (unstamped: matched by count, see `_complete`). With the simulator in lockstep
-nothing of a later step exists before the answer, so every reading belongs to the step asked for.
-The other senses (camera, ground and light sensors, IMU) are subscribed when the script enables one (`want`):
-the simulator computes a sense while its topic has a subscriber, so from its first message on a step is complete
-only with that sense's reading of the same step too (stamped ones by stamp, the arrays by count as ir_raw).
+are read. Over ROS the same exchange is the step protocol (epuck_ros/lockstep.py): publish `wheel_cmd` naming the
+step the controller has seen (`stamp=SEC.NANOSEC` in its layout), then wait until the simulator's next step is
+complete here: every topic the script reads — `joint_states` (stamped), `ir_raw` (its label names the step) and
+each enabled sense — has its message of one step, newer than the last (`_complete`). Messages are paired by the
+step they name, never by arrival order or counts; a step sent again is seen once.
+The other senses (camera, ground and light sensors, IMU) are subscribed when the script enables one (`want`). The
+simulator computes a sense while its topic has a subscriber, and publishes the current step's reading as soon as it
+sees a new one: the answer to the current step waits for that message, so the sense is sure to be read on the next
+step, as in Webots (a device enabled before `step()` has its value after it), whenever discovery comes.
 Waiting spins this node's executor in the calling (main) thread: a script that does not call `step` leaves
-messages queued and the simulator, after its `cmd_timeout`, stops the robot.
+messages queued and the simulator waits for it (lockstep) or, after its `cmd_timeout`, stops the robot.
 """
 from __future__ import annotations
 
@@ -20,32 +22,36 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from rcl_interfaces.msg import ParameterType, ParameterValue
+from rclpy.duration import Duration
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter_client import AsyncParameterClient
-from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
-from rosgraph_msgs.msg import Clock
+from rclpy.qos import QoSProfile, ReliabilityPolicy
 import numpy as np
 from sensor_msgs.msg import Image, Imu, JointState
 from std_msgs.msg import Float64MultiArray, Int32MultiArray
 
-from epuck_ros.conversions import nanoseconds_from_stamp
+from epuck_ros.conversions import nanoseconds_from_stamp, stamp_from_nanoseconds
 from epuck_ros.model import CAMERA_HEIGHT, CAMERA_WIDTH
 from epuck_ros.nodes.ack_window import COMMAND_QOS
+from epuck_ros.nodes.qos import LED_QOS
 from epuck_ros.nodes.robot_ports import JOINT_NAMES
 from epuck_ros.nodes.sense_ports import SENSE_TOPICS
+from epuck_ros.nodes.serialized import array_bytes, array_values
 from epuck_ros.sensors.imu import gyro_values
-
-LED_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
 
 QOS = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
 COMMAND_TOPIC = 'wheel_cmd'
 SPIN_PERIOD = 0.1
 """Seconds one wait on the executor lasts at most, so that Ctrl-C and a vanished simulator are noticed."""
-MISMATCH_GIVE_UP = 3
-"""/clock messages since the answer after which an ir_raw count that does not match is accepted anyway."""
+KEPT_STEPS = 16
+"""Steps a topic's messages are kept for until the others' of the same step come (without lockstep the simulator
+may be several steps ahead of a slow controller)."""
 PARAMETER_RETRY = 5.0
 """Wall seconds after which the request for the simulator's time_step is sent again."""
+DELIVERY_WAIT = 0.9
+"""Wall seconds the closing link waits for its readers to acknowledge what it published: within the second a Webots
+controller is given to end (robot.KILL_DELAY)."""
 ROBOT_CHOICE_GRACE = 3.0
 """Wall seconds the simulator's other robots may be in the graph without ours before `--robot` is refused."""
 
@@ -74,41 +80,50 @@ class StepData:
     'imu' ((ax, ay, az) m/s^2, gyro values (3)); a sense whose first message has not come yet is absent."""
 
 
-class _SenseFeed:
-    """The newest message of one sense topic, and whether it belongs to the step being gathered."""
+class _Stream:
+    """The messages of one topic not yet consumed, by the step (ns) they name."""
+
+    def __init__(self) -> None:
+        self.by_step: dict[int, Any] = {}
+
+    def add(self, step: int, value: Any) -> None:
+        self.by_step[step] = value
+        if len(self.by_step) > KEPT_STEPS:
+            del self.by_step[min(self.by_step)]
+
+    def forget_through(self, step: int) -> None:
+        """Drop the messages of `step` and before (consumed)."""
+        self.by_step = {named: value for named, value in self.by_step.items() if named > step}
+
+
+class _SenseFeed(_Stream):
+    """One enabled sense's messages, by step."""
 
     def __init__(self, kind: str) -> None:
+        super().__init__()
         self.kind = kind
-        self.value: Any = None
-        self.stamp_ns: int | None = None
-        self.since_answer = 0
-        self.new = True
-        """No message had come by the last answer: the counts of this step cannot be compared yet."""
+        self.started = False
+        """A message has come: the simulator reads this sense for our robot."""
 
     def on_message(self, msg: Any) -> None:
+        if self.kind in ('ground', 'light'):
+            read = array_values(msg)   # raw bytes: the label names the step
+            if read is None or read[1] is None:
+                return
+            values, stamp = read
+            self._add(nanoseconds_from_stamp(*stamp), tuple(values))
+            return
+        stamp = nanoseconds_from_stamp(msg.header.stamp.sec, msg.header.stamp.nanosec)
         if self.kind == 'camera':
-            self.value = np.frombuffer(bytes(msg.data), dtype=np.uint8).reshape(msg.height, msg.width, 3)
-        elif self.kind == 'imu':
-            rates = (msg.angular_velocity.x, msg.angular_velocity.y, msg.angular_velocity.z)
-            self.value = ((msg.linear_acceleration.x, msg.linear_acceleration.y, msg.linear_acceleration.z),
-                          tuple(gyro_values(np.array(rates), None).tolist()))
+            self._add(stamp, np.frombuffer(bytes(msg.data), dtype=np.uint8).reshape(msg.height, msg.width, 3))
         else:
-            self.value = tuple(msg.data)
-        if self.kind in ('camera', 'imu'):
-            self.stamp_ns = nanoseconds_from_stamp(msg.header.stamp.sec, msg.header.stamp.nanosec)
-        self.since_answer += 1
+            rates = (msg.angular_velocity.x, msg.angular_velocity.y, msg.angular_velocity.z)
+            self._add(stamp, ((msg.linear_acceleration.x, msg.linear_acceleration.y, msg.linear_acceleration.z),
+                              tuple(gyro_values(np.array(rates), None).tolist())))
 
-    def ready(self, clock_ns: int, clocks: int) -> bool:
-        """Its newest message is of the step stamped `clock_ns` (or it has sent none yet: not awaited)."""
-        if self.value is None:
-            return True
-        if self.stamp_ns is not None:
-            return self.stamp_ns == clock_ns
-        if self.new:   # the first messages straddle the subscription (a step sent again, say): take the newest
-            return self.since_answer > 0
-        # At least one message per /clock since the answer (one more when a message of the step before came after
-        # the answer: the newest is then this step's); fewer, and the step waits, as for ir_raw.
-        return self.since_answer > 0 and (self.since_answer >= clocks or clocks >= MISMATCH_GIVE_UP)
+    def _add(self, step: int, value: Any) -> None:
+        self.started = True
+        self.add(step, value)
 
 
 class SimLink:
@@ -122,18 +137,15 @@ class SimLink:
         self._stop_waiting = stop_waiting
         self._executor = SingleThreadedExecutor(context=self.node.context)
         self._executor.add_node(self.node)
-        self._command = Float64MultiArray()
         self._publisher = self.node.create_publisher(Float64MultiArray, self._prefix + COMMAND_TOPIC, COMMAND_QOS)
-        self._clock_ns: int | None = None
-        self._joints: JointState | None = None
-        self._ir_raw: tuple[float, ...] | None = None
-        self._clocks_since_answer = 0
-        self._ir_since_answer = 0
+        self._joints = _Stream()
+        self._ir_raw = _Stream()
         self._consumed_ns = -1
+        """The step last handed to the script (ns)."""
         self._subscriptions = [
-            self.node.create_subscription(Clock, '/clock', self._on_clock, QOS),
             self.node.create_subscription(JointState, self._prefix + 'joint_states', self._on_joints, QOS),
-            self.node.create_subscription(Float64MultiArray, self._prefix + 'ir_raw', self._on_ir_raw, QOS)]
+            self.node.create_subscription(Float64MultiArray, self._prefix + 'ir_raw', self._on_ir_raw, QOS,
+                                          raw=True)]
         self._feeds: dict[str, _SenseFeed] = {}
         self._subscriptions_of_senses: list = []
         self._led_publisher = None
@@ -143,16 +155,18 @@ class SimLink:
 
     # --- callbacks --------------------------------------------------------------------------------------------
 
-    def _on_clock(self, msg: Clock) -> None:
-        self._clock_ns = nanoseconds_from_stamp(msg.clock.sec, msg.clock.nanosec)
-        self._clocks_since_answer += 1
-
     def _on_joints(self, msg: JointState) -> None:
-        self._joints = msg
+        index = {name.rsplit('/', 1)[-1]: i for i, name in enumerate(msg.name)}
+        left, right = index.get(JOINT_NAMES[0]), index.get(JOINT_NAMES[1])
+        if left is None or right is None:
+            return
+        self._joints.add(nanoseconds_from_stamp(msg.header.stamp.sec, msg.header.stamp.nanosec),
+                         ((msg.position[left], msg.position[right]), (msg.velocity[left], msg.velocity[right])))
 
-    def _on_ir_raw(self, msg: Float64MultiArray) -> None:
-        self._ir_raw = tuple(msg.data)
-        self._ir_since_answer += 1
+    def _on_ir_raw(self, data: bytes) -> None:
+        read = array_values(data)   # the label names the step (`serialized`)
+        if read is not None and read[1] is not None:
+            self._ir_raw.add(nanoseconds_from_stamp(*read[1]), tuple(read[0]))
 
     # --- connecting -------------------------------------------------------------------------------------------
 
@@ -273,8 +287,8 @@ class SimLink:
             return
         feed = self._feeds[kind] = _SenseFeed(kind)
         message = {'camera': Image, 'imu': Imu}.get(kind, Float64MultiArray)
-        self._subscriptions_of_senses.append(
-            self.node.create_subscription(message, self._prefix + SENSE_TOPICS[kind], feed.on_message, QOS))
+        self._subscriptions_of_senses.append(self.node.create_subscription(
+            message, self._prefix + SENSE_TOPICS[kind], feed.on_message, QOS, raw=message is Float64MultiArray))
 
     def publish_leds(self, values: list[int]) -> None:
         """The ten LED values the script set (latched: a view started later still draws them)."""
@@ -283,32 +297,26 @@ class SimLink:
         self._led_publisher.publish(Int32MultiArray(data=[int(v) for v in values]))
 
     def answer_and_wait(self, left: float, right: float) -> StepData | None:
-        """Send the wheel speeds for the step last returned, then wait for the next one (None: stop or sim gone)."""
-        self._clocks_since_answer = self._ir_since_answer = 0
+        """Send the wheel speeds for the step last returned, naming it, then wait for the next one (None: stop or sim
+        gone). A sense enabled since the last answer is first heard from: the simulator then reads it next step."""
         for feed in self._feeds.values():
-            feed.since_answer, feed.new = 0, feed.value is None
-        self._command.data = [float(left), float(right)]
-        self._publisher.publish(self._command)
+            if not feed.started and not self._wait(lambda: feed.started, f'the simulator\'s {feed.kind} readings'):
+                return None
+        self._publisher.publish(array_bytes((float(left), float(right)), stamp_from_nanoseconds(self._consumed_ns)))
         return self._next_step()
 
-    def _complete(self) -> bool:
-        """The newest /clock, joint_states and ir_raw are one publication of the simulator, newer than the last.
-
-        The simulator sends one of each per publication (ir_raw before /clock), in order on each topic. Joint states
-        carry the stamp; ir_raw does not, so it is matched by count: as many since the answer as /clock messages.
-        That also holds when the simulator went on without waiting (its lockstep_timeout): the readings then are
-        those of its newest step, all three. Three publications without the counts meeting (a re-sent first step
-        straddling the answer) and the newest ir_raw is taken as it is."""
-        clock, clocks, joints = self._clock_ns, self._clocks_since_answer, self._joints
-        return clock is not None and clock > self._consumed_ns and joints is not None and \
-            nanoseconds_from_stamp(joints.header.stamp.sec, joints.header.stamp.nanosec) == clock and \
-            self._ir_since_answer > 0 and \
-            (self._ir_since_answer == clocks or clocks >= MISMATCH_GIVE_UP) and \
-            all(feed.ready(clock, clocks) for feed in self._feeds.values())
+    def _complete(self) -> int | None:
+        """The newest step, newer than the last one consumed, of which every topic read has its message."""
+        feeds = [feed for feed in self._feeds.values() if feed.started]
+        for step in sorted(self._joints.by_step, reverse=True):
+            if step > self._consumed_ns and step in self._ir_raw.by_step and \
+                    all(step in feed.by_step for feed in feeds):
+                return step
+        return None
 
     def _next_step(self) -> StepData | None:
         last_check = time.monotonic()
-        while not self._complete():
+        while (step := self._complete()) is None:
             if self._stop_waiting():
                 return None
             self._executor.spin_once(timeout_sec=SPIN_PERIOD)
@@ -317,14 +325,22 @@ class SimLink:
                 if not self._sim_in_graph():
                     print('webots_controller: the simulator is gone', flush=True)
                     return None
-        self._consumed_ns = self._clock_ns
-        joints = self._joints
-        index = {name.rsplit('/', 1)[-1]: i for i, name in enumerate(joints.name)}
-        left, right = index[JOINT_NAMES[0]], index[JOINT_NAMES[1]]
-        senses = {kind: feed.value for kind, feed in self._feeds.items() if feed.value is not None}
-        return StepData(self._consumed_ns, (joints.position[left], joints.position[right]),
-                        (joints.velocity[left], joints.velocity[right]), self._ir_raw, senses)
+        self._consumed_ns = step
+        angles, speeds = self._joints.by_step[step]
+        senses = {kind: feed.by_step[step] for kind, feed in self._feeds.items() if step in feed.by_step}
+        data = StepData(step, angles, speeds, self._ir_raw.by_step[step], senses)
+        for stream in (self._joints, self._ir_raw, *self._feeds.values()):
+            stream.forget_through(step)
+        return data
 
     def close(self) -> None:
+        """The node goes, once every reader has what it published (at most DELIVERY_WAIT): a reader that fell behind
+        (a recorder, with `bringup` stopping the controller first) lost the last answers and LEDs with the process."""
+        deadline = time.monotonic() + DELIVERY_WAIT
+        for publisher in (self._publisher, self._led_publisher):
+            if publisher is not None and \
+                    not publisher.wait_for_all_acked(Duration(seconds=max(0.0, deadline - time.monotonic()))):
+                print(f'webots_controller: a reader of {publisher.topic_name} had not taken everything within '
+                      f'{DELIVERY_WAIT:g} s: a recording may miss the last messages', flush=True)
         self._executor.shutdown(timeout_sec=0.0)
         self.node.destroy_node()

@@ -22,11 +22,15 @@ from epuck_ros.nodes.params import HELP_FLAGS, ParameterError, check_arguments, 
 from epuck_ros.webots.link import LinkError
 from epuck_ros.nodes.spinning import end_process
 from epuck_ros.webots.robot import close, configure
+from epuck_ros.webots.script_file import FileMissing, FileProblem, read_script
 
 PROGRAM = 'webots_controller'
 ROBOT_NAME = re.compile(r'[A-Za-z_][A-Za-z0-9_]*')
 SHIM_DIR = Path(__file__).resolve().parent / 'shim'
 EXAMPLES_DIR = Path(__file__).resolve().parent / 'examples'
+TRACEBACK_LIMIT = 1000
+"""The innermost frames a script's traceback shows, as Python's own report does (sys.tracebacklimit's default): a
+script that recursed a million frames deep is reported in the time Python takes, not minutes of formatting."""
 HELP = f"""usage: {PROGRAM} SCRIPT.py [ARG ...] [--robot NAME] [--ros-args ...]
        {PROGRAM} SCRIPT.py --headless [--world W] [--robots N] [--seed S] [--duration D] [--record BAG]
 
@@ -73,6 +77,16 @@ def fail(message: str) -> None:
     raise SystemExit(2)
 
 
+def check_script(path: Path, name: str) -> None:
+    """Exit 2 with one line unless `path` (named `name` by the user) is a script we can read."""
+    try:
+        read_script(path)
+    except FileMissing:
+        fail(f'no such controller script: {name}')
+    except FileProblem as problem:
+        fail(f'controller script {name}: {problem}')
+
+
 def run_script(path: Path, script_args: list[str]) -> tuple[int, str]:
     """Run the script as __main__: its exit code (1 and its traceback when it raises), and one line saying what
     went wrong ('' when nothing did)."""
@@ -91,11 +105,10 @@ def run_script(path: Path, script_args: list[str]) -> tuple[int, str]:
         print(f'{PROGRAM}: {error}', file=sys.stderr)
         return 2, str(error)
     except BaseException as error:  # noqa: BLE001 - whatever the script raises is reported as Python would
-        where = _from_script(error.__traceback__, path)
+        where, line = _from_script(error.__traceback__, str(path))
         traceback.print_exception(type(error), error, where)
-        lines = [frame.lineno for frame in traceback.extract_tb(where) if Path(frame.filename) == path]
         return 1, untrusted_yaml.cut(f'{type(error).__name__}: {error}', 300) + \
-            (f' (line {lines[-1]} of {path.name})' if lines else '')
+            (f' (line {line} of {path.name})' if line else '')
     return 0, ''
 
 
@@ -106,29 +119,31 @@ def _run_as_main(path: Path) -> None:
     there, and the copies of a script that a headless trial runs at once, one thread per robot, put them back in
     the wrong order, leaving a script as the process's __main__ (multiprocessing's spawned children, Dask's
     workers, then ran that script instead of the program that started them)."""
-    code = compile(path.read_bytes(), str(path), 'exec')
+    code = compile(read_script(path), str(path), 'exec')
     exec(code, {'__name__': '__main__', '__file__': str(path), '__builtins__': builtins,  # noqa: S102 - its purpose
                 '__package__': None, '__spec__': None, '__loader__': None, '__cached__': None})
 
 
-def _from_script(tb: TracebackType | None, path: Path) -> TracebackType | None:
-    """The traceback from the script's own frame on: the runner's frames say nothing to its author."""
-    frame = tb
-    while frame is not None and Path(frame.tb_frame.f_code.co_filename) != path:
+def _from_script(tb: TracebackType | None, path: str) -> tuple[TracebackType | None, int]:
+    """The traceback from the script's own frame on (the runner's frames say nothing to its author), at most its
+    TRACEBACK_LIMIT innermost frames, and the line of the script's innermost frame (0 if none). One walk along the
+    frames: Python's traceback module would locate every frame's columns first, even the ones it leaves out."""
+    first, line, frame, depth = None, 0, tb, 0
+    while frame is not None:
+        if frame.tb_frame.f_code.co_filename == path:
+            line = frame.tb_lineno
+            first = first or frame
+        depth += first is not None
         frame = frame.tb_next
-    return frame or tb
+    first = first or tb
+    for _ in range(depth - TRACEBACK_LIMIT):
+        first = first.tb_next
+    return first, line
 
 
 def main(argv: list[str] | None = None) -> None:
+    """The script over ROS (`webots_controller` without --headless: `epuck_ros.webots_controller`)."""
     argv = [PROGRAM, *(sys.argv[1:] if argv is None else argv)]
-    if '--headless' in argv[1:]:   # on the pure core in this process, no ROS (see its --help)
-        from epuck_ros.experiments.headless_cli import main as headless
-        code = 0
-        try:
-            headless([arg for arg in argv[1:] if arg != '--headless'])
-        except SystemExit as end:
-            code = end.code if isinstance(end.code, int) else 1
-        end_process(code)   # not SystemExit: a thread the script left running would keep the process alive
     if any(arg in HELP_FLAGS for arg in user_arguments(argv)):
         print(HELP)
         raise SystemExit(0)
@@ -137,9 +152,8 @@ def main(argv: list[str] | None = None) -> None:
     except ParameterError as error:
         fail(f'{str(error).split(" (known")[0]}: the controller\'s node has no parameters of its own')
     script, robot, script_args = parse(user_arguments(args))
+    check_script(Path(script), script)
     path = Path(script).resolve()
-    if not path.is_file():
-        fail(f'no such controller script: {script}')
     configure(robot, args[1:])
     code = 0
     try:
@@ -148,7 +162,3 @@ def main(argv: list[str] | None = None) -> None:
         close()
         rclpy.try_shutdown()
     end_process(code)   # not SystemExit: a thread the script left running would keep the process alive
-
-
-if __name__ == '__main__':
-    main()

@@ -15,10 +15,16 @@ World-file keys (design.md, "Senses"):
 
 A light's irradiance at distance d (m) is intensity / d^2 (W/m^2), Webots' PointLight with attenuation 0 0 1:
 Webots' default (1 0 0) has no fall-off, and the light sensors must tell near from far.
+
+The floor is painted into a texture of `floor_step` texels (`epuck_ros.sensors.scene.FloorTexture`): each polyline
+segment and disc costs the texels of its own bounding box, a polygon those of its bounding box and one look per
+edge and texel row it spans. Paint is cheap to write and can be costly to draw (a zig-zag of long segments across
+the arena), so a world is refused when painting its floor would visit more than MAX_PAINT_WORK texels in all.
 """
 from __future__ import annotations
 
-from collections.abc import Mapping
+import math
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any, Protocol
 
@@ -36,6 +42,13 @@ MAX_PAINT_ITEMS = 1000
 MAX_POINTS = 10000
 """Points in one polyline or polygon at most (a hostile file must stay cheap to paint)."""
 MAX_LIGHTS = 64
+FLOOR_RESOLUTION = 0.002
+"""m per floor texel: a 1 m arena is 500 x 500 texels; a 2 cm line is 10 texels wide."""
+MAX_TEXELS = 2048
+"""Texels per side at most: a huge arena gets coarser texels rather than a huge texture."""
+MAX_PAINT_WORK = 20_000_000
+"""Texels the painting of one floor may visit in all (`paint_work`): a few seconds at most. The shipped worlds
+need well under 1 % of it; a 1 m arena's whole floor is 250,000 texels."""
 
 
 @dataclass(frozen=True)
@@ -92,6 +105,47 @@ TOP_KEYS = ('floor', 'lights')
 """The keys this module adds to the world file (to the arena, to each box and cylinder, at the top)."""
 
 
+def floor_step(arena_size: Sequence[float], max_texels: int = MAX_TEXELS) -> float:
+    """The side (m) of a floor texel: FLOOR_RESOLUTION, or coarser so that no side has more than `max_texels`."""
+    return max(FLOOR_RESOLUTION, max(arena_size) / max_texels)
+
+
+def texel_span(low: float, high: float, half: float, step: float, count: int) -> tuple[int, int]:
+    """The texels [first, last) along one axis of `count` whose centres may lie within [low, high] (the floor
+    from -half, `step` per texel): one on either side more, never outside the floor."""
+    return (max(0, int(math.floor((low + half) / step))),
+            min(count, int(math.ceil((high + half) / step)) + 1))
+
+
+def paint_work(paint: Sequence[Paint], arena_size: Sequence[float], max_texels: int = MAX_TEXELS) -> int:
+    """The texels painting `paint` on this arena's floor visits (what FloorTexture's painting costs): each segment
+    and disc its bounding box, each polygon its bounding box and the texel rows each edge spans."""
+    step = floor_step(arena_size, max_texels)
+    half_x, half_y = arena_size[0] / 2.0, arena_size[1] / 2.0
+    columns, rows = max(1, math.ceil(arena_size[0] / step)), max(1, math.ceil(arena_size[1] / step))
+
+    def box(xs: Sequence[float], ys: Sequence[float], reach: float) -> tuple[int, int]:
+        i0, i1 = texel_span(min(xs) - reach, max(xs) + reach, half_x, step, columns)
+        j0, j1 = texel_span(min(ys) - reach, max(ys) + reach, half_y, step, rows)
+        return max(0, i1 - i0), max(0, j1 - j0)
+
+    work = 0
+    for item in paint:
+        points = item.points
+        if item.kind == 'polyline':
+            for (ax, ay), (bx, by) in zip(points, points[1:]):
+                width, height = box((ax, bx), (ay, by), item.width / 2.0)
+                work += width * height
+        elif item.kind == 'polygon':
+            width, height = box([x for x, _ in points], [y for _, y in points], 0.0)
+            edges = sum(box((ax, bx), (ay, by), 0.0)[1] for (ax, ay), (bx, by) in zip(points, points[1:] + points[:1]))
+            work += width * height + edges
+        else:
+            width, height = box([points[0][0]], [points[0][1]], item.radius)
+            work += width * height
+    return work
+
+
 class Fields(Protocol):
     """The world loader's field reader (every failure names the file and field)."""
 
@@ -105,8 +159,10 @@ class Fields(Protocol):
 
 
 def read_appearance(fields: Fields, top: Mapping[str, Any]) -> Appearance:
-    """The appearance keys of a world file's top-level mapping, checked; the other keys are the loader's."""
+    """The appearance keys of a world file's top-level mapping, checked (the floor's paint against MAX_PAINT_WORK on
+    its arena); the other keys are the loader's."""
     arena = top.get('arena') or {}
+    arena_size = fields.vector(arena.get('size', [1.0, 1.0]), 'arena.size', 2, positive=True)
     boxes = _items(top, 'boxes')
     cylinders = _items(top, 'cylinders')
     floor = top.get('floor')
@@ -123,7 +179,7 @@ def read_appearance(fields: Fields, top: Mapping[str, Any]) -> Appearance:
         cylinder_heights=_trim([_height(fields, c.get('height'), f'cylinders[{i}].height')
                                 for i, c in enumerate(cylinders)], DEFAULT_HEIGHT),
         floor_color=_color(fields, floor.get('color'), 'floor.color', FLOOR_COLOR),
-        paint=_paint(fields, floor.get('paint')),
+        paint=_paint(fields, floor.get('paint'), arena_size),
         lights=_lights(fields, top.get('lights')))
 
 
@@ -171,7 +227,7 @@ def _points(fields: Fields, value: Any, path: str, least: int) -> tuple[tuple[fl
     return tuple(fields.vector(p, f'{path}[{i}]', 2) for i, p in enumerate(points))   # type: ignore[misc]
 
 
-def _paint(fields: Fields, value: Any) -> tuple[Paint, ...]:
+def _paint(fields: Fields, value: Any, arena_size: Sequence[float]) -> tuple[Paint, ...]:
     paint = []
     for i, item in enumerate(_list(fields, value, 'floor.paint', MAX_PAINT_ITEMS)):
         path = f'floor.paint[{i}]'
@@ -195,6 +251,12 @@ def _paint(fields: Fields, value: Any) -> tuple[Paint, ...]:
                                width=width))
         else:
             paint.append(Paint('polygon', _points(fields, item['polygon'], f'{path}.polygon', 3), color))
+    work = paint_work(paint, arena_size)
+    if work > MAX_PAINT_WORK:
+        raise fields.fail('floor.paint', f'painting it would visit {work:,} floor texels of '
+                                         f'{floor_step(arena_size) * 1000:g} mm, more than {MAX_PAINT_WORK:,}: '
+                                         'long segments across the arena cost their whole bounding box each '
+                                         '(use fewer of them, or a polygon)')
     return tuple(paint)
 
 

@@ -18,9 +18,7 @@ file costs little and ends in one WorldError line naming the file and field.
 from __future__ import annotations
 
 import math
-import os
 import reprlib
-import stat
 from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any
@@ -30,6 +28,7 @@ import numpy as np
 from epuck_ros import untrusted_yaml
 from epuck_ros.model import RobotModel
 from epuck_ros.spatial import close_pairs
+from epuck_ros.untrusted_file import FileProblem, read_bounded
 from epuck_ros.world.data import (ONE_ROBOT, ROBOT_NAME, ROBOT_NAME_MAX, Box, Cylinder, RobotStart, World, WorldError,
                                   name_problem)
 from epuck_ros.world import appearance
@@ -50,25 +49,9 @@ def load_world(path: str | Path, robot_radius: float = RobotModel().body_radius)
     reader) no larger than MAX_FILE_BYTES.
     """
     try:
-        fd = os.open(path, os.O_RDONLY | getattr(os, 'O_NONBLOCK', 0))
-    except FileNotFoundError:
-        raise WorldError(f'{path}: file not found') from None
-    except OSError as error:
-        raise WorldError(f'{path}: cannot read the file: {error.strerror}') from None
-    try:
-        info = os.fstat(fd)
-        if not stat.S_ISREG(info.st_mode):
-            raise WorldError(f'{path}: cannot read the file: not a regular file (a directory, pipe or device)')
-        if info.st_size > MAX_FILE_BYTES:
-            raise WorldError(f'{path}: file too large ({info.st_size} bytes, at most {MAX_FILE_BYTES})')
-        with os.fdopen(os.dup(fd), 'rb') as file:
-            data = file.read(MAX_FILE_BYTES + 1)
-    except OSError as error:
-        raise WorldError(f'{path}: cannot read the file: {error.strerror}') from None
-    finally:
-        os.close(fd)
-    if len(data) > MAX_FILE_BYTES:
-        raise WorldError(f'{path}: file too large (more than {MAX_FILE_BYTES} bytes)')
+        data = read_bounded(path, MAX_FILE_BYTES)
+    except FileProblem as problem:
+        raise WorldError(f'{path}: {problem}') from None
     try:
         text = data.decode('utf-8')
     except UnicodeDecodeError as error:

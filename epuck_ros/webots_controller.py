@@ -1,0 +1,32 @@
+"""`webots_controller SCRIPT.py`: a Webots-style controller script over ROS (`webots.runner`) or, with
+`--headless`, against the pure core in this process (`experiments.headless_cli`).
+
+The command sits above both: the experiments run scripts through `webots` (a headless trial's seats), so nothing
+in `webots` may import `experiments`.
+"""
+from __future__ import annotations
+
+import sys
+
+from epuck_ros.experiments import headless_cli
+from epuck_ros.nodes.spinning import end_process
+from epuck_ros.webots import runner
+
+HEADLESS = '--headless'
+
+
+def main(argv: list[str] | None = None) -> None:
+    args = sys.argv[1:] if argv is None else argv
+    if HEADLESS not in args:
+        runner.main(args)
+        return
+    code = 0
+    try:
+        headless_cli.main([arg for arg in args if arg != HEADLESS])
+    except SystemExit as end:
+        code = end.code if isinstance(end.code, int) else 1
+    end_process(code)   # not SystemExit: a thread the script left running would keep the process alive
+
+
+if __name__ == '__main__':
+    main()

@@ -1,0 +1,40 @@
+"""Same seed, same run (issue 25): every example script and program of the course, through `bringup` in lockstep
+(simulator and `webots_controller` over DDS, recorded) and as a headless trial, give the same ground truth at every
+step, to the bit, and `bringup` says the run was reproducible. Scripts that read senses (the light seeker, the line
+follower, the red-box finder) included: their first readings no longer depend on when discovery delivers a topic.
+
+One pass here, on 1 and 3 robots; `python benchmarks/same_run_loops.py` repeats it many times with busy loops on
+every core beside it (its figures are in the README)."""
+from __future__ import annotations
+
+import subprocess
+import sys
+
+import pytest
+from conftest import processes_in_this_domain
+
+from same_run import Case, bringup_truth, difference, example_cases, headless_truth
+
+CASES = [*example_cases(robots=0, duration=3.0), *example_cases(robots=3, duration=2.0)]
+
+
+@pytest.mark.parametrize('case', CASES, ids=[case.label for case in CASES])
+def test_a_script_through_bringup_is_its_headless_trial_to_the_bit(case: Case, tmp_path) -> None:
+    expected = headless_truth(case)
+    got, output = bringup_truth(case, tmp_path / 'bag')
+    assert difference(expected, got) == '', output
+    assert '[bringup] reproducible: every step was answered' in output, output
+    assert processes_in_this_domain() == []
+
+
+def test_the_same_run_beside_busy_loops_on_every_core(tmp_path) -> None:
+    """The light seeker (camera-free, light sensors from its first step) with `while True: pass` on both cores."""
+    case = Case(str(next(c.controller for c in CASES if c.controller.endswith('light_seeker.py'))), duration=3.0)
+    loops = [subprocess.Popen([sys.executable, '-c', 'while True: pass']) for _ in range(2)]
+    try:
+        got, output = bringup_truth(case, tmp_path / 'bag')
+    finally:
+        for loop in loops:
+            loop.kill()
+            loop.wait()
+    assert difference(headless_truth(case), got) == '', output
