@@ -174,14 +174,14 @@ def test_the_evolved_controller_avoids_for_120_s_from_several_seeds(world):
 
 @pytest.mark.parametrize('world', sorted(AVOIDS))
 def test_the_evolved_controller_avoids_over_ros_as_headless(launch, world):
-    """Through `bringup --controller` (lockstep, as fast as possible), 30 simulated seconds to keep it cheap: the
-    same distance and contacts as the headless run of that seed and length, and it avoids (the 120 s figures above
-    stand for bringup's 120 s run)."""
-    reference = headless(world, 0, 30)
-    run = launch('bringup', '--controller', str(EVOLVED), *AVOIDS[world][0], '--duration', '30',
+    """The README's run through `bringup --controller` (lockstep, as fast as possible): 120 simulated seconds, at
+    most two contacts, and the distance and contacts of the headless run of the same seed, to the bit."""
+    reference = headless(world, 0, 120)
+    run = launch('bringup', '--controller', str(EVOLVED), *AVOIDS[world][0], '--duration', '120',
                  '--real-time-factor', '0')
     assert run.proc.wait(timeout=300) == 0, run.output()
     distance, contacts = summary(run.output())
+    print(f'evolved_avoid.py over ROS in the {world} world: {distance:.3f} m in 120 s, {contacts} contacts')
     assert (distance, contacts) == summary(finished(reference)), run.output()
-    assert contacts <= MOST_CONTACTS and distance >= AVOIDS[world][1] / 4, run.output()
+    assert contacts <= MOST_CONTACTS and distance >= AVOIDS[world][1], run.output()
     assert processes_in_this_domain() == []

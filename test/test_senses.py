@@ -341,7 +341,7 @@ def test_the_shim_camera_takes_the_size_of_the_images_it_is_given():
     from epuck_ros.webots.headless import CoreLink
     sim = Simulation(load_world(WORLDS / 'coloured_objects.yaml'), noise=False)
     sim.senses.set_camera_size(104, 78)
-    link = CoreLink(SimpleNamespace(sim=sim), 0)
+    link = CoreLink(SimpleNamespace(sim=sim, recorder=lambda: None), 0)   # a stage without a bag
     link.want('camera')
     assert link.camera_size == (104, 78)
     camera = ShimCamera('camera', lambda: 0, CAMERA_WIDTH, CAMERA_HEIGHT, CAMERA_FOV, CAMERA_NEAR)
