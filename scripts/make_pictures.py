@@ -210,7 +210,7 @@ def learned_facts(work: Path) -> list[str]:
     rows = {name: (score, share) for name, score, share in found}
     return [f'| {label} | {rows[name][0]} | {rows[name][1]} % |' for name, label in (
         ('learned policy', 'learned by CMA-ES'),
-        ('random policies of its form', 'random policies of the same form (most turn on the spot)'),
+        ('random policies of its form', 'random policies of the same form (most turn on the spot or back off)'),
         ('straight ahead, blind', 'straight ahead, blind'))]
 
 
