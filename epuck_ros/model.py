@@ -74,9 +74,10 @@ CAMERA_NEAR = 0.0055
 """m; nothing nearer than this is drawn (Webots' near plane)."""
 
 GROUND_SENSOR_NAMES: tuple[str, ...] = ('gs0', 'gs1', 'gs2')
-GROUND_SENSOR_POSES = np.array([[0.027, 0.01, 0.0003], [0.027, 0.0, 0.0003], [0.027, -0.01, 0.0003]])
+GROUND_SENSOR_POSES = np.array([[0.03, 0.01, 0.0033], [0.03, 0.0, 0.0033], [0.03, -0.01, 0.0033]])
 """x, y, z (m) of gs0 (left), gs1 (centre), gs2 (right), each looking straight down: the extension slot at
-(0.03, 0, 0.0003) and the sensors 1 cm apart, 3 mm behind it (E-puckGroundSensors.proto)."""
+(0.03, 0, 0.0003) (E-puck.proto) and the sensors 1 cm apart, 3 mm above it (E-puckGroundSensors.proto; see
+sensors/ground.py for how the two frames compose)."""
 GROUND_LOOKUP_TABLE = np.array([[0.0, 1000.0, 0.002], [0.016, 300.0, 0.004]])
 """distance (m), raw value, relative noise: E-puckGroundSensors.proto (R2020a)."""
 

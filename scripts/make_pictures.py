@@ -193,7 +193,7 @@ def evolve_fully(work: Path) -> None:
 
 
 LEARNED_LINE = re.compile(r'^(learned policy|random policies of its form|straight ahead, blind) +on \d+ fresh 60 s '
-                          r'episodes: mean fitness ([0-9.]+), touching a wall or an obstacle ([0-9.]+)% of the time$',
+                          r'episodes: mean fitness (-?[0-9.]+), touching a wall or an obstacle ([0-9.]+)% of the time$',
                           re.M)
 """The example's judgement of the learned policy, as it prints it: the README's table."""
 
@@ -210,7 +210,7 @@ def learned_facts(work: Path) -> list[str]:
     rows = {name: (score, share) for name, score, share in found}
     return [f'| {label} | {rows[name][0]} | {rows[name][1]} % |' for name, label in (
         ('learned policy', 'learned by CMA-ES'),
-        ('random policies of its form', 'random policies of the same form (most turn on the spot)'),
+        ('random policies of its form', 'random policies of the same form (most turn on the spot or back off)'),
         ('straight ahead, blind', 'straight ahead, blind'))]
 
 

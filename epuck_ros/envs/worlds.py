@@ -7,12 +7,13 @@ sigma N(0, 1), sigma from the lookup table's third column): then a world's noise
 worlds share the simulator. Each generator draws, in order: the start pose at reset (again until the body is clear
 of everything), eight normals for the readings at reset, eight more at each step.
 
-Observation (float32, 10 values): the eight IR activations, (raw - far) / (near - far) clipped to [0, 1],
-far = 67.19 (nothing within 7 cm) and near = 4095 (touching), then the two wheel speeds applied in the last step as
-fractions of the maximum, in [-1, 1] (the speeds commanded: a blocked robot's wheels turn on). Action: the two wheel
-speeds (left, right) as fractions of the maximum (6.28 rad/s), in [-1, 1]; a finite value beyond is clipped to it
-(as the wheels clamp a speed beyond their maximum), NaN and infinities are refused (`check_actions`). Reward:
-Floreano and Mondada's fitness of the step, V (1 - sqrt(dv)) (1 - i) in [0, 1] (see `fitness`).
+Observation (float32, 10 values): the eight IR activations, each 1 - d / 0.0673 for the distance d (m) the raw value
+stands for on the lookup table (`activations`: 0 with nothing seen, 0.70 at 2 cm), then the two wheel
+speeds applied in the last step as fractions of the maximum, in [-1, 1] (the speeds commanded: a blocked robot's
+wheels turn on). Action: the two wheel speeds (left, right) as fractions of the maximum (6.28 rad/s), in [-1, 1]; a
+finite value beyond is clipped to it (as the wheels clamp a speed beyond their maximum), NaN and infinities are
+refused (`check_actions`). Reward: Floreano and Mondada's fitness of the step, V (1 - sqrt(dv)) (1 - i) in [-1, 1]
+(see `fitness`).
 """
 from __future__ import annotations
 
@@ -20,6 +21,8 @@ import math
 
 import numpy as np
 
+from epuck_ros.behaviours.base import FREE_READING_SIGMAS
+from epuck_ros.ir_sensor import LookupTable, distance_from_raw
 from epuck_ros.kinematics import wheels_from_twist
 from epuck_ros.model import TIME_STEP, RobotModel
 from epuck_ros.simulation import CommandError, Simulation
@@ -32,19 +35,22 @@ MAX_WORLDS = 65536
 
 
 def fitness(wheels: np.ndarray, activation: np.ndarray) -> np.ndarray:
-    """Floreano and Mondada's Phi = V (1 - sqrt(dv)) (1 - i) per world, each factor in [0, 1]: V the mean of the two
-    wheel speeds, forward only (0 when reversing), dv the absolute difference of the wheel speeds over 2, i the
-    highest IR activation. wheels (N, 2): the wheel speeds of the body's true motion as fractions of the maximum;
-    activation (N, 8) -> (N,).
+    """Floreano and Mondada's Phi = V (1 - sqrt(dv)) (1 - i) per world, in [-1, 1]: V the mean of the two wheel
+    speeds, signed (backward motion counts against), dv the absolute difference of the wheel speeds over 2, i the
+    highest IR activation, each of the last two in [0, 1]. wheels (N, 2): the wheel speeds of the body's true motion
+    as fractions of the maximum; activation (N, 8) -> (N,).
 
-    Two departures, both loopholes that evolution found here and the paper's robot did not offer: the wheels are
-    those of the body's true motion (a blocked robot's wheels count as still, as a real robot's stall or slip;
-    the simulator's own wheels turn on, and evolution parked robots in a corner with the motors at full speed),
-    and V counts forward speed only (our motors change speed at once, and with V the mean absolute speed
-    evolution found full reverse and full forward on alternate steps: V = 1, dv = 0, no obstacle ever near).
+    Two departures, both loopholes that evolution found here and the paper's robot did not offer (its motors could
+    not reverse from one step to the next): the wheels are those of the body's true motion (a blocked robot's
+    wheels count as still, as a real robot's stall or slip; the simulator's own wheels turn on, and evolution
+    parked robots in a corner with the motors at full speed), and V is signed. Our motors change speed at once:
+    with V the mean absolute speed evolution found full reverse and full forward on alternate steps (V = 1, dv = 0,
+    no obstacle ever near), and with V forward only (reversing 0) the same alternation in place earned 0.5 a step
+    with no risk, more than driving the corridor world; signed, going back and forth earns nothing, as it gets
+    nowhere.
     """
     left, right = wheels[:, 0], wheels[:, 1]
-    speed = np.maximum(0.5 * (left + right), 0.0)
+    speed = 0.5 * (left + right)
     turning = 0.5 * np.abs(left - right)
     return speed * (1.0 - np.sqrt(turning)) * (1.0 - activation.max(axis=1))
 
@@ -78,7 +84,7 @@ class Worlds:
         self.noise = noise
         self.episode_steps = episode_steps(duration, noise, time_step)
         table = model.ir_table
-        self._far, self._near = float(table[-1, 1]), float(table[0, 1])
+        self._table, self._reach = LookupTable(table), reach(model)
         self._noise_raws, self._noise_sigmas = table[::-1, 1].copy(), table[::-1, 2].copy()
         self.sim: Simulation | None = None
         self.rngs: list[np.random.Generator] = []
@@ -142,12 +148,12 @@ class Worlds:
                    for value, sigma, normal in zip(raw.tolist(), sigmas, self.rngs[0].standard_normal(8).tolist())]
         else:
             raw = raw.tolist()
-        far, near = self._far, self._near
-        activation = [min(max((value - far) / (near - far), 0.0), 1.0) for value in raw]
+        table, farthest = self._table, self._reach
+        activation = [1.0 - min(table.range_of(value), farthest) / farthest for value in raw]
         self._activation = activation
         (forward, turn), = sim.true_twist.tolist()
         true_left, true_right = (wheel / top for wheel in wheels_from_twist(forward, turn, self.model))
-        speed = max(0.5 * (true_left + true_right), 0.0)
+        speed = 0.5 * (true_left + true_right)
         reward = speed * (1.0 - math.sqrt(0.5 * abs(true_left - true_right))) * (1.0 - max(activation))
         wheels = [wheel / top for wheel in sim.wheel_speeds[0].tolist()]
         return np.array(activation + wheels, dtype=np.float32), reward, self.steps >= self.episode_steps
@@ -168,10 +174,30 @@ class Worlds:
         return observations(self._activation, self.sim.wheel_speeds, self.model)
 
 
+def reach(model: RobotModel) -> float:
+    """m: the farthest an IR sensor tells an obstacle from nothing, the distance of the raw value FREE_READING_SIGMAS
+    noise deviations above the far end of the table (0.0673 m on the e-puck: raw 77.1)."""
+    _, far_raw, far_noise = model.ir_table[-1]
+    return float(distance_from_raw(far_raw * (1.0 + FREE_READING_SIGMAS * far_noise), model.ir_table))
+
+
 def activations(raw: np.ndarray, model: RobotModel) -> np.ndarray:
-    """Raw IR values (N, 8) as activations in [0, 1] (N, 8): 0 when nothing is within range, 1 when touching."""
-    far, near = model.ir_table[-1, 1], model.ir_table[0, 1]
-    return np.minimum(np.maximum((raw - far) / (near - far), 0.0), 1.0)
+    """Raw IR values (N, 8) as activations in [0, 1] (N, 8): 1 - d / reach, d the distance the value stands for on
+    the lookup table (its inverse), reach the farthest a sensor tells something from nothing (`reach`, 0.0673 m).
+    0 when nothing is seen, 0.70 at 2 cm, 0.85 at 1 cm, 1 touching.
+
+    Floreano and Mondada normalised each Khepera sensor on its own range, 0 to 1023. The Khepera's value falls
+    about linearly with distance over its 5 cm reach (Webots' Khepera1.proto models it as 1023 at 0 m to 0 at
+    0.05 m) and reads about 0 with nothing in front, so their i is the share of the sensor's reach an obstacle has
+    closed: 0.6 at 2 cm. The e-puck's raw value is nothing like linear (4095 touching, 384 at 2 cm, 67 at 7 cm:
+    (raw - 67) / (4095 - 67) is 0.08 at 2 cm), so the same meaning on the e-puck's range is the distance read back
+    through the e-puck's own table; and its free sensor reads 67 with 4.9 % noise, so values within the noise of
+    nothing (the behaviours' "nothing seen", behaviours.base) read 0, as the Khepera's free sensor does, rather than
+    a flicker every step that a network would have to learn to ignore.
+    """
+    table = model.ir_table
+    farthest = reach(model)
+    return 1.0 - np.minimum(np.maximum(distance_from_raw(raw, table), 0.0), farthest) / farthest
 
 
 def observations(activation: np.ndarray, wheel_speeds: np.ndarray, model: RobotModel) -> np.ndarray:

@@ -1,14 +1,16 @@
 """Line following on the ground-sensor extension: gs0 (left), gs1 (centre), gs2 (right) look at the floor.
 
 A dark line reads lower than the white floor (Webots' infra-red rule: the red level of the floor scales the
-distance the sensor sees). Each sensor's darkness (0 white .. 1 black, from the two levels measured at the start)
-steers: the line under the left sensor turns the robot left, under the right one right. Lost, it turns towards
-the side it last saw the line on.
-Run: bringup --world line_track.yaml --lockstep, or webots_controller line_follower.py with a sim on that world.
+distance the sensor sees): Webots' e-puck reads about 843 on white and 300 on black. The thresholds are the ones
+Webots' own line demo (e-puck_line_demo.c) uses, so the program runs unchanged in Webots: above 800 is white floor,
+below 500 the line. Each sensor's darkness (0 at 800 and above .. 1 at 500 and below) steers: the line under the
+left sensor turns the robot left, under the right one right. Lost, it turns towards the side it last saw the line
+on.
+Run: bringup --controller line_follower.py --world line_track.yaml
 """
 from controller import Robot
 
-WHITE, BLACK = 987.0, 934.0   # the ground sensors 0.3 mm above a white floor and above black paint
+OFF_LINE, ON_LINE = 800.0, 500.0   # Webots' line demo: above LLM_THRESHOLD white, below LEM_THRESHOLD black
 BASE, TURN = 0.35, 0.5        # fractions of the maximum wheel speed
 
 robot = Robot()
@@ -26,7 +28,7 @@ last_side = 1.0   # +1: the line was last seen on the left
 
 
 def darkness(value):
-    return min(1.0, max(0.0, (WHITE - value) / (WHITE - BLACK)))
+    return min(1.0, max(0.0, (OFF_LINE - value) / (OFF_LINE - ON_LINE)))
 
 
 while robot.step(step_ms) != -1:
