@@ -6,6 +6,7 @@ then SIGKILL) when the test ends, so no process outlives its test.
 from __future__ import annotations
 
 import os
+import signal
 import subprocess
 import sys
 import time
@@ -51,6 +52,23 @@ def pytest_configure(config: pytest.Config) -> None:
 
 def pytest_report_header() -> str:
     return f'ROS_DOMAIN_ID={_DOMAIN} ({_DOMAIN_CHOICE}), ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST'
+
+
+def _ctrl_c_disposition() -> tuple[bool, bool]:
+    """Whether SIGINT is ignored and whether it is blocked in this process's main thread, as the kernel holds them
+    (what every process a test starts inherits: a child that inherits either never sees Ctrl-C)."""
+    fields = dict(line.split(':', 1) for line in Path('/proc/self/status').read_text().splitlines() if ':' in line)
+    bit = 1 << (signal.SIGINT - 1)
+    return bool(int(fields['SigIgn'], 16) & bit), bool(int(fields['SigBlk'], 16) & bit)
+
+
+@pytest.fixture(autouse=True)
+def _ctrl_c_left_as_it_was() -> Iterator[None]:
+    """No test leaves Ctrl-C ignored or blocked for the tests after it: a sweep, an evolve, a README command
+    interrupted by a later test in the same process ignored the interruption and ran on (a loaded suite run)."""
+    before = _ctrl_c_disposition()
+    yield
+    assert _ctrl_c_disposition() == before, 'this test left SIGINT ignored or blocked (SigIgn, SigBlk) in the process'
 
 
 BIN_DIR = Path(sys.executable).parent
