@@ -19,6 +19,10 @@ import pytest
 from epuck_ros.bringup.processes import interrupt
 
 os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
+if signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
+    # pytest-xdist's workers start with Ctrl-C ignored, and every process a test starts would inherit that: a sweep,
+    # an evolve or a README command a test interrupts ran on (until some test's rclpy.init installed a handler).
+    signal.signal(signal.SIGINT, signal.default_int_handler)
 
 
 def _claim_domain_id() -> tuple[int, str]:
