@@ -400,14 +400,16 @@ def test_another_middleware_gets_one_warning(monkeypatch):
     assert len(said) == 1 and 'middleware rmw_cyclonedds_cpp: epuck_ros is tuned for rmw_fastrtps_cpp' in said[0]
 
 
-def test_the_simulator_profile_is_the_package_profile_without_local_matching(monkeypatch):
-    """fastdds_sim_profiles.xml is fastdds_profiles.xml plus fastdds.ignore_local_endpoints (the file says why): any
-    other difference would make the simulator's DDS behave unlike its peers'. It is the simulator's unless the user
-    chose a profile; the package's, which `bringup` passes to its children, is no choice of the user's."""
+def test_the_no_local_profile_is_the_package_profile_without_local_matching(monkeypatch):
+    """fastdds_no_local_profiles.xml is fastdds_profiles.xml plus fastdds.ignore_local_endpoints (the file says why):
+    any other difference would make the simulator's (and the behaviours') DDS behave unlike its peers'. It is theirs
+    unless the user chose a profile; the package's, which `bringup` passes to its children, is no choice of the
+    user's."""
     import os
     import xml.etree.ElementTree as ET
 
-    from epuck_ros.nodes.dds_profile import PROFILES_FILE, PROFILES_VARIABLE, SIM_PROFILES_FILE, use_simulator_profile
+    from epuck_ros.nodes.dds_profile import (NO_LOCAL_PROFILES_FILE, PROFILES_FILE, PROFILES_VARIABLE,
+                                             use_no_local_profile)
 
     def settings(path: Path) -> list[tuple[str, str]]:
         tree = ET.parse(path)
@@ -417,15 +419,15 @@ def test_the_simulator_profile_is_the_package_profile_without_local_matching(mon
     ignore = [('{http://www.eprosima.com/XMLSchemas/fastRTPS_Profiles}' + tag, text) for tag, text in [
         ('propertiesPolicy', ''), ('properties', ''), ('property', ''), ('name', 'fastdds.ignore_local_endpoints'),
         ('value', 'true')]]
-    sim = settings(SIM_PROFILES_FILE)
+    sim = settings(NO_LOCAL_PROFILES_FILE)
     start = sim.index(ignore[0])
     assert sim[start:start + len(ignore)] == ignore
     assert sim[:start] + sim[start + len(ignore):] == settings(PROFILES_FILE)
-    for chosen, used in [(None, SIM_PROFILES_FILE), (str(PROFILES_FILE), SIM_PROFILES_FILE),
+    for chosen, used in [(None, NO_LOCAL_PROFILES_FILE), (str(PROFILES_FILE), NO_LOCAL_PROFILES_FILE),
                          ('/home/me/my_profile.xml', Path('/home/me/my_profile.xml'))]:
         if chosen is None:
             monkeypatch.delenv(PROFILES_VARIABLE, raising=False)
         else:
             monkeypatch.setenv(PROFILES_VARIABLE, chosen)
-        use_simulator_profile()
+        use_no_local_profile()
         assert Path(os.environ[PROFILES_VARIABLE]) == used

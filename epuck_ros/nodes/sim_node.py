@@ -37,7 +37,7 @@ from epuck_ros.lockstep import Answer, Lockstep
 from epuck_ros.markers import world_markers
 from epuck_ros.model import TIME_STEP, RobotModel
 from epuck_ros.nodes.ack_window import AckWindow, history_steps, window_steps
-from epuck_ros.nodes.dds_profile import use_package_profile, use_simulator_profile, warn_if_not_fast_dds
+from epuck_ros.nodes.dds_profile import use_no_local_profile, use_package_profile, warn_if_not_fast_dds
 from epuck_ros.nodes.domain_watch import DISCOVERY_WINDOW, DomainWatch
 from epuck_ros.nodes.lockstep_report import LockstepReport
 from epuck_ros.nodes.pacing import Controls, Pacer, Settings
@@ -457,7 +457,7 @@ lease of the package's DDS profile."""
 def main(args: list[str] | None = None) -> None:
     started = time.monotonic()
     argv = prepare_arguments(args, SIM_PARAMETERS, USAGE)
-    use_simulator_profile()
+    use_no_local_profile()
     use_package_profile()
     os.environ.setdefault('RMW_FASTRTPS_PUBLICATION_MODE', publication_mode(argv))
     handle_shutdown_signals()  # from now on: a signal during start-up ends the node cleanly once it is built
