@@ -44,3 +44,23 @@ def test_only_a_new_high_of_the_graph_is_progress():
     assert best == (4509, 501, 261, 0)   # the node count grew once, then nothing
     assert new_high(best, (1505, 501, 261, 0)) is None and new_high(best, (4509, 501, 261, 0)) is None
     assert new_high(best, (100, 0, 262, 0)) == (4509, 501, 262, 0)   # one more controller found is progress
+
+
+def test_a_simulators_robots_are_read_from_ir_raw_without_looking_at_the_graph(rclpy_context):
+    """`--robots all` names a simulator's robots, and it always publishes `ir_raw`. Each node looked at the whole
+    graph 10 times a second for a `proximity`-only driver until its `ir_raw` publisher showed up: with 500 robots
+    that was all the process did, its DDS discovery starved, robots fell back to `proximity` and the simulator waited
+    for their answers. A robot named on the command line may be a real one's: its node still looks."""
+    from epuck_ros.behaviours import BEHAVIOURS
+    from epuck_ros.nodes.behaviour_nodes import BehaviourNode
+
+    simulated = BehaviourNode('avoid', BEHAVIOURS['avoid'], '/epuck0', ir_raw_only=True)
+    named = BehaviourNode('avoid', BEHAVIOURS['avoid'], '/epuck1')
+    def graph_looks(node: BehaviourNode) -> list[object]:
+        return [timer for timer in node.timers if getattr(timer.callback, '__name__', '') == '_choose_ir_topic']
+
+    try:
+        assert graph_looks(simulated) == [] and len(graph_looks(named)) == 1
+    finally:
+        simulated.destroy_node()
+        named.destroy_node()

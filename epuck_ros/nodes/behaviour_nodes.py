@@ -154,13 +154,17 @@ class BehaviourNode(Node):
     every step's answer). All this when the node follows simulated time (`use_sim_time`); on its own clock (a real
     robot's driver) it commands every `control_period` from the newest readings, naming no step.
     One `ir_raw` message carries all eight readings (the `proximity` path takes eight callbacks per step), so
-    the node reads `proximity` only while the graph shows no `ir_raw` publisher (a real robot's driver); an
-    `ir_raw` that names no step is taken as the node's clock says.
+    the node reads `proximity` only while the graph shows no `ir_raw` publisher (a real robot's driver), and never
+    for a simulator's robots (`ir_raw_only`); an `ir_raw` that names no step is taken as the node's clock says.
     """
 
     def __init__(self, name: str, spec: BehaviourSpec, namespace: str | None = None, announce: bool = True,
-                 **options: Any) -> None:
+                 ir_raw_only: bool = False, **options: Any) -> None:
         """`announce`: say the settings at INFO (else at DEBUG: the process's other nodes have said them).
+        `ir_raw_only`: the robot is a simulator's (its `world` topic named it, `--robots all`), which always publishes
+        `ir_raw`: the node never looks at the graph for `proximity`. Each look reads the whole graph; with each of 500
+        nodes looking 10 times a second until its `ir_raw` publisher showed up, the process did nothing else, its
+        DDS discovery starved and the simulator waited for its robots' answers (test_swarm_bringup).
         `options`: rclpy Node's (SWARM_NODE_OPTIONS)."""
         super().__init__(name, cli_args=None if namespace is None else ['--ros-args', '-r', f'__ns:={namespace}'],
                          **options)
@@ -190,8 +194,9 @@ class BehaviourNode(Node):
             self.create_subscription(Odometry, 'odom', self._on_odom, QOS)
         if self.behaviour.needs_proximity:
             self.create_subscription(Float64MultiArray, 'ir_raw', self._on_ir_raw, QOS, raw=True)
-            self._graph_timer = self.create_timer(GRAPH_POLL_PERIOD, self._choose_ir_topic,
-                                                  clock=Clock(clock_type=ClockType.STEADY_TIME))
+            if not ir_raw_only:
+                self._graph_timer = self.create_timer(GRAPH_POLL_PERIOD, self._choose_ir_topic,
+                                                      clock=Clock(clock_type=ClockType.STEADY_TIME))
         if not self._stepped:
             self.create_timer(period, self._on_tick)
         elif not (self.behaviour.needs_odom or self.behaviour.needs_proximity):
@@ -399,7 +404,7 @@ def main(name: str, args: list[str] | None = None) -> None:
         for namespace in namespaces:
             if shutdown_requested():  # SIGTERM while a swarm's nodes are made: no need to make the others
                 break
-            nodes.append(BehaviourNode(name, spec, namespace, announce=not nodes,
+            nodes.append(BehaviourNode(name, spec, namespace, announce=not nodes, ir_raw_only=robots == [ALL_ROBOTS],
                                        **(SWARM_NODE_OPTIONS if swarm else {})))
         if nodes and not shutdown_requested():
             spin_until_shutdown(*nodes, executor_type=EventsExecutor)
