@@ -56,6 +56,7 @@ def test_a_simulators_robots_are_read_from_ir_raw_without_looking_at_the_graph(r
 
     simulated = BehaviourNode('avoid', BEHAVIOURS['avoid'], '/epuck0', ir_raw_only=True)
     named = BehaviourNode('avoid', BEHAVIOURS['avoid'], '/epuck1')
+
     def graph_looks(node: BehaviourNode) -> list[object]:
         return [timer for timer in node.timers if getattr(timer.callback, '__name__', '') == '_choose_ir_topic']
 
