@@ -100,6 +100,26 @@ def test_clock_advances_one_time_step_per_step(launch, test_node):
     assert min(b - a for a, b in zip(times, times[1:])) == pytest.approx(STEP, abs=1e-6)
 
 
+def test_a_late_clock_reader_of_the_kept_profile_gets_the_last_tick(launch, test_node):
+    """`bringup`'s monitor reads /clock as CLOCK_KEPT: a simulator that matched it only after its last step (a
+    500-robot swarm's, whose graph lags by tens of seconds) still delivers the tick that ends the run; with a
+    volatile /clock bringup waited for ever. Here the reader comes after the simulator paused itself."""
+    from epuck_ros.nodes.qos import CLOCK_KEPT
+    start_sim(launch, test_node, real_time_factor=0.0, pause_at=0.32)
+    parameters = test_node.node.create_client(GetParameters, '/sim/get_parameters')
+    test_node.spin_until(parameters.service_is_ready, what='the simulator\'s parameter service')
+
+    def is_paused() -> bool:
+        future = parameters.call_async(GetParameters.Request(names=['paused']))
+        test_node.spin_until(future.done, what='the paused parameter')
+        return future.result().values[0].bool_value
+
+    test_node.spin_until(is_paused, timeout=60, what='the simulator to pause itself at 0.32 s')
+    late = test_node.collect(Clock, '/clock', CLOCK_KEPT)
+    test_node.spin_until(lambda: any(abs(c.clock.sec + c.clock.nanosec * 1e-9 - 0.32) < 1e-6 for c in late),
+                         what='the last tick, kept')
+
+
 def test_reset_puts_the_robot_back_and_zeroes_odometry(launch, test_node):
     start_sim(launch, test_node, real_time_factor=10.0)
     truth = test_node.collect(Odometry, 'ground_truth')

@@ -29,7 +29,7 @@ from epuck_ros.conversions import nanoseconds_from_seconds, seconds_from_stamp
 from epuck_ros.integrity import STATUS_TOPIC, Integrity, integrity_from
 from epuck_ros.nodes.announcements import ANNOUNCEMENT_QOS, SIMULATORS_TOPIC, Announcement, parse_announcement
 from epuck_ros.nodes.dds_profile import use_package_profile, warn_if_not_fast_dds
-from epuck_ros.nodes.qos import LATCHED
+from epuck_ros.nodes.qos import CLOCK_KEPT, LATCHED
 from epuck_ros.nodes.robot_ports import topic_prefix
 from epuck_ros.world import World, WorldError, world_from_dict
 
@@ -116,7 +116,7 @@ class RunMonitor:
         self._recorded: set[str] = set()
         """The topics the recorder was seen subscribed to (asked again only about the others, as above)."""
         self._parameters = AsyncParameterClient(self.node, SIM_NODE)
-        self.node.create_subscription(Clock, '/clock', self._on_clock, 10)
+        self.node.create_subscription(Clock, '/clock', self._on_clock, CLOCK_KEPT)
         self.node.create_subscription(String, 'world', self._on_world, LATCHED)
         self.node.create_subscription(DiagnosticStatus, STATUS_TOPIC, self._on_status, LATCHED)
         self.node.create_subscription(String, SIMULATORS_TOPIC, self._on_announcement, ANNOUNCEMENT_QOS)

@@ -1,7 +1,14 @@
 """The QoS profiles this package's topics share, defined once so a publisher and its readers always match."""
 from __future__ import annotations
 
-from rclpy.qos import DurabilityPolicy, QoSProfile
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 
 LATCHED = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
 """Published once, kept for late readers (ROS 1's latched topics): the world, its markers, contact counts."""
+
+CLOCK_KEPT = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE,
+                        durability=DurabilityPolicy.TRANSIENT_LOCAL)
+"""How `bringup`'s monitor reads `/clock`, and the durability the simulator offers it with: its last ticks are kept
+for a reader matched late. In a 500-robot start-up the simulator matched the monitor's reader only after its last
+steps (the graph of a swarm's simulator lags by tens of seconds), so the run's end never came and bringup waited
+for ever; a volatile reader (rclpy's clock, the controllers) gets only what comes after it matched, as before."""
