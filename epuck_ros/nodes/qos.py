@@ -9,6 +9,6 @@ LATCHED = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
 CLOCK_KEPT = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE,
                         durability=DurabilityPolicy.TRANSIENT_LOCAL)
 """How `bringup`'s monitor reads `/clock`, and the durability the simulator offers it with: its last ticks are kept
-for a reader matched late. In a 500-robot start-up the simulator matched the monitor's reader only after its last
-steps (the graph of a swarm's simulator lags by tens of seconds), so the run's end never came and bringup waited
-for ever; a volatile reader (rclpy's clock, the controllers) gets only what comes after it matched, as before."""
+for a reader matched late (or matched anew). In a 500-robot run the simulator paused itself at the run's end while
+the monitor had not got the last ticks (a swarm's discovery lags by tens of seconds), and bringup waited for ever;
+a volatile reader (rclpy's clock, the controllers) gets only what comes after it matched, as before."""
