@@ -513,7 +513,7 @@ def test_a_script_that_stops_calling_step_is_told_so(launch: object, test_node: 
 def test_a_killed_simulator_ends_a_script_waiting_in_step_within_seconds(
         launch: object, test_node: object, tmp_path: Path) -> None:
     """SIGKILL of the simulator: step() returns -1 once the graph drops it, after the participant lease of the
-    package's DDS profile (2 s); with Fast DDS's default lease that took 20.2 s."""
+    package's DDS profile (6 s); with Fast DDS's default lease that took 20.2 s."""
     import time
     script = tmp_path / 'waits.py'
     script.write_text('from controller import Robot\nrobot = Robot()\nwhile robot.step(32) != -1:\n    pass\n'
