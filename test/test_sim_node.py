@@ -102,6 +102,26 @@ def test_clock_advances_one_time_step_per_step(launch, test_node):
     assert min(b - a for a, b in zip(times, times[1:])) == pytest.approx(STEP, abs=1e-6)
 
 
+def test_a_late_clock_reader_of_the_kept_profile_gets_the_last_tick(launch, test_node):
+    """`bringup`'s monitor reads /clock as CLOCK_KEPT: a simulator that matched it only after its last step (a
+    500-robot swarm's, whose graph lags by tens of seconds) still delivers the tick that ends the run; with a
+    volatile /clock bringup waited for ever. Here the reader comes after the simulator paused itself."""
+    from epuck_ros.nodes.qos import CLOCK_KEPT
+    start_sim(launch, test_node, real_time_factor=0.0, pause_at=0.32)
+    parameters = test_node.node.create_client(GetParameters, '/sim/get_parameters')
+    test_node.spin_until(parameters.service_is_ready, what='the simulator\'s parameter service')
+
+    def is_paused() -> bool:
+        future = parameters.call_async(GetParameters.Request(names=['paused']))
+        test_node.spin_until(future.done, what='the paused parameter')
+        return future.result().values[0].bool_value
+
+    test_node.spin_until(is_paused, timeout=60, what='the simulator to pause itself at 0.32 s')
+    late = test_node.collect(Clock, '/clock', CLOCK_KEPT)
+    test_node.spin_until(lambda: any(abs(c.clock.sec + c.clock.nanosec * 1e-9 - 0.32) < 1e-6 for c in late),
+                         what='the last tick, kept')
+
+
 def test_reset_puts_the_robot_back_and_zeroes_odometry(launch, test_node):
     start_sim(launch, test_node, real_time_factor=10.0)
     # Every step's message kept (the sim runs at 10x, a loaded test node may fall a few hundred behind)
@@ -406,14 +426,16 @@ def test_another_middleware_gets_one_warning(monkeypatch):
     assert len(said) == 1 and 'middleware rmw_cyclonedds_cpp: epuck_ros is tuned for rmw_fastrtps_cpp' in said[0]
 
 
-def test_the_simulator_profile_is_the_package_profile_without_local_matching(monkeypatch):
-    """fastdds_sim_profiles.xml is fastdds_profiles.xml plus fastdds.ignore_local_endpoints (the file says why): any
-    other difference would make the simulator's DDS behave unlike its peers'. It is the simulator's unless the user
-    chose a profile; the package's, which `bringup` passes to its children, is no choice of the user's."""
+def test_the_no_local_profile_is_the_package_profile_without_local_matching(monkeypatch):
+    """fastdds_no_local_profiles.xml is fastdds_profiles.xml plus fastdds.ignore_local_endpoints (the file says why):
+    any other difference would make the simulator's (and the behaviours') DDS behave unlike its peers'. It is theirs
+    unless the user chose a profile; the package's, which `bringup` passes to its children, is no choice of the
+    user's."""
     import os
     import xml.etree.ElementTree as ET
 
-    from epuck_ros.nodes.dds_profile import PROFILES_FILE, PROFILES_VARIABLE, SIM_PROFILES_FILE, use_simulator_profile
+    from epuck_ros.nodes.dds_profile import (NO_LOCAL_PROFILES_FILE, PROFILES_FILE, PROFILES_VARIABLE,
+                                             use_no_local_profile)
 
     def settings(path: Path) -> list[tuple[str, str]]:
         tree = ET.parse(path)
@@ -423,15 +445,15 @@ def test_the_simulator_profile_is_the_package_profile_without_local_matching(mon
     ignore = [('{http://www.eprosima.com/XMLSchemas/fastRTPS_Profiles}' + tag, text) for tag, text in [
         ('propertiesPolicy', ''), ('properties', ''), ('property', ''), ('name', 'fastdds.ignore_local_endpoints'),
         ('value', 'true')]]
-    sim = settings(SIM_PROFILES_FILE)
+    sim = settings(NO_LOCAL_PROFILES_FILE)
     start = sim.index(ignore[0])
     assert sim[start:start + len(ignore)] == ignore
     assert sim[:start] + sim[start + len(ignore):] == settings(PROFILES_FILE)
-    for chosen, used in [(None, SIM_PROFILES_FILE), (str(PROFILES_FILE), SIM_PROFILES_FILE),
+    for chosen, used in [(None, NO_LOCAL_PROFILES_FILE), (str(PROFILES_FILE), NO_LOCAL_PROFILES_FILE),
                          ('/home/me/my_profile.xml', Path('/home/me/my_profile.xml'))]:
         if chosen is None:
             monkeypatch.delenv(PROFILES_VARIABLE, raising=False)
         else:
             monkeypatch.setenv(PROFILES_VARIABLE, chosen)
-        use_simulator_profile()
+        use_no_local_profile()
         assert Path(os.environ[PROFILES_VARIABLE]) == used

@@ -29,7 +29,7 @@ from epuck_ros.conversions import nanoseconds_from_seconds, seconds_from_stamp
 from epuck_ros.integrity import STATUS_TOPIC, Integrity, integrity_from
 from epuck_ros.nodes.announcements import ANNOUNCEMENT_QOS, SIMULATORS_TOPIC, Announcement, parse_announcement
 from epuck_ros.nodes.dds_profile import use_package_profile, warn_if_not_fast_dds
-from epuck_ros.nodes.qos import LATCHED
+from epuck_ros.nodes.qos import CLOCK_KEPT, LATCHED
 from epuck_ros.nodes.robot_ports import topic_prefix
 from epuck_ros.nodes.sense_ports import RECORDER_NODE
 from epuck_ros.world import World, WorldError, world_from_dict
@@ -110,8 +110,13 @@ class RunMonitor:
         """Every simulator that announced itself on this domain (ours among them once it is up)."""
         self.integrity: Integrity | None = None
         """Whether the run is reproducible, as the simulator's latched lockstep_status last said."""
+        self._controllers: dict[str, list[tuple[str, str]]] = {}
+        """Each robot's controllers, once seen connected: the graph is asked again only about the others (each look
+        reads the whole graph, a swarm's tens of thousands of endpoints)."""
+        self._recorded: set[str] = set()
+        """The topics the recorder was seen subscribed to (asked again only about the others, as above)."""
         self._parameters = AsyncParameterClient(self.node, SIM_NODE)
-        self.node.create_subscription(Clock, '/clock', self._on_clock, 10)
+        self.node.create_subscription(Clock, '/clock', self._on_clock, CLOCK_KEPT)
         self.node.create_subscription(String, 'world', self._on_world, LATCHED)
         self.node.create_subscription(DiagnosticStatus, STATUS_TOPIC, self._on_status, LATCHED)
         self.node.create_subscription(String, SIMULATORS_TOPIC, self._on_announcement, ANNOUNCEMENT_QOS)
@@ -188,10 +193,22 @@ class RunMonitor:
             self._executor.spin_once(timeout_sec=0.01)
 
     # --- the graph --------------------------------------------------------------------------------------
-    def sim_ready(self) -> bool:
-        """Our sim is in the graph, published its world (so its topics exist) and answers parameter requests."""
-        return (self.world is not None and self._parameters.services_are_ready() and
-                any(enclave == self.sim_enclave or not self.sim_enclave for _, _, enclave in self._sims()))
+    def sim_missing(self) -> str:
+        """What our sim has not done yet of being in the graph, publishing its world (so its topics exist) and
+        answering parameter requests; '' once it has."""
+        if not any(enclave == self.sim_enclave or not self.sim_enclave for _, _, enclave in self._sims()):
+            return 'is not in the ROS graph'
+        if self.world is None:
+            return 'has not published its world'
+        if not self._parameters.services_are_ready():
+            return 'does not answer parameter requests'
+        return ''
+
+    def graph_progress(self) -> tuple[int, ...]:
+        """How far the start-up has come, as the graph shows it: its topics and nodes (a swarm's simulator makes its
+        topics, a controller its nodes, for minutes), the controllers and recorded topics found."""
+        return (len(self.node.get_topic_names_and_types()), len(self.node.get_node_names_and_namespaces()),
+                len(self._controllers), len(self._recorded))
 
     def _sims(self) -> list[tuple[str, str, str]]:
         return [entry for entry in self.node.get_node_names_and_namespaces_with_enclaves() if entry[0] == SIM_NODE]
@@ -215,25 +232,31 @@ class RunMonitor:
     def recorder_subscribed(self) -> bool:
         """The recorder subscribes to every topic the simulator publishes, and to the robots' commands that have a
         publisher (a recorded swarm run's first wheel commands were missing: the run began before the recorder had
-        subscribed to them)."""
+        subscribed to them). Topics seen subscribed once are not asked about again, and the first one missing ends
+        the look."""
         node = self.node
         try:
             published = node.get_publisher_names_and_types_by_node(SIM_NODE, node.get_namespace())
         except Exception:  # noqa: BLE001 - rclpy raises NodeNameNonExistentError until the node is discovered
             return False
-        topics = [topic for topic, _ in published if topic != '/rosout']
-        if self.world is not None:
-            commands = [node.resolve_topic_name(robot_topic(self.world, robot, topic))
-                        for robot in self.world.names for topic in COMMAND_TOPICS]
-            topics += [topic for topic in commands if node.count_publishers(topic)]
-        return bool(published) and all(
-            any(info.node_name == RECORDER_NODE for info in node.get_subscriptions_info_by_topic(topic))
-            for topic in topics)
+        commands = [] if self.world is None else [node.resolve_topic_name(robot_topic(self.world, robot, topic))
+                                                  for robot in self.world.names for topic in COMMAND_TOPICS]
+        needed = [(topic, True) for topic, _ in published if topic != '/rosout']
+        for topic, always in needed + [(topic, False) for topic in commands]:
+            if topic in self._recorded:
+                continue
+            if any(info.node_name == RECORDER_NODE for info in node.get_subscriptions_info_by_topic(topic)):
+                self._recorded.add(topic)
+            elif always or node.count_publishers(topic):
+                return False
+        return bool(published)
 
     def controllers(self, robot: str) -> list[tuple[str, str]]:
         """(name, namespace) of the nodes publishing `robot`'s wheel_cmd or cmd_vel, once their subscriptions are
-        in the graph too (a controller subscribes before it commands)."""
+        in the graph too (a controller subscribes before it commands). Once found, not looked up again."""
         assert self.world is not None
+        if robot in self._controllers:
+            return self._controllers[robot]
         found = []
         for topic in COMMAND_TOPICS:
             for info in self.node.get_publishers_info_by_topic(robot_topic(self.world, robot, topic)):
@@ -243,6 +266,8 @@ class RunMonitor:
                     continue
                 if subscribed:
                     found.append((info.node_name, info.node_namespace))
+        if found:
+            self._controllers[robot] = found
         return found
 
     def view_serving(self) -> bool:

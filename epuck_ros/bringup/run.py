@@ -23,7 +23,9 @@ STOP_ORDER = ('controller', 'view', 'foxglove', 'record', 'sim')
 """Controllers stop first (a behaviour commands a stop as it ends) while the simulator still runs and the recorder
 still writes; the recorder closes its bag before the simulator goes."""
 READY_TIMEOUT = 60.0
-"""Wall seconds for every process to show up connected in the graph (a loaded machine takes a few)."""
+"""Wall seconds for every process to show up connected in the graph, counted from the last time the graph grew
+while they started (`new_high`): a swarm's start-up takes minutes on a loaded machine, each of its thousands of
+endpoints a step, while a start-up that stopped growing is stuck."""
 SETTLE_TIME = 0.5
 """Without lockstep only: wall seconds between seeing the controllers in the graph and resuming, for the
 simulator's publishers to match them (the graph does not show matching). In lockstep the simulator's first step
@@ -37,6 +39,16 @@ GRAPH_CHECK_PERIOD = 0.5
 """Wall seconds between two looks for another simulator during the run."""
 WATCH_SLICE = 0.02
 """Wall seconds between two looks at the children and the graph while watching (`RunMonitor.spin`)."""
+
+
+def new_high(best: tuple[int, ...] | None, now: tuple[int, ...]) -> tuple[int, ...] | None:
+    """The highest figures so far if `now` beats `best` in one of them, else None. Only a new high is progress: a
+    graph that loses a participant and finds it again (its lease ran out on a loaded machine) goes down and up
+    again without getting anywhere, and counting every change kept a stuck 500-robot start-up waiting for ever."""
+    if best is None:
+        return now
+    high = tuple(max(old, new) for old, new in zip(best, now))
+    return high if high != best else None
 
 
 class RunFailed(Exception):
@@ -99,11 +111,14 @@ class Supervisor:
                                            *self.ros_args([], sim_time=False)])
 
     def watch(self, done: Callable[[], bool], timeout: float, what: Callable[[], str],
-              until_sim_time: float = math.inf) -> None:
-        """Spin until `done()` or a stop request; RunFailed on a child's death, another simulator or the timeout.
-        `done()` is looked at every WATCH_SLICE, and at once when `/clock` reaches `until_sim_time`."""
+              until_sim_time: float = math.inf, progress: Callable[[], tuple[int, ...]] | None = None) -> None:
+        """Spin until `done()` or a stop request; RunFailed on a child's death, another simulator or the timeout:
+        `timeout` wall seconds, or with `progress`, that long without a new high of `progress()` (`new_high`,
+        looked at every GRAPH_CHECK_PERIOD). `done()` is looked at every WATCH_SLICE, and at once when `/clock`
+        reaches `until_sim_time`."""
         deadline = time.monotonic() + timeout
         next_check = 0.0
+        best: tuple[int, ...] | None = None
         while not self.stop_requested.is_set() and not done():
             self.monitor.spin(WATCH_SLICE, until_sim_time)
             dead = self.children.dead()
@@ -115,11 +130,15 @@ class Supervisor:
                 raise RunFailed(dead.failure(), dead)
             if time.monotonic() >= next_check:
                 self.refuse_other_simulators()
+                high = new_high(best, progress()) if progress is not None else None
+                if high is not None:
+                    best, deadline = high, time.monotonic() + timeout
                 next_check = time.monotonic() + GRAPH_CHECK_PERIOD
             if self.monitor.world_error:
                 raise RunFailed(f'cannot read the simulator\'s world: {self.monitor.world_error}')
             if time.monotonic() > deadline:
-                raise RunFailed(f'{what()} within {timeout:.0f} s')
+                raise RunFailed(f'{what()}: the ROS graph got no further for {timeout:.0f} s' if progress else
+                                f'{what()} within {timeout:.0f} s')
 
     def own_announcement(self) -> Announcement | None:
         """Our simulator's announcement, once heard: its start time orders it among the others."""
@@ -169,7 +188,7 @@ class Supervisor:
     def connected(self) -> bool:
         """Everything the run needs is in the graph: sim up, recorder subscribed, controllers connected, view up."""
         monitor = self.monitor
-        if not monitor.sim_ready() or self.own_announcement() is None:
+        if monitor.sim_missing() or self.own_announcement() is None:
             return False
         if self.plan.record_dir is not None and not monitor.recorder_subscribed():
             return False
@@ -196,8 +215,9 @@ class Supervisor:
     def waiting_for(self) -> str:
         """What is still missing, for the timeout message."""
         monitor = self.monitor
-        if not monitor.sim_ready() or self.own_announcement() is None:
-            return 'the simulator did not come up'
+        missing = monitor.sim_missing() or ('' if self.own_announcement() else 'has not announced itself')
+        if missing:
+            return f'the simulator did not come up (it {missing})'
         if self.plan.record_dir is not None and not monitor.recorder_subscribed():
             return 'the recorder did not subscribe to the simulator\'s topics'
         if self.args.view and not monitor.view_serving():
@@ -217,7 +237,7 @@ class Supervisor:
         if self.stop_requested.is_set():
             return
         self.start_all()
-        self.watch(self.connected, READY_TIMEOUT, self.waiting_for)
+        self.watch(self.connected, READY_TIMEOUT, self.waiting_for, progress=self.monitor.graph_progress)
         if self.stop_requested.is_set():
             return
         if not args.lockstep:

@@ -8,7 +8,8 @@ the step it answers (`BehaviourNode`). When it ends (Ctrl-C, SIGTERM) it command
 One robot: the node's namespace is the robot's (`avoid --ros-args -r __ns:=/epuck3`). Several robots in one
 process: `avoid --robots epuck0 epuck1` (or `--robots all`, every robot of the simulator's world) makes one
 node per robot, named like the executable, in the namespace `<namespace>/<robot>`, all on one executor;
-`-p` parameters apply to every one of them.
+`-p` parameters apply to every one of them. Beyond FULL_NODES_UP_TO robots (a swarm) the nodes have only their
+behaviour's topics, and the process ends without destroying them one by one (`SWARM_NODE_OPTIONS`).
 
 Logging: each node says its settings at start (the first node only, when one process drives several robots: they
 share them), and at INFO what leaves the robot standing (waiting for an input, the goal reached); the behaviour's
@@ -39,6 +40,7 @@ from rclpy.exceptions import InvalidNamespaceException, ParameterException
 from rclpy.logging import LoggingSeverity
 from rclpy.experimental import EventsExecutor
 from rclpy.node import Node
+from rclpy.parameter import Parameter
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from rclpy.signals import SignalHandlerOptions
 from rclpy.validate_namespace import validate_namespace
@@ -50,11 +52,11 @@ from epuck_ros.behaviours.base import describe, ranges_from_raw
 from epuck_ros.conversions import nanoseconds_from_stamp, stamp_from_nanoseconds, yaw_from_quaternion
 from epuck_ros.model import SENSOR_NAMES, TIME_STEP
 from epuck_ros.nodes.ack_window import COMMAND_QOS
-from epuck_ros.nodes.dds_profile import use_package_profile, warn_if_not_fast_dds
+from epuck_ros.nodes.dds_profile import use_no_local_profile, use_package_profile, warn_if_not_fast_dds
 from epuck_ros.nodes.params import ParamSpec, Usage, declare_parameters, prepare_arguments, user_arguments
 from epuck_ros.nodes.qos import LATCHED
 from epuck_ros.nodes.serialized import array_bytes, array_values
-from epuck_ros.nodes.spinning import handle_shutdown_signals, shutdown_requested, spin_until_shutdown
+from epuck_ros.nodes.spinning import end_process, handle_shutdown_signals, shutdown_requested, spin_until_shutdown
 from epuck_ros.world import WorldError, world_from_yaml
 
 CONTROL_PERIOD = TIME_STEP
@@ -70,9 +72,23 @@ FALLBACK_DELAY = 1.0
 the graph shows a simulator's publishers one by one, and the `ir_raw` one may come in a moment later."""
 STOP_ACK_TIMEOUT = 1.0
 """Wall seconds an ending process waits for its robots' last (zero) wheel commands to be acknowledged."""
+STOP_ACK_POLL = 0.005
+"""Wall seconds between two looks at those acknowledgements."""
 ALL_ROBOTS = 'all'
 MAX_NAMES_SHOWN = 10
 """Robot names the start-up line lists at most (a swarm's thousands would make one line of tens of KB)."""
+FULL_NODES_UP_TO = 50
+"""Robots up to which a process's per-robot nodes are whole ROS nodes (parameter services, /rosout, the type
+description service), destroyed one by one when it ends. Beyond, see SWARM_NODE_OPTIONS."""
+SWARM_NODE_OPTIONS: dict[str, Any] = {
+    'start_parameter_services': False, 'enable_rosout': False,
+    'parameter_overrides': [Parameter('start_type_description_service', value=False)]}
+"""A swarm's per-robot nodes: only the behaviour's topics (the parameters are read-only and the same on every node).
+Each whole node has 16 more endpoints, which every other participant discovers, and matching each new one costs the
+simulator time that grows with its own thousands: 200 whole nodes took 45 s to start and held the simulator's
+start-up with them. Destroying a node costs Fast DDS time that grows with the process's other endpoints (checking
+whether each type is still in use), so `avoid --robots all` with 200 robots took over 10 s to end after SIGTERM: a
+swarm's process ends without it, once its last commands are acknowledged (test_swarm_bringup)."""
 
 
 class RangeAssembler:
@@ -138,13 +154,20 @@ class BehaviourNode(Node):
     every step's answer). All this when the node follows simulated time (`use_sim_time`); on its own clock (a real
     robot's driver) it commands every `control_period` from the newest readings, naming no step.
     One `ir_raw` message carries all eight readings (the `proximity` path takes eight callbacks per step), so
-    the node reads `proximity` only while the graph shows no `ir_raw` publisher (a real robot's driver); an
-    `ir_raw` that names no step is taken as the node's clock says.
+    the node reads `proximity` only while the graph shows no `ir_raw` publisher (a real robot's driver), and never
+    for a simulator's robots (`ir_raw_only`); an `ir_raw` that names no step is taken as the node's clock says.
     """
 
-    def __init__(self, name: str, spec: BehaviourSpec, namespace: str | None = None, announce: bool = True) -> None:
-        """`announce`: say the settings at INFO (else at DEBUG: the process's other nodes have said them)."""
-        super().__init__(name, cli_args=None if namespace is None else ['--ros-args', '-r', f'__ns:={namespace}'])
+    def __init__(self, name: str, spec: BehaviourSpec, namespace: str | None = None, announce: bool = True,
+                 ir_raw_only: bool = False, **options: Any) -> None:
+        """`announce`: say the settings at INFO (else at DEBUG: the process's other nodes have said them).
+        `ir_raw_only`: the robot is a simulator's (its `world` topic named it, `--robots all`), which always publishes
+        `ir_raw`: the node never looks at the graph for `proximity`. Each look reads the whole graph; with each of 500
+        nodes looking 10 times a second until its `ir_raw` publisher showed up, the process did nothing else, its
+        DDS discovery starved and the simulator waited for its robots' answers (test_swarm_bringup).
+        `options`: rclpy Node's (SWARM_NODE_OPTIONS)."""
+        super().__init__(name, cli_args=None if namespace is None else ['--ros-args', '-r', f'__ns:={namespace}'],
+                         **options)
         if rclpy.logging.get_logger(name).is_enabled_for(LoggingSeverity.DEBUG):
             self.get_logger().set_level(LoggingSeverity.DEBUG)   # `--log-level avoid:=debug`: every robot's node
         settings = declare_parameters(self, parameter_specs(spec))
@@ -171,8 +194,9 @@ class BehaviourNode(Node):
             self.create_subscription(Odometry, 'odom', self._on_odom, QOS)
         if self.behaviour.needs_proximity:
             self.create_subscription(Float64MultiArray, 'ir_raw', self._on_ir_raw, QOS, raw=True)
-            self._graph_timer = self.create_timer(GRAPH_POLL_PERIOD, self._choose_ir_topic,
-                                                  clock=Clock(clock_type=ClockType.STEADY_TIME))
+            if not ir_raw_only:
+                self._graph_timer = self.create_timer(GRAPH_POLL_PERIOD, self._choose_ir_topic,
+                                                      clock=Clock(clock_type=ClockType.STEADY_TIME))
         if not self._stepped:
             self.create_timer(period, self._on_tick)
         elif not (self.behaviour.needs_odom or self.behaviour.needs_proximity):
@@ -286,11 +310,26 @@ class BehaviourNode(Node):
         timeout does not drive on after its controller is gone (`wait_until_stopped` makes sure it arrived)."""
         self._publisher.publish(array_bytes((0.0, 0.0)))
 
-    def wait_until_stopped(self, timeout: float) -> None:
-        """Wait until every reader acknowledged the zero command: a busy reader may have dropped it on arrival, and
-        only this writer, still alive, can send it again (without this wait it was lost in about half the exits)."""
-        if not self._publisher.wait_for_all_acked(Duration(seconds=max(timeout, 0.0))):
-            self.get_logger().warning(f'the last (zero) wheel command was not acknowledged within {timeout:.1f} s')
+    def stopped(self) -> bool:
+        """Whether every reader acknowledged the zero command (not waiting: rclpy holds the GIL while it waits)."""
+        return self._publisher.wait_for_all_acked(Duration(seconds=0))
+
+
+def wait_until_stopped(nodes: Sequence[BehaviourNode], timeout: float) -> None:
+    """Wait until every reader acknowledged each node's zero command, `timeout` for them all: a busy reader may have
+    dropped it on arrival, and only its writer, still alive, can send it again (without this wait it was lost in about
+    half the exits). One warning for those still unacknowledged (a swarm's each got its own line)."""
+    deadline = time.monotonic() + timeout
+    waiting = list(nodes)
+    while waiting:
+        waiting = [node for node in waiting if not node.stopped()]
+        if waiting and time.monotonic() >= deadline:
+            names = ', '.join(node.get_namespace() for node in waiting[:3]) + (', ...' if len(waiting) > 3 else '')
+            waiting[0].get_logger().warning(f'the last (zero) wheel command of {len(waiting)} robot(s) ({names}) was '
+                                            f'not acknowledged within {timeout:.1f} s')
+            return
+        if waiting:
+            time.sleep(STOP_ACK_POLL)
 
 
 def parse_robots(name: str, user_args: list[str]) -> list[str] | None:
@@ -350,29 +389,41 @@ def main(name: str, args: list[str] | None = None) -> None:
     spec = BEHAVIOURS[name]
     argv = prepare_arguments(args, parameter_specs(spec), usage(name, spec), own_options=True)
     robots = parse_robots(name, user_arguments(argv))
+    use_no_local_profile()  # its nodes never read each other's topics
     use_package_profile()  # its quick heartbeats: the last (zero) wheel command is acknowledged within STOP_ACK_TIMEOUT
     rclpy.init(args=argv, signal_handler_options=SignalHandlerOptions.NO)
     warn_if_not_fast_dds(rclpy.logging.get_logger(name))
     handle_shutdown_signals()
     nodes: list[BehaviourNode] = []
+    swarm = False
+    code: int | None = None
+    """The exit code, once known (None: an unexpected error, whose traceback follows)."""
     try:
-        for namespace in robot_namespaces(name, robots):
-            nodes.append(BehaviourNode(name, spec, namespace, announce=not nodes))
+        namespaces = robot_namespaces(name, robots)
+        swarm = len(namespaces) > FULL_NODES_UP_TO
+        for namespace in namespaces:
+            if shutdown_requested():  # SIGTERM while a swarm's nodes are made: no need to make the others
+                break
+            nodes.append(BehaviourNode(name, spec, namespace, announce=not nodes, ir_raw_only=robots == [ALL_ROBOTS],
+                                       **(SWARM_NODE_OPTIONS if swarm else {})))
         if nodes and not shutdown_requested():
             spin_until_shutdown(*nodes, executor_type=EventsExecutor)
+        code = 0
     except (ConfigError, ParameterException, InvalidNamespaceException, WorldError) as error:
         rclpy.logging.get_logger(name).fatal(f'cannot start: {error}')
-        raise SystemExit(2)
+        code = 2
     finally:
         stopping = [node for node in nodes if node.context.ok()]
         for node in stopping:
             node.stop_robot()
-        deadline = time.monotonic() + STOP_ACK_TIMEOUT
-        for node in stopping:
-            node.wait_until_stopped(deadline - time.monotonic())
+        wait_until_stopped(stopping, STOP_ACK_TIMEOUT)
+        if swarm and code is not None:
+            end_process(code)
         for node in nodes:
             node.destroy_node()
         rclpy.try_shutdown()
+    if code:
+        raise SystemExit(code)
 
 
 main_forward = partial(main, 'forward')

@@ -7,9 +7,10 @@ Why, in short (the file itself has the settings and figures):
   once, so a behaviour's last zero command and the simulator's ack window (nodes/ack_window.py) are acknowledged
   within milliseconds (benchmarks/bench_lockstep.py);
 - liveliness: a participant that stops announcing is dropped within seconds, not tens of seconds;
-- the simulator's own profile (fastdds_sim_profiles.xml, `use_simulator_profile`) adds that its endpoints never
-  match each other: it never reads its own topics, and matching every new one of a swarm's thousands against all
-  the others made a big swarm's start-up many times longer (benchmarks/bench_swarm_startup.py).
+- the profile of a process that never reads its own topics (fastdds_no_local_profiles.xml, `use_no_local_profile`:
+  the simulator and the behaviours) adds that its endpoints never match each other: matching every new one of a
+  swarm's thousands against all the others made a big swarm's start-up many times longer, in the simulator and in
+  an `avoid --robots all` process alike (benchmarks/bench_swarm_startup.py).
 
 This tuning, the ack window's sizes (Fast DDS's reader limits) and the recorder's take of every message DDS holds
 (rclpy's `Subscription.handle.take_message`, pinned by a test in test_bag_record.py) are Fast DDS's and rclpy 7.1's:
@@ -23,8 +24,8 @@ import os
 from pathlib import Path
 
 PROFILES_FILE = Path(__file__).with_name('fastdds_profiles.xml')
-SIM_PROFILES_FILE = Path(__file__).with_name('fastdds_sim_profiles.xml')
-"""The simulator's profile: the package's, plus no matching of its own endpoints (the file says why)."""
+NO_LOCAL_PROFILES_FILE = Path(__file__).with_name('fastdds_no_local_profiles.xml')
+"""The package's profile plus no matching of a process's own endpoints (the file says why)."""
 PROFILES_VARIABLE = 'FASTRTPS_DEFAULT_PROFILES_FILE'
 
 
@@ -46,8 +47,9 @@ def use_package_profile() -> None:
         os.environ.setdefault(PROFILES_VARIABLE, str(PROFILES_FILE))
 
 
-def use_simulator_profile() -> None:
-    """The simulator's Fast DDS profile, unless the user chose one (the package's, which `bringup` sets for its
-    children, is no choice of theirs); call before `rclpy.init`."""
-    if os.environ.get(PROFILES_VARIABLE) in (None, '', str(PROFILES_FILE)) and SIM_PROFILES_FILE.is_file():
-        os.environ[PROFILES_VARIABLE] = str(SIM_PROFILES_FILE)
+def use_no_local_profile() -> None:
+    """The package's profile without matching of this process's own endpoints, for a process that never reads its
+    own topics (the simulator, a behaviour), unless the user chose a profile (the package's, which `bringup` sets
+    for its children, is no choice of theirs); call before `rclpy.init`."""
+    if os.environ.get(PROFILES_VARIABLE) in (None, '', str(PROFILES_FILE)) and NO_LOCAL_PROFILES_FILE.is_file():
+        os.environ[PROFILES_VARIABLE] = str(NO_LOCAL_PROFILES_FILE)

@@ -37,12 +37,12 @@ from epuck_ros.lockstep import Answer, Lockstep
 from epuck_ros.markers import world_markers
 from epuck_ros.model import TIME_STEP, RobotModel
 from epuck_ros.nodes.ack_window import AckWindow, history_steps, window_steps
-from epuck_ros.nodes.dds_profile import use_package_profile, use_simulator_profile, warn_if_not_fast_dds
+from epuck_ros.nodes.dds_profile import use_no_local_profile, use_package_profile, warn_if_not_fast_dds
 from epuck_ros.nodes.domain_watch import DISCOVERY_WINDOW, DomainWatch
 from epuck_ros.nodes.lockstep_report import LockstepReport
 from epuck_ros.nodes.pacing import Controls, Pacer, Settings
 from epuck_ros.nodes.params import ParamSpec, Usage, command_line_value, declare_parameters, prepare_arguments
-from epuck_ros.nodes.qos import LATCHED
+from epuck_ros.nodes.qos import CLOCK_KEPT, LATCHED
 from epuck_ros.nodes.repeated import RepeatedCondition
 from epuck_ros.nodes.robot_ports import JOINT_NAMES, WARN_PERIOD, WORLD_FRAME, RobotPorts, quiet_publisher
 from epuck_ros.nodes.sense_ports import SENSE_POLL, SENSE_TOPICS, SenseError, SenseFeeds
@@ -157,7 +157,8 @@ class SimNode(Node):
         publish_world(self, world, values['frame_prefix'])
         self.create_service(Empty, 'reset', self._on_reset)
         self.create_service(Trigger, 'step', self._on_step)
-        self._clock_pub = quiet_publisher(self, Clock, '/clock', stream)
+        self._clock_pub = quiet_publisher(self, Clock, '/clock', QoSProfile(  # a late monitor gets the last ticks
+            depth=history, reliability=ReliabilityPolicy.RELIABLE, durability=CLOCK_KEPT.durability))
         self._domain = DomainWatch(self, created, created if started is None else started, values['discovery_window'])
         self._clock_message = Patch(Clock(), [('clock.sec', 'i'), ('clock.nanosec', 'I')])
         self._acks = AckWindow(self._stream_publishers, window_steps(history), self._on_ack_stall, self._kept_all)
@@ -458,7 +459,7 @@ lease of the package's DDS profile."""
 def main(args: list[str] | None = None) -> None:
     started = time.monotonic()
     argv = prepare_arguments(args, SIM_PARAMETERS, USAGE)
-    use_simulator_profile()
+    use_no_local_profile()
     use_package_profile()
     os.environ.setdefault('RMW_FASTRTPS_PUBLICATION_MODE', publication_mode(argv))
     handle_shutdown_signals()  # from now on: a signal during start-up ends the node cleanly once it is built
