@@ -33,14 +33,14 @@ from epuck_ros.integrity import HELD
 from epuck_ros.model import RobotModel
 from epuck_ros.nodes.ack_window import COMMAND_QOS, history_steps
 from epuck_ros.nodes.lockstep_report import LockstepReport
-from epuck_ros.nodes.qos import LATCHED
+from epuck_ros.nodes.qos import LATCHED, LED_QOS, clock_kept
 from epuck_ros.nodes.robot_ports import WORLD_FRAME, RobotPorts, topic_prefix
 from epuck_ros.nodes.sense_ports import ON_DEMAND_TOPICS, SensePorts
 from epuck_ros.nodes.serialized import Patch, array_bytes, exact_cdr
 from epuck_ros.nodes.sim_node import publish_world
 from epuck_ros.nodes.tf_ports import TfPorts
 from epuck_ros.simulation import Simulation
-from epuck_ros.webots.link import COMMAND_TOPIC, LED_QOS
+from epuck_ros.webots.link import COMMAND_TOPIC
 from epuck_ros.world import World
 
 READ = dict.fromkeys(ON_DEMAND_TOPICS, True)
@@ -141,7 +141,7 @@ class TrialRecorder:
         self._tf = TfPorts(node, self._ports, sim, several, stream, LATCHED, WORLD_FRAME, self._model)
         publish_world(node, self._world, '')
         LockstepReport(node, sim.names, HELD, 0.0, lambda: sim.time)
-        self._clock = node.create_publisher(Clock, '/clock', stream)
+        self._clock = node.create_publisher(Clock, '/clock', clock_kept(stream.depth))
         self._clock_message = Patch(Clock(), [('clock.sec', 'i'), ('clock.nanosec', 'I')])   # as the sim node's
         self._controllers = [(node.create_publisher(Float64MultiArray, topic_prefix(name, several) + COMMAND_TOPIC,
                                                     COMMAND_QOS),

@@ -14,8 +14,14 @@ LED_QOS = QoSProfile(depth=HISTORY_BUDGET, reliability=ReliabilityPolicy.RELIABL
 (COMMAND_QOS): a script may set them every step, and a reliable writer replaces a sample a recorder has not
 acknowledged yet once its history is full (a history of one lost LED messages in recordings; README, Bags)."""
 
-CLOCK_KEPT = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE,
-                        durability=DurabilityPolicy.TRANSIENT_LOCAL)
+
+def clock_kept(depth: int) -> QoSProfile:
+    """`/clock` as the simulator offers it (a headless bag records it so): reliable, its last `depth` ticks kept
+    for a reader matched late (CLOCK_KEPT)."""
+    return QoSProfile(depth=depth, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+
+
+CLOCK_KEPT = clock_kept(10)
 """How `bringup`'s monitor reads `/clock`, and the durability the simulator offers it with: its last ticks are kept
 for a reader matched late (or matched anew). In a 500-robot run the simulator paused itself at the run's end while
 the monitor had not got the last ticks (a swarm's discovery lags by tens of seconds), and bringup waited for ever;

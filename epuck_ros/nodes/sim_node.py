@@ -42,7 +42,7 @@ from epuck_ros.nodes.domain_watch import DISCOVERY_WINDOW, DomainWatch
 from epuck_ros.nodes.lockstep_report import LockstepReport
 from epuck_ros.nodes.pacing import Controls, Pacer, Settings
 from epuck_ros.nodes.params import ParamSpec, Usage, command_line_value, declare_parameters, prepare_arguments
-from epuck_ros.nodes.qos import CLOCK_KEPT, LATCHED
+from epuck_ros.nodes.qos import LATCHED, clock_kept
 from epuck_ros.nodes.repeated import RepeatedCondition
 from epuck_ros.nodes.robot_ports import JOINT_NAMES, WARN_PERIOD, WORLD_FRAME, RobotPorts, quiet_publisher
 from epuck_ros.nodes.sense_ports import SENSE_POLL, SENSE_TOPICS, SenseError, SenseFeeds
@@ -157,8 +157,7 @@ class SimNode(Node):
         publish_world(self, world, values['frame_prefix'])
         self.create_service(Empty, 'reset', self._on_reset)
         self.create_service(Trigger, 'step', self._on_step)
-        self._clock_pub = quiet_publisher(self, Clock, '/clock', QoSProfile(  # a late monitor gets the last ticks
-            depth=history, reliability=ReliabilityPolicy.RELIABLE, durability=CLOCK_KEPT.durability))
+        self._clock_pub = quiet_publisher(self, Clock, '/clock', clock_kept(history))   # a late monitor: last ticks
         self._domain = DomainWatch(self, created, created if started is None else started, values['discovery_window'])
         self._clock_message = Patch(Clock(), [('clock.sec', 'i'), ('clock.nanosec', 'I')])
         self._acks = AckWindow(self._stream_publishers, window_steps(history), self._on_ack_stall, self._kept_all)
