@@ -29,12 +29,15 @@ DAEMON = '''import os, time
 from controller import Robot
 here = os.path.dirname(os.path.abspath(__file__))
 robot = Robot()
+written, told = os.pipe()
 if os.fork() == 0:   # a daemon as the books make one: fork, setsid, fork, and the middle one ends
     os.setsid()
     if os.fork() == 0:
         open(os.path.join(here, 'daemon.pid'), 'w').write(str(os.getpid()))
+        os.write(told, b'1')   # its pid is on disk before the script steps (the trial may end at once after)
         time.sleep(1234)
     os._exit(0)
+os.read(written, 1)
 while robot.step(32) != -1:
     pass
 '''
