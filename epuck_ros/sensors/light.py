@@ -51,23 +51,25 @@ class LightSensors:
     def _occluded(self, sx: np.ndarray, sy: np.ndarray, vx: np.ndarray, vy: np.ndarray, flat: np.ndarray,
                   lz: float, robots_xy: np.ndarray | None, own: np.ndarray | None, count: int) -> np.ndarray:
         """(R, 8): an obstacle stands in the sight line from each sensor to the light (x, y, lz)."""
+        # A ray that hits nothing has t = inf and a light straight above has flat = 0: their sight-line heights are
+        # NaN (inf * 0, 0 / 0), and NaN compares False, so neither blocks, as it should.
         with np.errstate(invalid='ignore', divide='ignore'):
             dx, dy = vx / flat, vy / flat
-        # one origin per (robot, sensor): rays (R*8, 1)
-        ox, oy = sx.reshape(-1, 1), sy.reshape(-1, 1)
-        dxr, dyr = dx.reshape(-1, 1), dy.reshape(-1, 1)
-        reach = flat.reshape(-1, 1)
-        t = self.scene.hits(ox, oy, dxr, dyr)                            # (objects, R*8, 1)
-        line = LIGHT_SENSOR_HEIGHT + (lz - LIGHT_SENSOR_HEIGHT) * t / reach
-        heights = self.scene.heights[:len(t)].reshape(-1, 1, 1)
-        blocked = ((t < reach) & (heights > line)).any(axis=0)[:, 0]
-        blocked = blocked.reshape(count, -1)
-        if robots_xy is not None and len(robots_xy) > 1:
-            t_robot = self.scene.robot_hits(sx, sy, dx, dy, np.asarray(robots_xy, dtype=float),
-                                            np.arange(count) if own is None else np.asarray(own))
-            line = LIGHT_SENSOR_HEIGHT + (lz - LIGHT_SENSOR_HEIGHT) * t_robot / flat
-            blocked |= (t_robot < flat) & (BODY_TOP > line)
-        return blocked
+            # one origin per (robot, sensor): rays (R*8, 1)
+            ox, oy = sx.reshape(-1, 1), sy.reshape(-1, 1)
+            dxr, dyr = dx.reshape(-1, 1), dy.reshape(-1, 1)
+            reach = flat.reshape(-1, 1)
+            t = self.scene.hits(ox, oy, dxr, dyr)                            # (objects, R*8, 1)
+            line = LIGHT_SENSOR_HEIGHT + (lz - LIGHT_SENSOR_HEIGHT) * t / reach
+            heights = self.scene.heights[:len(t)].reshape(-1, 1, 1)
+            blocked = ((t < reach) & (heights > line)).any(axis=0)[:, 0]
+            blocked = blocked.reshape(count, -1)
+            if robots_xy is not None and len(robots_xy) > 1:
+                t_robot = self.scene.robot_hits(sx, sy, dx, dy, np.asarray(robots_xy, dtype=float),
+                                                np.arange(count) if own is None else np.asarray(own))
+                line = LIGHT_SENSOR_HEIGHT + (lz - LIGHT_SENSOR_HEIGHT) * t_robot / flat
+                blocked |= (t_robot < flat) & (BODY_TOP > line)
+            return blocked
 
     def read(self, poses: np.ndarray, rng: np.random.Generator | None, robots_xy: np.ndarray | None = None,
              own: np.ndarray | None = None) -> np.ndarray:
