@@ -39,7 +39,7 @@ setup(
             'avoid = epuck_ros.nodes.behaviour_nodes:main_avoid',
             'record = epuck_ros.nodes.record_node:main',
             'bringup = epuck_ros.bringup:main',
-            'bag = epuck_ros.bag.cli:main',
+            'bag = epuck_ros.bag_cli:main',
             'webots_controller = epuck_ros.webots_controller:main',
             'view = epuck_ros.nodes.view_node:main',
             'teleop = epuck_ros.nodes.teleop_node:main',

@@ -23,7 +23,7 @@ from nav_msgs.msg import Odometry
 from rclpy.serialization import serialize_message
 from std_msgs.msg import String
 
-from epuck_ros.bag.cli import main
+from epuck_ros.bag_cli import main
 from epuck_ros.bag.qos import QosProfile
 from epuck_ros.bag.reader import MAX_METADATA_BYTES, Bag
 from epuck_ros.bag.writer import BagWriter

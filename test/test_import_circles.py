@@ -45,3 +45,11 @@ def test_experiments_and_webots_are_in_no_import_circle():
     assert 'webots' in edges['experiments']   # a script trial's seats
     for part in ('experiments', 'webots', 'evolution'):
         assert part not in reachable(edges, part), f'{part} imports something that imports {part}'
+
+
+def test_no_part_of_the_package_is_in_an_import_circle():
+    """The `bag` command played bags through `nodes.play_node` while the nodes record with `bag`: the command now
+    lives above both (`epuck_ros.bag_cli`), as `webots_controller` does, and no part reaches itself."""
+    edges = package_imports()
+    assert 'nodes' in edges['bag_cli'] and 'bag' in edges['nodes']
+    assert [part for part in sorted(edges) if part in reachable(edges, part)] == []

@@ -175,7 +175,7 @@ def _enter_toggles(player: Player) -> None:
 
 
 def play(args: argparse.Namespace) -> None:
-    """`bag play` (see `epuck_ros.bag.cli`): plays until the end (or Ctrl-C / SIGTERM with --loop)."""
+    """`bag play` (see `epuck_ros.bag_cli`): plays until the end (or Ctrl-C / SIGTERM with --loop)."""
     with Bag(args.path) as bag:
         use_package_profile()
         rclpy.init(args=['bag', *args.ros_args])
