@@ -13,8 +13,9 @@ from rclpy.duration import Duration
 from rosbags.highlevel import AnyReader
 from rosbags.typesys import Stores, get_typestore
 from rosgraph_msgs.msg import Clock
-from std_msgs.msg import Int32MultiArray
+from std_msgs.msg import Float64MultiArray, Int32MultiArray, MultiArrayDimension, MultiArrayLayout
 
+from epuck_ros.nodes.ack_window import command_qos
 from epuck_ros.webots.link import LED_QOS
 
 REPO = Path(__file__).resolve().parents[1]
@@ -55,6 +56,25 @@ def test_a_burst_of_led_messages_is_recorded_whole(launch, test_node, tmp_path):
     output = recorder.log_path.read_text()
     assert not LOST.search(output), output
     assert [int(msg.data[0]) for msg in messages(tmp_path / 'bag')['/leds']] == list(range(count))
+
+
+def test_a_recorder_matched_after_a_controllers_first_answers_records_them(launch, test_node, tmp_path):
+    """A controller's wheel_cmd (`command_qos`, as `avoid` and the Webots shim publish it) keeps its answers for a
+    recorder that DDS matched with it only later: a loaded `bringup --record` bag lacked one robot's first 88 commands,
+    its recorder's reader matched by the controller's writer after them. Here the answers go out before any recorder
+    exists: the bag still has every one, in order."""
+    commands = test_node.node.create_publisher(Float64MultiArray, 'wheel_cmd', command_qos(1))
+    count = 100
+    for step in range(1, count + 1):
+        label = f'stamp={step * STEP_NS // 10**9}.{step * STEP_NS % 10**9:09d}'
+        layout = MultiArrayLayout(dim=[MultiArrayDimension(label=label, size=2, stride=2)])
+        commands.publish(Float64MultiArray(layout=layout, data=[float(step), -float(step)]))
+    recorder = launch('record', '-o', str(tmp_path / 'bag'), '/wheel_cmd', *ros_args({}))
+    test_node.spin_until(lambda: commands.get_subscription_count() >= 1, what='the recorder')
+    assert commands.wait_for_all_acked(Duration(seconds=30))
+    assert recorder.stop() == 0
+    assert not LOST.search(recorder.log_path.read_text())
+    assert [msg.data[0] for msg in messages(tmp_path / 'bag')['/wheel_cmd']] == [float(s) for s in range(1, count + 1)]
 
 
 def test_leds_set_every_step_lose_no_sample_at_full_speed(launch, tmp_path):

@@ -97,7 +97,7 @@ def start_recording(parser: argparse.ArgumentParser, args: argparse.Namespace, w
         line = check_room(args.record.parent, size, f'--record {args.record}')
         if size >= LARGE:
             print(f'[{PROGRAM}] {line}', flush=True)
-        return TrialRecorder(args.record, world)
+        return TrialRecorder(args.record, world, controller_robots=1)   # a script: one process per robot over ROS
     except RecordRefused as error:
         parser.error(str(error))
     except OSError as error:

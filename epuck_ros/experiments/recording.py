@@ -31,7 +31,7 @@ from epuck_ros.bag.writer import BagWriter
 from epuck_ros.conversions import nanoseconds_from_stamp, stamp_from_seconds
 from epuck_ros.integrity import HELD
 from epuck_ros.model import RobotModel
-from epuck_ros.nodes.ack_window import COMMAND_QOS, history_steps
+from epuck_ros.nodes.ack_window import command_qos, history_steps
 from epuck_ros.nodes.lockstep_report import LockstepReport
 from epuck_ros.nodes.qos import LATCHED, LED_QOS, clock_kept
 from epuck_ros.nodes.robot_ports import WORLD_FRAME, RobotPorts, topic_prefix
@@ -120,8 +120,11 @@ class TrialRecorder:
     `leds` when a script sets them, `stop` when behaviours end; `close()` at the end. Thread-safe: a script answers
     from its own thread."""
 
-    def __init__(self, path: Path, world: World, model: RobotModel = RobotModel()) -> None:
+    def __init__(self, path: Path, world: World, controller_robots: int, model: RobotModel = RobotModel()) -> None:
+        """`controller_robots`: how many robots each controller drives from one process over ROS (a script: 1, one
+        `webots_controller` per robot; a behaviour: every robot, `--robots all`), for the QoS its `wheel_cmd` has."""
         self._bag = BagWriter(path)
+        self._command_qos = command_qos(controller_robots)
         self._node = BagNode(self._bag)
         self._world, self._model = world, model
         self._lock = threading.Lock()
@@ -144,7 +147,7 @@ class TrialRecorder:
         self._clock = node.create_publisher(Clock, '/clock', clock_kept(stream.depth))
         self._clock_message = Patch(Clock(), [('clock.sec', 'i'), ('clock.nanosec', 'I')])   # as the sim node's
         self._controllers = [(node.create_publisher(Float64MultiArray, topic_prefix(name, several) + COMMAND_TOPIC,
-                                                    COMMAND_QOS),
+                                                    self._command_qos),
                               node.create_publisher(Int32MultiArray, topic_prefix(name, several) + 'leds', LED_QOS))
                              for name in sim.names]
         self._collisions = [0] * len(sim.names)

@@ -151,7 +151,9 @@ def _rows(trial: Trial, policy: Policy | None = None) -> list[dict[str, Any]]:
     if trial.record:
         from epuck_ros.experiments.recording import TrialRecorder
         shutil.rmtree(trial.record, ignore_errors=True)   # what a run cut short (a killed worker) left
-        recorder = TrialRecorder(Path(trial.record), trial.load_world())
+        world = trial.load_world()
+        recorder = TrialRecorder(Path(trial.record), world,
+                                 controller_robots=1 if isinstance(trial.controller, Script) else len(world.robots))
         try:
             sim, tally = run(trial, policy, recorder=recorder)
         finally:

@@ -10,9 +10,9 @@ LATCHED = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
 
 LED_QOS = QoSProfile(depth=HISTORY_BUDGET, reliability=ReliabilityPolicy.RELIABLE,
                      durability=DurabilityPolicy.TRANSIENT_LOCAL)
-"""A controller's LEDs: latched (a view started later still draws them), with the history of its wheel_cmd
-(COMMAND_QOS): a script may set them every step, and a reliable writer replaces a sample a recorder has not
-acknowledged yet once its history is full (a history of one lost LED messages in recordings; README, Bags)."""
+"""A controller's LEDs: latched (a view started later still draws them), with the history of a script's wheel_cmd
+(`ack_window.command_qos(1)`): a script may set them every step, and a reliable writer replaces a sample a recorder
+has not acknowledged yet once its history is full (a history of one lost LED messages in recordings; README, Bags)."""
 
 
 def clock_kept(depth: int) -> QoSProfile:

@@ -33,7 +33,7 @@ from std_msgs.msg import Float64MultiArray, Int32MultiArray
 
 from epuck_ros.conversions import nanoseconds_from_stamp, stamp_from_nanoseconds
 from epuck_ros.model import CAMERA_HEIGHT, CAMERA_WIDTH
-from epuck_ros.nodes.ack_window import COMMAND_QOS
+from epuck_ros.nodes.ack_window import command_qos
 from epuck_ros.nodes.qos import LED_QOS
 from epuck_ros.nodes.robot_ports import JOINT_NAMES
 from epuck_ros.nodes.sense_ports import SENSE_TOPICS
@@ -137,7 +137,7 @@ class SimLink:
         self._stop_waiting = stop_waiting
         self._executor = SingleThreadedExecutor(context=self.node.context)
         self._executor.add_node(self.node)
-        self._publisher = self.node.create_publisher(Float64MultiArray, self._prefix + COMMAND_TOPIC, COMMAND_QOS)
+        self._publisher = self.node.create_publisher(Float64MultiArray, self._prefix + COMMAND_TOPIC, command_qos(1))
         self._joints = _Stream()
         self._ir_raw = _Stream()
         self._consumed_ns = -1
