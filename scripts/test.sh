@@ -6,6 +6,6 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 scripts/setup.sh
 . scripts/env.sh
-# Two test processes (pytest-xdist), each on a ROS domain of its own: the suite takes ~7 min instead of ~11.
+# Two test processes (pytest-xdist), each on a ROS domain of its own (README, Tests: how long it takes).
 # --dist loadfile keeps each test file in one process: the README's commands build on each other (test_readme.py).
 exec python -m pytest -n 2 --dist loadfile "$@"
