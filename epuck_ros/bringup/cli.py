@@ -17,6 +17,7 @@ from rclpy.validate_namespace import validate_namespace
 
 from epuck_ros.behaviours import BEHAVIOURS
 from epuck_ros.bringup import tables
+from epuck_ros.exit_codes import refuse
 from epuck_ros.foxglove.address import DEFAULT_HOST as FOXGLOVE_HOST
 from epuck_ros.foxglove.address import DEFAULT_PORT as FOXGLOVE_PORT
 from epuck_ros.foxglove.address import address_error
@@ -54,8 +55,7 @@ class Plan:
 class _Parser(argparse.ArgumentParser):
     def error(self, message: str) -> NoReturn:
         """One line and exit code 2 (not argparse's usage block): the mistake is what the user must see."""
-        print(f'{self.prog}: error: {message} (see {self.prog} --help)', file=sys.stderr)
-        raise SystemExit(2)
+        refuse(f'{self.prog}: error: {message} (see {self.prog} --help)')
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -21,12 +21,12 @@ from epuck_ros.evolution.controller import controller_script
 from epuck_ros.evolution.evaluate import evaluate
 from epuck_ros.evolution.ga import initial_population, next_generation
 from epuck_ros.evolution.network import GENES
+from epuck_ros.exit_codes import EXIT_BAD_INPUT, EXIT_FAILED
 from epuck_ros.experiments.cluster import (
     ClusterError, add_cluster_arguments, check_cluster_arguments, default_workers, open_client)
 from epuck_ros.experiments.interruption import exit_code, interrupts_ignored, terminate_as_interrupt
 from epuck_ros.experiments.output import OutputError, OutputFolder
 
-EXIT_FAILED, EXIT_BAD_INPUT = 1, 2
 PAPER_POPULATION, PAPER_GENERATIONS = 80, 100
 """Floreano and Mondada (1994)."""
 LIMITS = {'population': (2, 10000), 'generations': (1, 100000), 'seed': (0, 2 ** 32 - 1)}

@@ -18,6 +18,7 @@ from dataclasses import replace
 from pathlib import Path
 
 from epuck_ros import untrusted_yaml
+from epuck_ros.exit_codes import EXIT_FAILED, refuse
 from epuck_ros.experiments.cluster import (
     ClusterError, add_cluster_arguments, check_cluster_arguments, default_workers, open_client)
 from epuck_ros.experiments.interruption import exit_code, interrupts_ignored, terminate_as_interrupt
@@ -27,7 +28,6 @@ from epuck_ros.experiments.spec import Spec, SpecError, load_spec
 from epuck_ros.experiments.table import Row, Table, TableError
 from epuck_ros.experiments.trial import Trial, failed_rows, run_trial
 
-EXIT_FAILED, EXIT_BAD_INPUT = 1, 2
 PROGRESS_PERIOD = 0.5
 """Wall seconds between two progress lines at most."""
 
@@ -110,8 +110,7 @@ def sweep(args: argparse.Namespace) -> None:
 
 
 def _refuse(error: Exception) -> None:
-    print(f'sweep: {error}', file=sys.stderr)
-    raise SystemExit(EXIT_BAD_INPUT)
+    refuse(f'sweep: {error}')
 
 
 def _todo(args: argparse.Namespace, spec: Spec, done: dict[int, list[Row]]) -> list[Trial]:

@@ -20,6 +20,7 @@ import numpy as np
 from epuck_ros.bag.shapes import Motion, classify_runs
 from epuck_ros.bringup import summary
 from epuck_ros.conversions import nanoseconds_from_stamp, stamp_from_seconds
+from epuck_ros.exit_codes import EXIT_FAILED
 from epuck_ros.experiments.interruption import exit_code, terminate_as_interrupt
 from epuck_ros.experiments.record_budget import LARGE, RecordRefused, check_room, estimate
 from epuck_ros.experiments.spec import MAX_DURATION, MAX_ROBOTS
@@ -34,7 +35,6 @@ if TYPE_CHECKING:
     from epuck_ros.experiments.recording import TrialRecorder
 
 PROGRAM = 'webots_controller'
-EXIT_FAILED, EXIT_BAD_INPUT = 1, 2
 MAX_SHAPE_SAMPLES = 2_000_000
 """Robot-steps of ground truth kept for the shapes driven, at most (64 MB): one robot for an hour is 112,500."""
 

@@ -43,6 +43,7 @@ from rosgraph_msgs.msg import Clock as ClockMessage
 
 from epuck_ros.bag.msgdefs import message_definition
 from epuck_ros.conversions import nanoseconds_from_stamp
+from epuck_ros.exit_codes import refuse
 from epuck_ros.nodes.dds_profile import use_package_profile, warn_if_not_fast_dds
 from epuck_ros.foxglove.address import DEFAULT_HOST, DEFAULT_PORT, NODE_NAME, address_error
 from epuck_ros.nodes.record_node import message_class
@@ -268,17 +269,15 @@ def start_server(host: str, port: int, context: foxglove.Context, clients: Chann
                                          server_listener=clients, context=context)
         except RuntimeError as error:   # taken meanwhile: the SDK's own words
             problem = str(error).removeprefix('FoxgloveError: ')
-    print(f'foxglove: error: cannot serve on {host}:{port}: {problem}', file=sys.stderr)
-    raise SystemExit(2)
+    refuse(f'foxglove: error: cannot serve on {host}:{port}: {problem}')
 
 
 def main(args: list[str] | None = None) -> None:
     argv = sys.argv if args is None else args
     options = parse_arguments(remove_ros_args(args=argv)[1:])
     if foxglove is None:
-        print("foxglove: error: the foxglove-sdk Python package is not installed (pip install 'foxglove-sdk>=0.30.3,"
-              "<0.31')", file=sys.stderr)
-        raise SystemExit(2)
+        refuse("foxglove: error: the foxglove-sdk Python package is not installed (pip install 'foxglove-sdk>=0.30.3,"
+               "<0.31')")
     context, clients = foxglove.Context(), ChannelClients()
     server = start_server(options.host, options.port, context, clients)   # before DDS: a refusal starts nothing
     use_package_profile()

@@ -29,6 +29,8 @@ from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescri
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 
+from epuck_ros.exit_codes import refuse
+
 ParamValue = bool | int | float | str
 
 ROS_OWN_PARAMETERS = ('use_sim_time', 'start_type_description_service')
@@ -303,5 +305,4 @@ def _range_text(spec: ParamSpec) -> str:
 
 
 def _fail(program: str, message: str) -> NoReturn:
-    print(f'{program}: {message}', file=sys.stderr)
-    raise SystemExit(2)
+    refuse(f'{program}: {message}')

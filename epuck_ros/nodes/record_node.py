@@ -47,6 +47,7 @@ from epuck_ros.bag.gaps import bag_gaps
 from epuck_ros.bag.qos import QosProfile
 from epuck_ros.bag.reader import Bag, BagError
 from epuck_ros.bag.writer import COMPRESSIONS, BackgroundWriter, BagExistsError, BagWriteError, BagWriter
+from epuck_ros.exit_codes import EXIT_FAILED, refuse
 from epuck_ros.nodes.dds_profile import use_package_profile, warn_if_not_fast_dds
 from epuck_ros.nodes.sense_ports import ON_DEMAND_TOPICS, RECORDER_NODE, SENSE_TOPICS
 
@@ -70,7 +71,6 @@ SENSE_ASKER_NODE = 'recorder_senses'
 """The recorder's node for the sense topics it asks for (`--senses`, a named sense topic): any node but RECORDER_NODE
 makes the simulator compute a sense it reads."""
 DEFAULT_BAG_FOLDER = Path('bags')
-EXIT_WRITE_FAILED = 1
 
 
 def default_output() -> Path:
@@ -356,8 +356,7 @@ def main(args: list[str] | None = None) -> None:
     try:
         writer = BagWriter(options.output or default_output(), options.compression)
     except (BagExistsError, OSError) as error:
-        print(f'record: error: {error}', file=sys.stderr)
-        raise SystemExit(2)
+        refuse(f'record: error: {error}')
     # Ctrl-C / SIGTERM ask to stop rather than shut the context down at once (rclpy's handler): the
     # recorder then takes what DDS already holds for it before closing the bag.
     stop = threading.Event()
@@ -389,7 +388,7 @@ def main(args: list[str] | None = None) -> None:
         rclpy.try_shutdown()
     if failure is not None:
         print(f'record: error: {failure}; the bag keeps every chunk completed before it', file=sys.stderr)
-        raise SystemExit(EXIT_WRITE_FAILED)
+        raise SystemExit(EXIT_FAILED)
 
 
 def spin_until_finished(node: Recorder, stop: threading.Event | None = None) -> None:

@@ -44,6 +44,7 @@ from std_msgs.msg import Float64MultiArray, Int32MultiArray, String, UInt32
 from std_srvs.srv import Empty, Trigger
 
 from epuck_ros.conversions import seconds_from_stamp, yaw_from_quaternion
+from epuck_ros.exit_codes import EXIT_BAD_INPUT
 from epuck_ros.model import SENSOR_NAMES
 from epuck_ros.nodes.dds_profile import use_package_profile
 from epuck_ros.nodes.params import ParamSpec, Usage, declare_parameters, prepare_arguments
@@ -384,7 +385,7 @@ def main(args: list[str] | None = None) -> None:
         pass
     except (CannotServe, ParameterException) as error:
         rclpy.logging.get_logger('view').fatal(f'cannot start: {error}')
-        raise SystemExit(2) from None
+        raise SystemExit(EXIT_BAD_INPUT) from None
     finally:
         if node is not None:
             node.close()

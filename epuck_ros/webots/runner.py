@@ -14,10 +14,12 @@ import sys
 import traceback
 from pathlib import Path
 from types import TracebackType
+from typing import NoReturn
 
 import rclpy
 
 from epuck_ros import untrusted_yaml
+from epuck_ros.exit_codes import refuse
 from epuck_ros.nodes.params import HELP_FLAGS, ParameterError, check_arguments, user_arguments
 from epuck_ros.webots.link import LinkError
 from epuck_ros.nodes.spinning import end_process
@@ -72,9 +74,8 @@ def parse(user: list[str]) -> tuple[str, str, list[str]]:
     return rest[0], robot, rest[1:]
 
 
-def fail(message: str) -> None:
-    print(f'{PROGRAM}: {message}', file=sys.stderr)
-    raise SystemExit(2)
+def fail(message: str) -> NoReturn:
+    refuse(f'{PROGRAM}: {message}')
 
 
 def check_script(path: Path, name: str) -> None:
