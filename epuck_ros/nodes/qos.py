@@ -3,13 +3,12 @@ from __future__ import annotations
 
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 
-from epuck_ros.nodes.ack_window import HISTORY_BUDGET
+from epuck_ros.nodes.ack_window import command_qos
 
 LATCHED = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
 """Published once, kept for late readers (ROS 1's latched topics): the world, its markers, contact counts."""
 
-LED_QOS = QoSProfile(depth=HISTORY_BUDGET, reliability=ReliabilityPolicy.RELIABLE,
-                     durability=DurabilityPolicy.TRANSIENT_LOCAL)
+LED_QOS = command_qos(1)
 """A controller's LEDs: latched (a view started later still draws them), with the history of a script's wheel_cmd
 (`ack_window.command_qos(1)`): a script may set them every step, and a reliable writer replaces a sample a recorder
 has not acknowledged yet once its history is full (a history of one lost LED messages in recordings; README, Bags)."""
