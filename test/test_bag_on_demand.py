@@ -16,7 +16,7 @@ from rosgraph_msgs.msg import Clock
 from std_msgs.msg import Float64MultiArray, Int32MultiArray, MultiArrayDimension, MultiArrayLayout
 
 from epuck_ros.nodes.ack_window import command_qos
-from epuck_ros.webots.link import LED_QOS
+from epuck_ros.nodes.qos import CLOCK_KEPT, LED_QOS
 
 REPO = Path(__file__).resolve().parents[1]
 LEDS_EVERY_STEP = REPO / 'test' / 'data' / 'webots' / 'leds_every_step.py'
@@ -126,8 +126,9 @@ def test_record_senses_asks_for_a_sense_and_a_recorder_records_what_is_published
     for recorder in (asking, passive):
         recorder.wait_for_output('subscribed to /camera/image_raw')
     asking.wait_for_output('asking for it')
+    # Kept ticks (transient local): the 60 steps may all be out before this reader matches (a CI run waited 60 s)
+    clocks = test_node.collect(Clock, '/clock', CLOCK_KEPT)
     set_sim_parameter(test_node, sim, 'paused', False)
-    clocks = test_node.collect(Clock, '/clock', 10)
     test_node.spin_until(lambda: clocks and clocks[-1].clock.sec * 10**9 + clocks[-1].clock.nanosec >= steps * STEP_NS,
                          timeout=60, what='the simulator at its pause_at')
     for recorder in (asking, passive):

@@ -27,6 +27,7 @@ from epuck_ros.bag.info import format_info
 from epuck_ros.bag.reader import Bag
 from epuck_ros.bag.writer import BagWriter
 from epuck_ros.conversions import nanoseconds_from_stamp
+from epuck_ros.nodes.qos import CLOCK_KEPT
 
 LATCHED = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
 STEP_NS = 32_000_000
@@ -137,7 +138,7 @@ def test_a_sim_run_is_recorded_without_losing_a_message(launch, test_node, tmp_p
     test_node.spin_for(1.0)  # let DDS match the recorder's readers with the sim's writers
     client = AsyncParameterClient(test_node.node, 'sim')
     test_node.spin_until(lambda: client.services_are_ready(), what='sim parameter services')
-    clocks = test_node.collect(Clock, '/clock', steps + 10)
+    clocks = test_node.collect(Clock, '/clock', CLOCK_KEPT)   # its last ticks, however late this reader matches
     resumed = client.set_parameters([Parameter('paused', value=False)])
     test_node.spin_until(resumed.done, what='sim to resume')
     test_node.spin_until(lambda: clocks and nanoseconds_from_stamp(clocks[-1].clock.sec, clocks[-1].clock.nanosec)
