@@ -12,7 +12,7 @@ from nav_msgs.msg import Odometry
 from rclpy.qos import DurabilityPolicy, QoSProfile
 from std_msgs.msg import Float64MultiArray, UInt32
 
-from conftest import ros_args, set_sim_parameter
+from conftest import EVERY_MESSAGE, ros_args, set_sim_parameter
 from epuck_ros.nodes.behaviour_nodes import RangeAssembler
 from test_behaviours import fitted_circle
 
@@ -20,8 +20,6 @@ SIM_PARAMS = {'real_time_factor': 0.0, 'lockstep': True}
 """The sim waits for the behaviour's command after each step: the run is the same however busy the machine is."""
 REAL_TIME_FACTOR = 5.0
 """What lockstep runs reach here (3.5x to 10x real time); the waits below allow a third of it."""
-HISTORY = 2000
-"""The test node keeps every ground_truth message of a run."""
 
 
 # --- message conversion, no DDS ---------------------------------------------------------------------------------
@@ -66,8 +64,8 @@ class Run:
 
     def __init__(self, launch: object, test_node: object, behaviour: str, params: dict, noise: bool = False) -> None:
         self.test_node = test_node
-        self.truth: list[Odometry] = test_node.collect(Odometry, 'ground_truth', HISTORY)
-        self.odom: list[Odometry] = test_node.collect(Odometry, 'odom', HISTORY)
+        self.truth: list[Odometry] = test_node.collect(Odometry, 'ground_truth', EVERY_MESSAGE)
+        self.odom: list[Odometry] = test_node.collect(Odometry, 'odom', EVERY_MESSAGE)
         latched = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
         self.collisions: list[UInt32] = test_node.collect(UInt32, 'collisions', latched)
         self.sim = launch('sim', *ros_args({**SIM_PARAMS, 'noise': noise, 'paused': True}))

@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import BIN_DIR
+from conftest import BIN_DIR, EVERY_MESSAGE
 
 from epuck_ros.bag.reader import Bag
 from epuck_ros.bag.run_summary import load_runs
@@ -415,7 +415,7 @@ def test_three_robots_each_driven_by_a_script_over_dds_are_the_headless_trial(la
     from rclpy.qos import DurabilityPolicy, QoSProfile
     from std_msgs.msg import UInt32
     names = [f'epuck{i}' for i in range(3)]
-    truth = {name: test_node.collect(Odometry, f'{name}/ground_truth', 1000) for name in names}
+    truth = {name: test_node.collect(Odometry, f'{name}/ground_truth', EVERY_MESSAGE) for name in names}
     contacts = {name: test_node.collect(UInt32, f'{name}/collisions', QoSProfile(
         depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)) for name in names}
     sim = launch('sim', '--ros-args', '-p', 'robots:=3', '-p', 'seed:=3', '-p', 'lockstep:=true', '-p',

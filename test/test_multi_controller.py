@@ -16,7 +16,7 @@ from nav_msgs.msg import Odometry
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray
 
-from conftest import ros_args, set_sim_parameter
+from conftest import EVERY_MESSAGE, ros_args, set_sim_parameter
 from test_behaviour_nodes import trajectory
 
 PAUSE_AT = 6.0
@@ -43,7 +43,7 @@ class Robots:
 
     def __init__(self, test_node: object, names: list[str]) -> None:
         self.test_node, self.names = test_node, names
-        self.truth = {name: test_node.collect(Odometry, f'/{name}/ground_truth', HISTORY) for name in names}
+        self.truth = {name: test_node.collect(Odometry, f'/{name}/ground_truth', EVERY_MESSAGE) for name in names}
 
     def wait_for_controllers(self, driven: list[str]) -> None:
         """Each driven robot's controller is in the graph: it publishes wheel_cmd and reads ir_raw."""

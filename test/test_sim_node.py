@@ -6,13 +6,12 @@ import time
 from pathlib import Path
 
 import pytest
-from conftest import ros_args
+from conftest import EVERY_MESSAGE, ros_args
 from geometry_msgs.msg import Twist, Vector3
 from nav_msgs.msg import Odometry
 from rcl_interfaces.msg import Parameter as ParameterMsg
 from rcl_interfaces.msg import ParameterType, ParameterValue
 from rcl_interfaces.srv import GetParameters, SetParameters
-from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.serialization import serialize_message
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState, Range
@@ -30,7 +29,6 @@ from epuck_ros.nodes.sim_node import publication_mode
 HALF_SPEED = 0.5 * MAX_WHEEL_SPEED
 LINEAR_SPEED = HALF_SPEED * 0.02  # 0.0628 m/s
 STEP = 0.032
-KEEP_ALL = QoSProfile(history=HistoryPolicy.KEEP_ALL, reliability=ReliabilityPolicy.RELIABLE)
 """A reader that loses nothing it has not taken yet."""
 
 
@@ -125,9 +123,9 @@ def test_a_late_clock_reader_of_the_kept_profile_gets_the_last_tick(launch, test
 def test_reset_puts_the_robot_back_and_zeroes_odometry(launch, test_node):
     start_sim(launch, test_node, real_time_factor=10.0)
     # Every step's message kept (the sim runs at 10x, a loaded test node may fall a few hundred behind)
-    truth = test_node.collect(Odometry, 'ground_truth', KEEP_ALL)
-    odom = test_node.collect(Odometry, 'odom', KEEP_ALL)
-    joints = test_node.collect(JointState, 'joint_states', KEEP_ALL)
+    truth = test_node.collect(Odometry, 'ground_truth', EVERY_MESSAGE)
+    odom = test_node.collect(Odometry, 'odom', EVERY_MESSAGE)
+    joints = test_node.collect(JointState, 'joint_states', EVERY_MESSAGE)
     pub = test_node.node.create_publisher(Float64MultiArray, 'wheel_cmd', 10)
     test_node.spin_until(lambda: truth and pub.get_subscription_count() > 0, what='sim topics')
     home = truth[-1].pose.pose.position

@@ -24,7 +24,7 @@ from rclpy.qos import DurabilityPolicy, QoSProfile
 from sensor_msgs.msg import JointState
 from std_msgs.msg import UInt32
 
-from conftest import ros_args
+from conftest import EVERY_MESSAGE, ros_args
 from epuck_ros.ir_sensor import raw_from_distance
 from epuck_ros.model import FRONT_SENSORS, IR_LOOKUP_TABLE, SENSOR_POSES, RobotModel
 from epuck_ros.simulation import Simulation
@@ -36,7 +36,6 @@ from test_behaviours import fitted_circle
 
 COURSE_DIR = Path(__file__).parent / 'data' / 'course_controllers'
 SIM = 'sim'
-HISTORY = 20000
 TIMEOUT_PER_SIM_SECOND = 1.0
 """Wall seconds allowed per simulated second (lockstep runs here reach 5x to 10x real time)."""
 MODEL = RobotModel()
@@ -129,9 +128,9 @@ class ControllerRun:
         self.test_node = test_node
         self.duration = duration
         prefix = f'{robot}/' if robot else ''
-        self.truth: list[Odometry] = test_node.collect(Odometry, prefix + 'ground_truth', HISTORY)
-        self.joints: list[JointState] = test_node.collect(JointState, prefix + 'joint_states', HISTORY) if joints \
-            else []
+        self.truth: list[Odometry] = test_node.collect(Odometry, prefix + 'ground_truth', EVERY_MESSAGE)
+        self.joints: list[JointState] = \
+            test_node.collect(JointState, prefix + 'joint_states', EVERY_MESSAGE) if joints else []
         latched = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
         self.collisions: list[UInt32] = test_node.collect(UInt32, prefix + 'collisions', latched)
         # lockstep_timeout 3 s: a machine so loaded that the controller waits a second for the CPU does not make
@@ -629,7 +628,7 @@ def test_the_shim_is_not_an_installed_controller_module() -> None:
 def test_robot_picks_one_robot_of_several(launch: object, test_node: object) -> None:
     """Two robots: without --robot, or with a name the world does not have, one line and exit 2; --robot epuck1
     drives epuck1 (its topics under epuck1/) and epuck0, which nobody drives, stays where it is."""
-    others = test_node.collect(Odometry, 'epuck0/ground_truth', HISTORY)
+    others = test_node.collect(Odometry, 'epuck0/ground_truth', EVERY_MESSAGE)
     run = ControllerRun(launch, test_node, example('spin'), 3.0, robot='epuck1', sim_params={'robots': 2})
     rows = run.finish()
     assert run.stop_controller() == 0, run.output
