@@ -20,7 +20,7 @@ from epuck_ros.bag.lockstep_status import recorded_integrity
 from epuck_ros.bag.run_summary import BagSummary, summarise_runs
 from epuck_ros.bag.runs import RunData, load_runs
 from epuck_ros.bag.summary_text import format_bag_summary
-from epuck_ros.exit_codes import EXIT_BAD_INPUT
+from epuck_ros.exit_codes import refuse
 
 PLOT_FORMATS = ('png', 'svg', 'pdf')
 """What `bag plot` writes, chosen by the output's extension."""
@@ -199,13 +199,11 @@ def main(argv: list[str] | None = None) -> None:
     try:
         args.handler(args)
     except (BagError, CdrError) as error:
-        print(f'bag {args.command}: error: {error}', file=sys.stderr)
-        raise SystemExit(EXIT_BAD_INPUT)
+        refuse(f'bag {args.command}: error: {error}')
     except BrokenPipeError:  # `bag csv ... | head`: the reader has all it wants
         sys.stdout = open(os.devnull, 'w')
     except OSError as error:
-        print(f'bag {args.command}: error: {error.filename or ""}: {error.strerror}', file=sys.stderr)
-        raise SystemExit(EXIT_BAD_INPUT)
+        refuse(f'bag {args.command}: error: {error.filename or ""}: {error.strerror}')
 
 
 if __name__ == '__main__':

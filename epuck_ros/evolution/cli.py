@@ -21,7 +21,7 @@ from epuck_ros.evolution.controller import controller_script
 from epuck_ros.evolution.evaluate import evaluate
 from epuck_ros.evolution.ga import initial_population, next_generation
 from epuck_ros.evolution.network import GENES
-from epuck_ros.exit_codes import EXIT_BAD_INPUT, EXIT_FAILED
+from epuck_ros.exit_codes import EXIT_FAILED, refuse
 from epuck_ros.experiments.cluster import (
     ClusterError, add_cluster_arguments, check_cluster_arguments, default_workers, open_client)
 from epuck_ros.experiments.interruption import exit_code, interrupts_ignored, terminate_as_interrupt
@@ -75,8 +75,7 @@ def main(argv: list[str] | None = None) -> None:
                 with EvolutionFiles(folder, args) as files:
                     evolve(args, client, history, best, files.generation)
     except (ClusterError, OutputError) as error:
-        print(f'evolve: {error}', file=sys.stderr)
-        raise SystemExit(EXIT_BAD_INPUT) from None
+        refuse(f'evolve: {error}')
     except Exception as error:  # noqa: BLE001 - Dask's KilledWorker (not imported without a cluster); else raised
         if type(error).__name__ != 'KilledWorker':
             raise
