@@ -35,6 +35,8 @@ def nanoseconds_from_stamp(sec: int, nanosec: int) -> int:
 
 
 STAMP_LABEL_PREFIX = 'stamp='
+MAX_STAMP_SEC = 2**31 - 1
+"""builtin_interfaces/Time's `sec` is an int32: no step is later, so no label may name a later one."""
 
 
 def stamp_label(sec: int, nanosec: int) -> str:
@@ -43,13 +45,23 @@ def stamp_label(sec: int, nanosec: int) -> str:
 
 
 def stamp_from_label(label: str) -> tuple[int, int] | None:
-    """The (sec, nanosec) a `stamp_label` names; None for any other label (an array that names no step)."""
+    """The (sec, nanosec) a `stamp_label` names; None for any other label (an array that names no step).
+
+    Only ASCII digits, at most 10 for `sec` and within an int32: `str.isdigit()` alone accepts Unicode digits
+    (`²`, which `int()` refuses, or `٣`, which it reads as 3), and an unbounded `sec` named a step beyond any float.
+    """
     if not label.startswith(STAMP_LABEL_PREFIX):
         return None
     sec, dot, nanosec = label[len(STAMP_LABEL_PREFIX):].partition('.')
-    if not dot or len(nanosec) != 9 or not sec.isdigit() or not nanosec.isdigit():
+    if not dot or len(nanosec) != 9 or not 1 <= len(sec) <= 10:
         return None
-    return int(sec), int(nanosec)
+    if not _ascii_digits(sec) or not _ascii_digits(nanosec):
+        return None
+    return (int(sec), int(nanosec)) if int(sec) <= MAX_STAMP_SEC else None
+
+
+def _ascii_digits(text: str) -> bool:
+    return text.isascii() and text.isdigit()
 
 
 def seconds_from_stamp(sec: int, nanosec: int) -> float:

@@ -135,9 +135,17 @@ def test_array_bytes_is_the_exact_cdr_and_array_values_reads_back_the_numbers_an
     assert array_values(data) == (tuple(values), stamp)
 
 
-@pytest.mark.parametrize('label', [b'wheels', b'stamp=12', b'stamp=1.5', b'stamp=x.000000000', b'\xff\xfe'])
+@pytest.mark.parametrize('label', [b'wheels', b'stamp=12', b'stamp=1.5', b'stamp=x.000000000', b'\xff\xfe',
+                                   'stamp=\u00b2.000000000'.encode(), ('stamp=1.' + '\u00b2' * 9).encode(),
+                                   'stamp=\u0663.032000000'.encode(), b'stamp=1' + b'0' * 400 + b'.000000000',
+                                   b'stamp=2147483648.000000000', b'stamp=.000000000', b'stamp=+1.000000000'])
 def test_an_array_whose_label_names_no_step_reads_with_no_stamp(label):
     assert array_values(_cdr(1, '<', [(label, 2, 2)], [1.0, 2.0])) == ((1.0, 2.0), None)
+
+
+def test_the_latest_stamp_an_int32_holds_is_read():
+    assert array_values(_cdr(1, '<', [(b'stamp=2147483647.999999999', 2, 2)], [1.0, 2.0])) == \
+        ((1.0, 2.0), (2147483647, 999999999))
 
 
 def test_every_truncation_of_a_stamped_array_reads_as_none():

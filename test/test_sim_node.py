@@ -195,6 +195,30 @@ def test_a_flood_of_malformed_wheel_cmd_bytes_costs_a_throttled_warning_and_lock
     assert sim.proc.poll() is None
 
 
+FORGED_LABELS = ['stamp=\u00b2.000000000', 'stamp=1.' + '\u00b2' * 9, 'stamp=\u0663.032000000',
+                 'stamp=1' + '0' * 400 + '.000000000']
+"""Labels that killed `sim` (a ValueError from int() on Unicode digits, an OverflowError writing the refusal of a step
+10^400 s ahead) and `avoid` (the same labels on ir_raw)."""
+
+
+def test_forged_step_labels_kill_no_node_and_lockstep_goes_on(launch, test_node):
+    sim = start_sim(launch, test_node, lockstep=True, real_time_factor=0.0)
+    avoid = launch('avoid', *ros_args({'use_sim_time': True}))
+    clocks = test_node.collect(Clock, '/clock', 100)
+    pub = test_node.node.create_publisher(Float64MultiArray, 'wheel_cmd', 10)
+    forged_ir = test_node.node.create_publisher(Float64MultiArray, 'ir_raw', 10)
+    test_node.spin_until(lambda: clocks and pub.get_subscription_count() > 0 and forged_ir.get_subscription_count() > 0,
+                         what='the sim and avoid to be discovered')
+    for label in FORGED_LABELS:
+        forged = wheel_cmd(1.0, 1.0)
+        forged.layout.dim = [MultiArrayDimension(label=label, size=2, stride=2)]
+        pub.publish(forged)
+        forged_ir.publish(Float64MultiArray(layout=forged.layout, data=[100.0] * 8))
+    seen = len(clocks)
+    test_node.spin_until(lambda: len(clocks) > seen + 10, what='steps after the forged labels')
+    assert sim.proc.poll() is None and avoid.proc.poll() is None, sim.output() + avoid.output()
+
+
 def test_world_and_collision_count_are_latched(launch, test_node):
     start_sim(launch, test_node)
     worlds = test_node.collect(String, 'world', LATCHED)
