@@ -1,19 +1,19 @@
 #!/usr/bin/env python3
-"""Makes every picture of the README (docs/images/*.png) with the package's own commands, and checks them.
+"""Makes every picture of the manual (docs/images/*.png) with the package's own commands, and checks them.
 
     python scripts/make_pictures.py                   # remake them all in docs/images/
     python scripts/make_pictures.py --only sweep      # some of them (names below), or --out DIR elsewhere
     python scripts/make_pictures.py --check           # remake them in a scratch folder and compare (test_pictures)
     python scripts/make_pictures.py --evolve          # also rerun `evolve --seed 1` (80 x 100, minutes) for fitness
 
-Each picture is the output of the commands the README shows, run as they are (the senses' runs headless: the same
+Each picture is the output of the commands the manual shows, run as they are (the senses' runs headless: the same
 run and bag as `bringup --controller ... --record`, to the bit, without DDS). `fitness` is drawn from
 docs/images/fitness.csv, the `fitness.csv` of `evolve -o OUT --seed 1` (80 x 100): the whole run takes minutes, so
 --check reruns its first generations and compares them with the file's. `view` is a screenshot of the live view in
 headless Chromium, taken by test/test_view_browser.py; it needs chromium and chromedriver, and is not compared (a
 live page is not the same twice to the pixel).
 
---check also checks the README's figures about the pictures (the light seeker's closest approach, the red-box
+--check also checks the manual's figures about the pictures (the light seeker's closest approach, the red-box
 finder's stop, the learned policy's table, the evolution's fitness). A picture differs when its pixels do by more
 than TOLERANCE (RMS, of 255): a stale picture is far beyond it, a remade one within it.
 """
@@ -35,7 +35,8 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 IMAGES = ROOT / 'docs' / 'images'
-README = ROOT / 'README.md'
+MANUAL = [ROOT / 'README.md', *sorted((ROOT / 'docs').glob('*.md'))]
+"""The README and the manual's pages (docs/_incoming/, a staging area, is not the manual)."""
 BIN = Path(sys.executable).parent
 EXAMPLES = ROOT / 'epuck_ros' / 'webots' / 'examples'
 WORLDS = ROOT / 'epuck_ros' / 'worlds'
@@ -50,13 +51,13 @@ CAMERA_VIEWS = [('coloured_objects.yaml', (-0.15, -0.1, 0.55), 'coloured objects
                 ('lit_arena.yaml', (-0.2, -0.2, 0.6), 'lit arena: the yellow disc under the light')]
 """The camera picture: (world, robot pose, title) of each view."""
 ARRIVED = 0.05
-"""m from the light within which the README counts the light seeker as there."""
+"""m from the light within which the manual counts the light seeker as there."""
 
 
 @dataclass
 class Picture:
-    """How one picture is made (`make(out, work)` writes out/<name>.png; `work` is a scratch folder) and the README
-    figures about it that --check verifies (`facts(work)`: texts the README must contain)."""
+    """How one picture is made (`make(out, work)` writes out/<name>.png; `work` is a scratch folder) and the manual's
+    figures about it that --check verifies (`facts(work)`: texts the manual must contain)."""
 
     name: str
     make: Callable[[Path, Path], None]
@@ -99,7 +100,7 @@ def senses_run(script: str, world: str, duration: float) -> Callable[[Path, Path
 
 
 def light_seeker_facts(work: Path) -> list[str]:
-    """Its contacts, when it reached the light (within ARRIVED) and how close it came (the README says so)."""
+    """Its contacts, when it reached the light (within ARRIVED) and how close it came (the manual says so)."""
     run_data, summary = track(work / 'light_seeker')
     light = run_data.world.appearance.lights[0]
     path = run_data.trajectory
@@ -153,7 +154,7 @@ def camera_views(out: Path, work: Path) -> None:
 
 
 def sweep(out: Path, work: Path) -> None:
-    """The README's example sweep (in this process: the same trials as on a local cluster)."""
+    """The manual's example sweep (in this process: the same trials as on a local cluster)."""
     shutil.rmtree(work / 'sweep_out', ignore_errors=True)
     run(BIN / 'sweep', ROOT / 'epuck_ros' / 'experiments' / 'examples' / 'avoid_seeds.yaml', '-o',
         work / 'sweep_out', '--workers', '0')
@@ -172,7 +173,7 @@ def fitness_rows(path: Path) -> list[tuple[int, float, float]]:
 
 
 def fitness_facts(work: Path) -> list[str]:
-    """The CSV is still what `evolve --seed 1` makes (its first generations, rerun), and the README's figures."""
+    """The CSV is still what `evolve --seed 1` makes (its first generations, rerun), and the manual's figures."""
     run(BIN / 'evolve', '-o', work / 'evolve_check', '--seed', '1', '--generations', str(CHECKED_GENERATIONS),
         '--workers', '0')
     rows = fitness_rows(FITNESS_CSV)
@@ -195,11 +196,11 @@ def evolve_fully(work: Path) -> None:
 LEARNED_LINE = re.compile(r'^(learned policy|random policies of its form|straight ahead, blind) +on \d+ fresh 60 s '
                           r'episodes: mean fitness (-?[0-9.]+), touching a wall or an obstacle ([0-9.]+)% of the time$',
                           re.M)
-"""The example's judgement of the learned policy, as it prints it: the README's table."""
+"""The example's judgement of the learned policy, as it prints it: the manual's table."""
 
 
 def learned(out: Path, work: Path) -> None:
-    """The README's learning example, its picture and its judgement of the result (kept for the facts)."""
+    """The manual's learning example, its picture and its judgement of the result (kept for the facts)."""
     output = run(sys.executable, ROOT / 'epuck_ros' / 'envs' / 'examples' / 'learn_avoid_cma.py', '--picture',
                  out / 'learned_avoid.png')
     (work / 'learned.txt').write_text(output)
@@ -245,7 +246,7 @@ def main() -> None:
     parser.add_argument('--only', nargs='+', choices=names, metavar='NAME', help=f'these only: {", ".join(names)}')
     parser.add_argument('--out', type=Path, default=IMAGES, help='folder to write them in (default docs/images)')
     parser.add_argument('--check', action='store_true',
-                        help='remake them in a scratch folder and compare with docs/images (and the README)')
+                        help='remake them in a scratch folder and compare with docs/images (and the manual)')
     parser.add_argument('--evolve', action='store_true', help='rerun evolve --seed 1 fully for fitness.csv first')
     args = parser.parse_args()
     chosen = [p for p in PICTURES if p.name in (args.only or names) and (not args.check or p.compared)]
@@ -264,8 +265,8 @@ def main() -> None:
                 print(f'[pictures] {line}', file=sys.stderr)
             if problems:
                 raise SystemExit(f'[pictures] {len(problems)} problem(s): run python scripts/make_pictures.py (and '
-                                 'update the README\'s figures) to remake them')
-            print(f'[pictures] {len(chosen)} pictures as committed, and the README\'s figures about them')
+                                 'update the manual\'s figures) to remake them')
+            print(f'[pictures] {len(chosen)} pictures as committed, and the manual\'s figures about them')
 
 
 def made(picture: Picture, out: Path, work: Path) -> None:
@@ -274,7 +275,7 @@ def made(picture: Picture, out: Path, work: Path) -> None:
 
 
 def compare(picture: Picture, out: Path, work: Path) -> list[str]:
-    """What is wrong with the committed picture and the README's figures about it ([] when nothing)."""
+    """What is wrong with the committed picture and the manual's figures about it ([] when nothing)."""
     import numpy as np
     from matplotlib.image import imread
     problems = []
@@ -290,9 +291,9 @@ def compare(picture: Picture, out: Path, work: Path) -> list[str]:
             rms = float(np.sqrt(np.mean((255.0 * (old - new)) ** 2)))
             if rms > TOLERANCE:
                 problems.append(f'{picture.name}: stale (RMS difference {rms:.1f} of 255, more than {TOLERANCE})')
-    readme = ' '.join(README.read_text().split())   # a fact may be wrapped over two lines
-    problems += [f'{picture.name}: the README does not say "{fact}"' for fact in picture.facts(work)
-                 if ' '.join(fact.split()) not in readme]
+    manual = ' '.join(' '.join(page.read_text() for page in MANUAL).split())   # a fact may be wrapped over two lines
+    problems += [f'{picture.name}: the manual does not say "{fact}"' for fact in picture.facts(work)
+                 if ' '.join(fact.split()) not in manual]
     return problems
 
 

@@ -1,7 +1,8 @@
-"""The README's device table, row by row: each device of Webots' e-puck in a reference situation, Webots' figure
-(from its protos, its documented rules or its demos), ours computed here in the same situation, the difference.
+"""The manual's device table (docs/senses.md), row by row: each device of Webots' e-puck in a reference situation,
+Webots' figure (from its protos, its documented rules or its demos), ours computed here in the same situation, the
+difference.
 
-FIGURES is the one place the figures are stated; the README's rows quote it (the last test checks they do).
+FIGURES is the one place the figures are stated; the table's rows quote it (the last test checks they do).
 Where Webots and we differ the row says why, and the difference is asserted, not hidden in a tolerance.
 """
 from __future__ import annotations
@@ -19,7 +20,7 @@ from epuck_ros.simulation import Simulation
 from epuck_ros.world import Box, World, world_from_dict
 from epuck_ros.world.data import RobotStart
 
-README = Path(__file__).resolve().parents[1] / 'README.md'
+SENSES = Path(__file__).resolve().parents[1] / 'docs' / 'senses.md'
 
 
 @dataclass(frozen=True)
@@ -162,8 +163,8 @@ def test_leds_hold_their_value_and_light_in_their_colour():
     assert FIGURES['LEDs'].ours == FIGURES['LEDs'].webots
 
 
-def test_the_readme_table_quotes_these_figures():
-    rows = {line.split('|')[1].strip(): line for line in README.read_text().splitlines()
+def test_the_manuals_table_quotes_these_figures():
+    rows = {line.split('|')[1].strip(): line for line in SENSES.read_text().splitlines()
             if line.startswith('| ') and line.split('|')[1].strip() in FIGURES}
     assert sorted(rows) == sorted(FIGURES)
     for device, figure in FIGURES.items():

@@ -1,4 +1,4 @@
-"""The `epuck_sim` pytest plugin as a user meets it: a throwaway project of its own (the README's example test, which
+"""The `epuck_sim` pytest plugin as a user meets it: a throwaway project of its own (the manual's example test, which
 passes, and a test that fails), run by pytest in a subprocess; afterwards no process of that run is left."""
 from __future__ import annotations
 
@@ -13,10 +13,10 @@ from pathlib import Path
 import domain_coordinator
 import pytest
 from conftest import BIN_DIR
+from manual_pages import blocks
 
 from epuck_ros.testing.simulator import claim_free_domain
 
-README = Path(__file__).resolve().parents[1] / 'README.md'
 FAILING = '''
 from pathlib import Path
 
@@ -29,11 +29,10 @@ def test_fails_after_starting_a_simulator(epuck_sim):
 
 
 def readme_example() -> str:
-    """The README's ```python block that uses the fixture."""
-    blocks = re.findall(r'^```python\n(.*?)^```', README.read_text(), flags=re.S | re.M)
-    blocks = [block for block in blocks if 'epuck_sim' in block]
-    assert len(blocks) == 1, 'the README shows one test with epuck_sim'
-    return blocks[0]
+    """The manual's ```python block that uses the fixture (docs/ros-graph.md)."""
+    found = [block for block in blocks('python') if 'epuck_sim' in block]
+    assert len(found) == 1, 'the manual shows one test with epuck_sim'
+    return found[0]
 
 
 def processes_with(marker: str) -> list[int]:

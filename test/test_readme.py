@@ -1,4 +1,5 @@
-"""Every command line of the README's ```bash blocks runs and does its job, so the README cannot drift.
+"""Every command line of the ```bash blocks of the README and of the manual's pages in docs/ runs and does its job,
+so the manual cannot drift (docs/_incoming/, a staging area, is not the manual).
 
 Each line runs with bash in a scratch copy of the checkout (the venv, package and scripts linked, the sample bags
 copied), so what it writes (bags, pictures, CSV) lands there. A command runs until it ends by itself or, once it
@@ -9,9 +10,11 @@ its work (a summary, a closed bag, a picture, a CSV). Nothing is timed: the budg
 The one documented exception: `scripts/test.sh` would run this very suite again; it runs with `--collect-only`
 (it still sets up, sources the environment and must collect the tests).
 
-The commands run in README order in one scratch checkout, as a reader would type them: one may read what an earlier
-one wrote (`bag summary bags/headless_avoid` after the run that records it), so scripts/test.sh keeps a test file in
-one process (`--dist loadfile`).
+The commands run in one scratch checkout, as a reader would type them: the README's in its order, then each page's
+in the order the README links the pages (manual_pages.pages). One may read what an earlier one wrote
+(`bag summary bags/headless_avoid` after the run that records it, on a later page than the README's), so
+scripts/test.sh keeps a test file in one process (`--dist loadfile`). A command shown on several pages (the
+README's tour repeats some of the manual's) runs once, where it first appears.
 """
 from __future__ import annotations
 
@@ -26,9 +29,8 @@ from pathlib import Path
 
 import pytest
 from conftest import BIN_DIR, processes_in_this_domain
+from manual_pages import README, ROOT, pages
 
-ROOT = Path(__file__).resolve().parents[1]
-README = ROOT / 'README.md'
 LINKED = ('.venv', 'epuck_ros', 'scripts', 'requirements.txt', 'setup.py', 'setup.cfg', 'package.xml', 'resource',
           'docs', 'benchmarks', 'test')
 COPIED = ('bags',)
@@ -46,7 +48,7 @@ RECURSIVE = 'scripts/test.sh'
 
 
 def readme_commands(text: str) -> list[str]:
-    r"""The command lines of the ```bash blocks (comments and blank lines dropped; `\` continuations joined)."""
+    r"""The command lines of a page's ```bash blocks (comments and blank lines dropped; `\` continuations joined)."""
     commands: list[str] = []
     for block in re.findall(r'^```bash\n(.*?)^```', text, flags=re.S | re.M):
         for line in block.replace('\\\n', ' ').splitlines():
@@ -69,7 +71,16 @@ def _without_comment(line: str) -> str:
     return line
 
 
-COMMANDS = readme_commands(README.read_text())
+def manual_commands() -> list[str]:
+    """Every page's command lines in reading order, each once (where it first appears)."""
+    commands: dict[str, str] = {}
+    for page in pages():
+        for command in readme_commands(page.read_text()):
+            commands.setdefault(' '.join(command.split()), command)
+    return list(commands.values())
+
+
+COMMANDS = manual_commands()
 
 
 @pytest.fixture(scope='module')
@@ -88,6 +99,8 @@ def workspace(tmp_path_factory: pytest.TempPathFactory) -> Path:
 def test_the_readme_has_commands_to_check():
     assert len(COMMANDS) >= 10, COMMANDS
     assert any(BRINGUP.search(command + ' ') for command in COMMANDS)
+    assert {'scripts/run.sh', RECURSIVE} <= set(readme_commands(README.read_text())), 'the two commands'
+    assert sum(len(readme_commands(page.read_text())) for page in pages()[1:]) >= 10, 'the pages of docs/ too'
 
 
 @pytest.mark.parametrize('command', COMMANDS)

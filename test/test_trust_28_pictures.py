@@ -1,8 +1,8 @@
-"""Issue 28, item 3: every picture of the README comes from scripts/make_pictures.py, and none is stale.
+"""Issue 28, item 3: every picture of the manual (README.md, docs/) comes from scripts/make_pictures.py, none stale.
 
 docs/images/senses_light_seeker.png showed a contact and a path along the bottom wall that today's runs do not
 make, and the README's text about it was as old. The script remakes every picture in a scratch folder and compares
-each with the committed one, and the README's figures about them with the runs' (see its docstring).
+each with the committed one, and the manual's figures about them with the runs' (see its docstring).
 """
 from __future__ import annotations
 
@@ -11,13 +11,15 @@ import subprocess
 import sys
 from pathlib import Path
 
+from manual_pages import manual_text
+
 ROOT = Path(__file__).resolve().parents[1]
 SCRIPT = ROOT / 'scripts' / 'make_pictures.py'
 
 
-def test_every_readme_picture_is_made_by_the_script():
-    """No picture in the README that the script does not make, and no picture file nobody shows."""
-    shown = set(re.findall(r'docs/images/([\w.-]+)\.png', (ROOT / 'README.md').read_text()))
+def test_every_picture_of_the_manual_is_made_by_the_script():
+    """No picture in the manual that the script does not make, and no picture file nobody shows."""
+    shown = set(re.findall(r'images/([\w.-]+)\.png', manual_text()))
     made = set(re.findall(r"Picture\('(\w+)'", SCRIPT.read_text()))
     files = {path.stem for path in (ROOT / 'docs' / 'images').glob('*.png')}
     assert shown == made == files, (shown ^ made, made ^ files)
