@@ -213,6 +213,20 @@ def test_a_script_asking_for_a_device_its_world_lacks_is_refused_in_one_line(tmp
         'of robots:)']
 
 
+def test_a_turret_device_named_as_an_epuck_device_is_refused_in_one_line(tmp_path: Path) -> None:
+    import subprocess
+    import sys
+    script = tmp_path / 'wall_follower.py'
+    script.write_text(textwrap.dedent(WALL_FOLLOWER))
+    done = subprocess.run([sys.executable, '-m', 'epuck_ros.webots_controller', str(script), '--headless', '--world',
+                           str(turret_world(tmp_path, [{'type': 'GPS', 'name': 'ps0'}])), '--duration', '1'],
+                          capture_output=True, text=True, timeout=120)
+    assert done.returncode == 2, done.stderr
+    assert done.stderr.strip().splitlines() == [
+        'webots_controller: the world gives robot "epuck" a turret device named "ps0", the name of one of the '
+        'e-puck\'s own devices: give it another name in the world file']
+
+
 def test_wall_follower_over_ros_reads_what_it_reads_headless(launch: object, test_node: object, tmp_path: Path,
                                                              capsys: pytest.CaptureFixture,
                                                              clean_imports: None) -> None:  # noqa: F811
