@@ -24,9 +24,9 @@ from epuck_ros.lockstep import Lockstep, StepFunction
 from epuck_ros.sensors.turret import Truth
 from epuck_ros.simulation import Simulation
 from epuck_ros.webots.link import TRUTH, StepData
-from epuck_ros.world import TurretDevice
 from epuck_ros.webots.robot import KILL_DELAY, SINGLE_ROBOT_NAME, bind_thread
 from epuck_ros.webots.runner import run_script
+from epuck_ros.world import TurretDevice
 
 
 class ScriptRecorder(Protocol):
