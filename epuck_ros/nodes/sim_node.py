@@ -105,7 +105,7 @@ USAGE = Usage(
     'sim',
     'The e-puck simulator: steps the robots of a world and publishes, per robot, odom, ground_truth, proximity '
     '(8 Range), ir_raw (the 8 raw IR values), joint_states and collisions, the latched robot_description, and '
-    'while they have subscribers camera/image_raw, camera/camera_info, ground_raw, light_raw and imu, plus the '
+    'while they have subscribers camera/image_raw, camera/camera_info, ground_raw, light_raw, imu and tof, plus the '
     'latched world, world_markers and /tf_static, and /tf and /clock; takes cmd_vel (Twist) or wheel_cmd '
     '([left, right] rad/s) per robot; services '
     'reset (Empty) and step (Trigger, one step while paused). With several robots, robot NAME\'s topics are '
