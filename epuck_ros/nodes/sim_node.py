@@ -93,8 +93,8 @@ SIM_PARAMETERS = [
     ParamSpec('frame_prefix', '', 'prefix of every frame_id (e.g. "sim1/"); with several robots each robot\'s '
                                   'frames are <prefix><name>/odom, ...', read_only=True),
     ParamSpec('senses', '', 'comma-separated senses every robot computes whether or not their topics have '
-                            'subscribers: camera, ground, light, imu (a sense is computed anyway while its topic has '
-                            'a subscriber)', read_only=True),
+                            'subscribers: camera, ground, light, imu, tof (a sense is computed anyway while its topic '
+                            'has a subscriber)', read_only=True),
     ParamSpec('camera_width', 52, 'camera image width in pixels (the field of view stays 0.84 rad)', (1, 1024),
               read_only=True),
     ParamSpec('camera_height', 39, 'camera image height in pixels', (1, 1024), read_only=True),
@@ -105,7 +105,7 @@ USAGE = Usage(
     'sim',
     'The e-puck simulator: steps the robots of a world and publishes, per robot, odom, ground_truth, proximity '
     '(8 Range), ir_raw (the 8 raw IR values), joint_states and collisions, the latched robot_description, and '
-    'while they have subscribers camera/image_raw, camera/camera_info, ground_raw, light_raw and imu, plus the '
+    'while they have subscribers camera/image_raw, camera/camera_info, ground_raw, light_raw, imu and tof, plus the '
     'latched world, world_markers and /tf_static, and /tf and /clock; takes cmd_vel (Twist) or wheel_cmd '
     '([left, right] rad/s) per robot; services '
     'reset (Empty) and step (Trigger, one step while paused). With several robots, robot NAME\'s topics are '
