@@ -18,7 +18,6 @@ from rclpy.experimental import EventsExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.parameter_client import AsyncParameterClient
-from rclpy.qos import QoSProfile, ReliabilityPolicy
 from rclpy.task import Future
 from rosgraph_msgs.msg import Clock
 from std_msgs.msg import String
@@ -29,7 +28,7 @@ from epuck_ros.conversions import nanoseconds_from_seconds, seconds_from_stamp
 from epuck_ros.integrity import STATUS_TOPIC, Integrity, integrity_from
 from epuck_ros.nodes.announcements import ANNOUNCEMENT_QOS, SIMULATORS_TOPIC, Announcement, parse_announcement
 from epuck_ros.nodes.dds_profile import use_package_profile, warn_if_not_fast_dds
-from epuck_ros.nodes.qos import CLOCK_KEPT, LATCHED
+from epuck_ros.nodes.qos import CLOCK_KEPT, EVERY_STEP, LATCHED
 from epuck_ros.nodes.robot_ports import topic_prefix
 from epuck_ros.nodes.sense_ports import RECORDER_NODE
 from epuck_ros.world import World, WorldError, world_from_dict
@@ -41,8 +40,6 @@ REQUEST_RETRY = 2.0
 """Wall seconds after which a parameter request to the simulator is sent again (setting `paused` twice is harmless):
 a first request to a service just discovered can go unanswered, its response's way back not yet matched (seen now
 and then by benchmarks/bench_lockstep.py, before it retried too)."""
-SAMPLE_DEPTH = 10_000
-"""Ground-truth samples DDS may hold for this node while it is busy: the summary needs every step."""
 
 
 def robot_topic(world: World, robot: str, topic: str) -> str:
@@ -64,7 +61,7 @@ class RobotTrack:
         stamp, x, y, yaw, _, _ = odometry_fields(data, 0)
         self.stamps.add(stamp)
         self.samples.append((stamp, x, y, yaw))
-        self._add(self.label, stamp, x, y)
+        self._add(self.label, stamp, x, y, yaw)
 
 
 class RunMonitor:
@@ -163,15 +160,15 @@ class RunMonitor:
             return
         if not self._follow_robots:
             return
-        qos = QoSProfile(depth=SAMPLE_DEPTH, reliability=ReliabilityPolicy.RELIABLE)
         several = len(self.world.robots) > 1
         # Labelled as a bag names its robots: by namespace, '' for a lone robot's topics.
         labels = [name if several else '' for name in self.world.names]
         self.tally = RunTally(labels, self.world)
         for name, label in zip(self.world.names, labels):
             track = self.tracks[name] = RobotTrack(self.tally, name, label)
-            self.node.create_subscription(Odometry, robot_topic(self.world, name, 'ground_truth'), track.add, qos,
-                                          raw=True)
+            # Every step, the simulator waiting for this reader (EVERY_STEP): the summary is the run's.
+            self.node.create_subscription(Odometry, robot_topic(self.world, name, 'ground_truth'), track.add,
+                                          EVERY_STEP, raw=True)
 
     def spin(self, timeout: float, until_sim_time: float = math.inf) -> None:
         """Take what arrives for `timeout` wall seconds, or until `/clock` reaches `until_sim_time`.

@@ -1,0 +1,73 @@
+"""Issue 33, items 11, 12, 14, 15 and 16: bringup's summary from every step, with each robot's final pose (bringup
+and `bag summary`), `bag play`'s wait said and chosen, the small things a newcomer hit, the fixture's executables and
+domains."""
+from __future__ import annotations
+
+import re
+import subprocess
+import sys
+
+import pytest
+from conftest import BIN_DIR
+
+from epuck_ros.bag.summary_text import format_figures
+from epuck_ros.experiments.trial import Controller, Trial, run, run_trial
+
+
+def busy_loops() -> list[subprocess.Popen]:
+    """One spinning process per core: the load under which a KEEP_LAST reader skipped steps."""
+    return [subprocess.Popen([sys.executable, '-c', 'while True: pass']) for _ in range(2)]
+
+
+def test_bringup_s_summary_under_load_is_the_headless_run_s(launch):
+    """Items 11 and 16: not recorded, beside a busy loop on each core, bringup's figures (distance, duration,
+    contacts, final pose) are those of the same run headless, to the printed digit: its ground-truth reader keeps
+    all (`nodes.qos.EVERY_STEP`), so the simulator waits for it (a KEEP_LAST reader is not waited for)."""
+    duration = 20.0
+    _, tally = run(Trial(Controller('avoid'), seed=3, duration=duration))
+    expected = format_figures(tally.figures)
+    assert re.fullmatch(r'[\d.]+ m in [\d.]+ s, \d+ contacts? with walls/obstacles; final pose x -?[\d.]+ m, '
+                        r'y -?[\d.]+ m, yaw -?[\d.]+ rad \(-?[\d.]+°\)', expected), expected
+    loops = busy_loops()
+    try:
+        bringup = launch('bringup', 'avoid', '--duration', f'{duration:g}', '--real-time-factor', '0', '--seed', '3')
+        assert bringup.proc.wait(timeout=300) == 0, bringup.output()
+    finally:
+        for loop in loops:
+            loop.kill()
+            loop.wait()
+    assert f'[bringup] {expected}\n' in bringup.output(), (expected, bringup.output())
+    assert 'did not arrive' not in bringup.output()
+
+
+def bag_summary(path) -> str:
+    result = subprocess.run([str(BIN_DIR / 'bag'), 'summary', str(path)], capture_output=True, text=True, timeout=60)
+    assert result.returncode == 0, result.stderr
+    return result.stdout
+
+
+def test_bag_summary_gives_each_robot_s_final_pose(tmp_path):
+    """Item 16: `bag summary` says where each robot ended, as the sweep's CSV has it (final_x, final_y, final_yaw)."""
+    one = tmp_path / 'one'
+    [row] = run_trial(Trial(Controller('avoid'), seed=3, duration=5.0, record=str(one)))
+    assert not row['error'], row
+    pose = re.search(r'Final pose:\s+x (\S+) m, y (\S+) m, yaw (\S+) rad', bag_summary(one))
+    assert pose, bag_summary(one)
+    assert [float(value) for value in pose.groups()] == [round(row[f'final_{axis}'], 4) for axis in 'xy'] + \
+        [round(row['final_yaw'], 4)]
+    three = tmp_path / 'three'
+    rows = run_trial(Trial(Controller('avoid'), robots=3, seed=2, duration=3.0, record=str(three)))
+    table = [re.split(r'\s{2,}', line.strip()) for line in bag_summary(three).split('\n\n', 1)[1].splitlines()]
+    columns = [table[0].index(name) for name in ('final x m', 'final y m', 'final yaw rad')]
+    robots = [cells for cells in table[1:] if cells[0].startswith('/')]
+    assert [cells[0] for cells in robots] == [f'/{row["robot"]}' for row in rows]
+    for row, cells in zip(rows, robots):
+        assert [float(cells[i]) for i in columns] == [round(row[name], 4) for name in ('final_x', 'final_y', 'final_yaw')]
+
+
+@pytest.mark.parametrize('count, text', [(0, '0 contacts'), (1, '1 contact with'), (2, '2 contacts')])
+def test_one_contact_is_singular(count, text):
+    """Item 14: '1 contacts' was printed."""
+    from epuck_ros.bag.tally import RobotFigures
+    line = format_figures([RobotFigures('', world_contacts=count, last_pose=(0.0, 0.0, 0.0))])
+    assert f', {text}' in line, line
