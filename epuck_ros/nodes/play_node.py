@@ -51,9 +51,12 @@ def rclpy_qos(topic: Topic) -> QoSProfile:
 class Player(Node):
     """Publishers for the bag's topics, /clock, and the pause/resume services; `play` runs the playback."""
 
-    def __init__(self, bag: Bag, topics: list[str] | None, rate: float, clock_hz: float, paused: bool) -> None:
+    def __init__(self, bag: Bag, topics: list[str] | None, rate: float, clock_hz: float, paused: bool,
+                 wait: float = FOREIGN_DISCOVERY_WINDOW) -> None:
+        """`wait`: wall seconds from now during which subscribers already running are looked for (`--wait`)."""
         super().__init__('bag_player', enable_rosout=False)  # its log lines must not mix with a replayed /rosout
         self._created = time.monotonic()
+        self._wait = wait
         self._bag = bag
         self._outputs = {}
         wanted = {'/' + topic.lstrip('/') for topic in topics} if topics else None
@@ -98,25 +101,44 @@ class Player(Node):
 
     def wait_for_subscribers(self, timeout: float = MATCH_TIMEOUT) -> None:
         """Until every running subscriber of a played topic is matched and none came for `SETTLE` s, or `timeout`
-        (then a warning naming the unmatched topics); at least FOREIGN_DISCOVERY_WINDOW from the start, since the
-        subscribers are often a user's nodes, not the package's."""
+        (then a warning naming the unmatched topics); at least the `wait` given from the start (by default
+        FOREIGN_DISCOVERY_WINDOW: the subscribers are often a user's nodes, not the package's). Said before and
+        after: a silent wait of seconds looked like a slow player. `wait` 0: no wait at all."""
+        if self._wait <= 0:
+            return
+        began = time.monotonic()
+        left = self._created + self._wait - began
+        if left > 0:
+            self.get_logger().info(f'waiting {left:.1f} s for subscribers already running to show in the graph '
+                                   f'(--wait to change), then until each on a played topic is matched')
         unmatched = wait_until_matched(
             self, self._outputs, self._created, timeout, SETTLE,
             lambda topics: self.get_logger().info(f'waiting for the subscribers of {", ".join(topics)} to match '
                                                   f'(at most {timeout:.0f} s)'),
-            discovery_window=FOREIGN_DISCOVERY_WINDOW)
+            discovery_window=self._wait)
         if unmatched:
             self.get_logger().warning(f'starting although {", ".join(unmatched)} still has subscribers not matched '
                                       f'after {timeout:.0f} s')
+        matched = sum(publisher.get_subscription_count() for publisher in self._outputs.values())
+        self.get_logger().info(f'waited {time.monotonic() - began:.2f} s: {matched} subscriptions matched on the '
+                               f'played topics; playing')
 
     def play(self, loop: bool) -> int:
-        """Publish the bag (again and again with `loop`); returns the number of messages published."""
+        """Publish the bag (again and again with `loop`); returns the number of messages published. Says how many
+        in how long, from the first message (the wait before it said apart)."""
         published = 0
         if not self._wait_until_due(self._start_ns):  # paused until resumed (--start-paused)
             return published
         self.wait_for_subscribers()
+        started = time.monotonic()
         with self._lock:
-            self.clock.restart(self._start_ns, time.monotonic())
+            self.clock.restart(self._start_ns, started)
+        published = self._publish_all(loop)
+        self.get_logger().info(f'played {published} messages in {time.monotonic() - started:.2f} s')
+        return published
+
+    def _publish_all(self, loop: bool) -> int:
+        published = 0
         while self.context.ok():
             for topic, log_time, _, buffer, start, end in self._bag.iter_raw(self._outputs):
                 if not self._wait_until_due(log_time):
@@ -181,7 +203,7 @@ def play(args: argparse.Namespace) -> None:
         rclpy.init(args=['bag', *args.ros_args])
         player, executor, services = None, None, None
         try:
-            player = Player(bag, args.topics, args.rate, args.clock, args.start_paused)
+            player = Player(bag, args.topics, args.rate, args.clock, args.start_paused, args.wait)
             executor = SingleThreadedExecutor()
             executor.add_node(player)
             services = threading.Thread(target=_serve, args=(executor,), name='services')
@@ -191,9 +213,7 @@ def play(args: argparse.Namespace) -> None:
                 player.get_logger().info(f'paused: {how} {player.get_fully_qualified_name()}/resume')
             if sys.stdin.isatty():
                 threading.Thread(target=_enter_toggles, args=(player,), name='keys', daemon=True).start()
-            started = time.monotonic()
-            count = player.play(args.loop)
-            player.get_logger().info(f'played {count} messages in {time.monotonic() - started:.2f} s')
+            player.play(args.loop)
         except (KeyboardInterrupt, ExternalShutdownException):
             pass
         except Exception:
