@@ -71,3 +71,18 @@ def test_one_contact_is_singular(count, text):
     from epuck_ros.bag.tally import RobotFigures
     line = format_figures([RobotFigures('', world_contacts=count, last_pose=(0.0, 0.0, 0.0))])
     assert f', {text}' in line, line
+
+
+def test_a_clock_source_not_yet_known_by_name_is_named_by_its_announcement():
+    """Item 14: bringup's refusal named the other simulator `_NODE_NAMESPACE_UNKNOWN_/_NODE_NAME_UNKNOWN_` (DDS had
+    not told its name yet); it now says its pid, host and start time, as `sim` alone does."""
+    import time
+
+    from epuck_ros.bringup.monitor import unknown_named_by
+    from epuck_ros.nodes.announcements import announcement
+    unknown = '_NODE_NAMESPACE_UNKNOWN_/_NODE_NAME_UNKNOWN_'
+    other = announcement(time.time_ns(), 4242)
+    [said] = unknown_named_by([unknown], [other])
+    assert said.startswith(f'the simulator pid 4242 on {other.host}, started {time.strftime("%Y-%m-%d")} '), said
+    assert unknown_named_by(['/sim', unknown], []) == ['/sim', 'a node not yet known by name']
+    assert unknown_named_by(['/sim'], [other]) == ['/sim']

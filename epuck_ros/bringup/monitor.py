@@ -7,7 +7,9 @@ children's log lines, so rewording a log line cannot break `bringup`.
 from __future__ import annotations
 
 import math
+import os
 import time
+from pathlib import Path
 
 import rclpy
 import yaml
@@ -211,9 +213,12 @@ class RunMonitor:
         return [entry for entry in self.node.get_node_names_and_namespaces_with_enclaves() if entry[0] == SIM_NODE]
 
     def clock_sources(self) -> list[str]:
-        """The nodes publishing `/clock` on this domain (ours is one of them once it is up)."""
-        return [_full_name(info.node_namespace, info.node_name)
-                for info in self.node.get_publishers_info_by_topic('/clock')]
+        """The nodes publishing `/clock` on this domain (ours is one of them once it is up). One whose name DDS has
+        not told yet (`_NODE_NAMESPACE_UNKNOWN_/_NODE_NAME_UNKNOWN_`) is named by the simulators announced, ours
+        (a child of this process) left out, with pid and start time."""
+        named = [_full_name(info.node_namespace, info.node_name)
+                 for info in self.node.get_publishers_info_by_topic('/clock')]
+        return unknown_named_by(named, [a for a in sorted(self.announcements) if not _our_child(a)])
 
     def world_sources(self) -> int:
         """Publishers of the `world` topic (each simulator has one)."""
@@ -294,6 +299,28 @@ class RunMonitor:
 
 def _full_name(namespace: str, name: str) -> str:
     return f'{namespace.rstrip("/")}/{name}'
+
+
+UNKNOWN_NODE = '_NODE_NAME_UNKNOWN_'
+"""rmw's name for a node whose name discovery has not brought yet."""
+
+
+def unknown_named_by(names: list[str], announced: list[Announcement]) -> list[str]:
+    """`names` of nodes, those not known yet replaced by who the other simulators `announced` are (pid and start
+    time), or said to be unnamed so far: a refusal named `_NODE_NAMESPACE_UNKNOWN_/_NODE_NAME_UNKNOWN_`."""
+    known = [name for name in names if not name.endswith(UNKNOWN_NODE)]
+    if len(known) == len(names):
+        return names
+    return known + ([a.describe() for a in announced] or ['a node not yet known by name'])
+
+
+def _our_child(announced: Announcement) -> bool:
+    """The announcement is that of a process this one started (our simulator)."""
+    try:
+        parent = int(Path(f'/proc/{announced.pid}/stat').read_text().rsplit(')', 1)[1].split()[1])
+    except (OSError, IndexError, ValueError):
+        return False
+    return announced.is_process(announced.pid) and parent == os.getpid()
 
 
 def samples_missing(track: RobotTrack, time_step: float, end_time: float) -> int:
