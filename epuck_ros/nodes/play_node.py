@@ -2,8 +2,9 @@
 
 Messages go out as their recorded CDR bytes (rclpy publishes bytes raw), each when the playback clock
 reaches its log time (`epuck_ros.bag.play.PlaybackClock`), with the QoS its publishers offered (latched
-topics transient local). /clock is published from the same clock at a steady wall rate, never ahead of
-the next message, and the bag's own /clock is not replayed. The node is `bag_player`; pause and resume
+topics transient local). /clock is published from the same clock, `--clock` times a wall second, its stamps
+on a grid of the bag's time (`--rate` / `--clock` apart, so a recording of the playback finds no gap in them), never
+ahead of the next message; the bag's own /clock is not replayed. The node is `bag_player`; pause and resume
 with its std_srvs/Trigger services ``~/pause``, ``~/resume``, ``~/toggle_paused``, or Enter on a terminal.
 """
 from __future__ import annotations
@@ -75,9 +76,15 @@ class Player(Node):
         if not self._outputs:
             raise BagError(f'{bag.path}: nothing to play (no message on a topic whose type is installed)')
         self._clock_publisher = self.create_publisher(Clock, CLOCK_TOPIC, 10)
-        self._clock_period = 1.0 / clock_hz
-        self._next_tick = time.monotonic()
         self._start_ns = min(bag.topics[name].first_ns for name in self._outputs)
+        self._clock_period = 1.0 / clock_hz
+        self._tick_ns = max(1, round(rate * 1e9 / clock_hz))
+        """Bag time between two /clock ticks: their stamps are on this grid, so a recorder of the playback finds no
+        gap in them (ticks at wall instants had irregular stamps, reported as lost /clock messages)."""
+        self._next_tick_ns = self._start_ns
+        self._last_tick_ns = self._start_ns
+        self._next_repeat = time.monotonic()
+        """While paused: when the last tick is published again (a node on sim time still gets time)."""
         self.clock = PlaybackClock(self._start_ns, rate, time.monotonic(), paused)
         self._lock = threading.Lock()
         self._wake = threading.Event()
@@ -133,6 +140,7 @@ class Player(Node):
         started = time.monotonic()
         with self._lock:
             self.clock.restart(self._start_ns, started)
+            self._next_tick_ns = self._start_ns
         published = self._publish_all(loop)
         self.get_logger().info(f'played {published} messages in {time.monotonic() - started:.2f} s')
         return published
@@ -149,6 +157,7 @@ class Player(Node):
                 break
             with self._lock:
                 self.clock.restart(self._start_ns, time.monotonic())
+                self._next_tick_ns = self._start_ns
         self.wait_for_acknowledgements()
         return published
 
@@ -162,21 +171,28 @@ class Player(Node):
                                           f'within {timeout:.0f} s')
 
     def _wait_until_due(self, log_time: int) -> bool:
-        """Publish /clock ticks until the message is due; False when the node is shutting down."""
+        """Publish the /clock ticks due before the message (their grid's, never past it; while paused the last one
+        again every clock period) until the message is due; False when the node is shutting down."""
         while self.context.ok():
             now = time.monotonic()
             with self._lock:
                 due = self.clock.due(log_time)
-                if now >= self._next_tick:
-                    self._tick(min(self.clock.bag_time(now), log_time))
-                    self._next_tick = max(self._next_tick + self._clock_period, now)
+                reached = min(self.clock.bag_time(now), log_time)
+                while self._next_tick_ns <= reached:
+                    self._tick(self._next_tick_ns)
+                    self._next_tick_ns += self._tick_ns
+                if self.clock.paused and now >= self._next_repeat:
+                    self._tick(self._last_tick_ns)
+                    self._next_repeat = now + self._clock_period
+                wake = self._next_repeat if self.clock.paused else self.clock.due(self._next_tick_ns)
             if now >= due:
                 return True
-            self._wake.wait(min(due, self._next_tick, now + PAUSED_POLL) - now)
+            self._wake.wait(max(0.0, min(due, wake, now + PAUSED_POLL) - now))
             self._wake.clear()
         return False
 
     def _tick(self, bag_ns: int) -> None:
+        self._last_tick_ns = bag_ns
         msg = Clock()
         msg.clock.sec, msg.clock.nanosec = stamp_from_nanoseconds(bag_ns)
         self._clock_publisher.publish(msg)
