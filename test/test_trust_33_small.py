@@ -86,3 +86,20 @@ def test_a_clock_source_not_yet_known_by_name_is_named_by_its_announcement():
     assert said.startswith(f'the simulator pid 4242 on {other.host}, started {time.strftime("%Y-%m-%d")} '), said
     assert unknown_named_by(['/sim', unknown], []) == ['/sim', 'a node not yet known by name']
     assert unknown_named_by(['/sim'], [other]) == ['/sim']
+
+
+def test_foxglove_addresses_ipv6_in_brackets_and_127_1_is_loopback(launch):
+    """Item 14: `foxglove --host ::` printed `ws://:::PORT`; `--host 127.1` (127.0.0.1) was warned as reachable from
+    other machines."""
+    from epuck_ros.foxglove.address import is_loopback, websocket_url
+    assert websocket_url('::', 8793) == 'ws://[::]:8793' and websocket_url('::1', 1) == 'ws://[::1]:1'
+    assert websocket_url('127.0.0.1', 8765) == 'ws://127.0.0.1:8765'
+    assert websocket_url('localhost', 8765) == 'ws://localhost:8765'
+    assert all(is_loopback(host) for host in ('127.1', '127.0.0.1', 'localhost', '::1', '127.0.0.2'))
+    assert not any(is_loopback(host) for host in ('0.0.0.0', '::', '192.0.2.1', 'no.such.host.invalid'))
+    wide = launch('foxglove', '--host', '::', '--port', '0')
+    wide.wait_for_output('foxglove: ws://[::]:', timeout=60)
+    assert 'any machine that reaches this one' in wide.output()
+    local = launch('foxglove', '--host', '127.1', '--port', '0')
+    local.wait_for_output('foxglove: ws://127.1:', timeout=60)
+    assert 'warning' not in local.output(), local.output()
