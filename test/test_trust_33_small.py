@@ -103,3 +103,15 @@ def test_foxglove_addresses_ipv6_in_brackets_and_127_1_is_loopback(launch):
     local = launch('foxglove', '--host', '127.1', '--port', '0')
     local.wait_for_output('foxglove: ws://127.1:', timeout=60)
     assert 'warning' not in local.output(), local.output()
+
+
+def test_headless_output_into_a_closed_pipe_ends_without_a_traceback():
+    """Item 14: `webots_controller ... --headless --robots 3 | head -1` ended in a BrokenPipeError traceback. Here the
+    reader is gone before anything is written: the run ends, quietly, as `bag csv ... | head` does."""
+    from pathlib import Path
+    script = Path(__file__).resolve().parents[1] / 'epuck_ros' / 'webots' / 'examples' / 'avoid_obstacles.py'
+    run_ = subprocess.Popen([str(BIN_DIR / 'webots_controller'), str(script), '--headless', '--robots', '3',
+                             '--duration', '2'], stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    run_.stdout.close()
+    _, stderr = run_.communicate(timeout=120)
+    assert run_.returncode == 0 and b'Traceback' not in stderr and b'BrokenPipe' not in stderr, stderr.decode()
