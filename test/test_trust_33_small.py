@@ -62,7 +62,8 @@ def test_bag_summary_gives_each_robot_s_final_pose(tmp_path):
     robots = [cells for cells in table[1:] if cells[0].startswith('/')]
     assert [cells[0] for cells in robots] == [f'/{row["robot"]}' for row in rows]
     for row, cells in zip(rows, robots):
-        assert [float(cells[i]) for i in columns] == [round(row[name], 4) for name in ('final_x', 'final_y', 'final_yaw')]
+        assert [float(cells[i]) for i in columns] == [round(row[name], 4)
+                                                      for name in ('final_x', 'final_y', 'final_yaw')]
 
 
 @pytest.mark.parametrize('count, text', [(0, '0 contacts'), (1, '1 contact with'), (2, '2 contacts')])

@@ -1,8 +1,9 @@
 """What a course user (or teacher) wants to know about a recorded e-puck run, for one robot or many.
 
 Duration, distance travelled, mean speed, the closest approach the IR sensors saw, contacts with walls
-and obstacles and with other robots, where each robot ended (its final pose), and what kind of run it was with that shape's figures only. The parts:
-`runs` (reading a bag), `tally` (distance and contacts, shared with `bringup`), `shapes` (what the run was)
+and obstacles and with other robots, where each robot ended (its final pose), and what kind of run it was with
+that shape's figures only. The parts: `runs` (reading a bag), `tally` (distance, contacts and final pose, shared
+with `bringup`), `shapes` (what the run was)
 and `summary_text` (the text); their names stay importable from here.
 """
 from __future__ import annotations

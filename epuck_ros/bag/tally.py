@@ -1,4 +1,5 @@
-"""Distance travelled, contacts and where each robot ended: the one place they are computed, for `bag summary` and `bringup` alike.
+"""Distance travelled, contacts and where each robot ended: the one place they are computed, for `bag summary` and
+`bringup` alike.
 
 `bag summary` feeds `RunTally` the ground truth read from a bag (`tally_runs`), `bringup` the ground truth it
 receives during a run, so the two always agree.
