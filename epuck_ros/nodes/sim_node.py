@@ -169,7 +169,8 @@ class SimNode(Node):
                                   on_free=report.free, on_timeout=report.timeout)
         self._lockstep.require_controllers(values['lockstep_controllers'])
         warn_if_not_fast_dds(self.get_logger())
-        self._say_ready(world, values)
+        self._ready = self._ready_line(world, values)
+        """Said once no other simulator was found before the first step (a second sim said it, then refused)."""
 
     @property
     def refusal(self) -> str:
@@ -194,10 +195,11 @@ class SimNode(Node):
                                     values['frame_prefix'], values['cmd_vel_stamped'], patches=patches))
         return ports
 
-    def _say_ready(self, world: World, values: dict) -> None:
+    @staticmethod
+    def _ready_line(world: World, values: dict) -> str:
         shown = ', '.join(world.names[:5]) + (', ...' if len(world.names) > 5 else '')
         robots = f'{len(world.names)} robots ({shown})' if len(world.names) > 1 else 'one robot'
-        self.get_logger().info(
+        return (
             f'sim ready: world {values["world"] or "default arena"}, {robots}, time step {values["time_step"]} s, '
             f'real-time factor {values["real_time_factor"] or "max"}, seed {values["seed"]}, '
             f'noise {"on" if values["noise"] else "off"}'
@@ -316,8 +318,9 @@ class SimNode(Node):
 
     def _loop(self) -> None:
         """Step and publish until stopped, paced by the real-time factor; idle while paused."""
-        if not self._domain.alone(self._running.is_set):
+        if not self._domain.alone(self._running.is_set) or not self._running.is_set():
             return
+        self.get_logger().info(self._ready)
         self._lockstep.claim()   # from now on this thread steps (and lends the claim, see `_lend_on_answers`)
         pacer = Pacer()
         resend = False
