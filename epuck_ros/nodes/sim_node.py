@@ -48,6 +48,7 @@ from epuck_ros.nodes.robot_ports import JOINT_NAMES, WARN_PERIOD, WORLD_FRAME, R
 from epuck_ros.nodes.sense_ports import SENSE_POLL, SENSE_TOPICS, SenseError, SenseFeeds
 from epuck_ros.nodes.serialized import Patch, PatchCache
 from epuck_ros.nodes.spinning import end_process, handle_shutdown_signals, shutdown_requested, spin_until_shutdown
+from epuck_ros.nodes.swarm_ports import SwarmPorts
 from epuck_ros.nodes.tf_ports import TfPorts
 from epuck_ros.simulation import MAX_SEED, CommandError, Simulation, StepEvents
 from epuck_ros.world import World, WorldError, default_world, load_world, place_robots
@@ -149,6 +150,8 @@ class SimNode(Node):
         history = history_steps(len(world.robots))
         stream = QoSProfile(depth=history, reliability=ReliabilityPolicy.RELIABLE)
         self.ports = self._make_ports(values, stream)
+        self._swarm = SwarmPorts(self, self._sim.names, stream, self._on_command, self._on_declare) \
+            if len(self.ports) > 1 else None
         self._senses = SenseFeeds(self, self._sim, stream, values['frame_prefix'], self._forced_senses, _stop_if_asked)
         self.create_timer(SENSE_POLL, self._update_sense_wants)
         _stop_if_asked()
@@ -205,7 +208,7 @@ class SimNode(Node):
 
     def _stream_publishers(self) -> list:
         return [self._clock_pub] + [pub for ports in self.ports for pub in ports.stream_publishers] + \
-            self._tf.stream_publishers
+            self._tf.stream_publishers + (self._swarm.stream_publishers if self._swarm is not None else [])
 
     def _kept_all(self, topic: str) -> bool:
         """Some reader of `topic` keeps all its samples (KEEP_ALL history: a recorder)."""
@@ -268,6 +271,11 @@ class SimNode(Node):
             # The step's last answer may take the next step here, in this thread (`_lend_on_answers`): handing the
             # step to the loop thread was one more thread wake-up per lockstep round trip.
             self._lockstep.answer(robot, verdict, named)
+
+    def _on_declare(self, robots: list[int]) -> None:
+        """A swarm controller answers these robots' steps by name (`SwarmPorts`): lockstep waits for them, however
+        long their first answer takes."""
+        self._lockstep.declare(robots)
 
     def _on_reset(self, request: Empty.Request, response: Empty.Response) -> Empty.Response:
         with self._lock:
@@ -362,6 +370,8 @@ class SimNode(Node):
         stamp = stamp_from_seconds(self._sim.time)
         for ports in self.ports:
             ports.publish(self._sim, stamp)
+        if self._swarm is not None:
+            self._swarm.publish(self._sim, stamp)
         self._senses.publish(stamp)
         self._tf.publish(self._sim, stamp)
         self._clock_pub.publish(self._clock_message.bytes(stamp))
@@ -390,8 +400,12 @@ class SimNode(Node):
     # --- lockstep's view of the node --------------------------------------------------------------------
 
     def _driven(self) -> list[int]:
-        """The robots with a controller (a matched publisher on wheel_cmd or cmd_vel): lockstep waits for them."""
-        return [ports.index for ports in self.ports if ports.has_controller()]
+        """The robots with a controller (a matched publisher on wheel_cmd or cmd_vel, or a swarm controller that
+        named them): lockstep waits for them."""
+        driven = [ports.index for ports in self.ports if ports.has_controller()]
+        if self._swarm is None:
+            return driven
+        return sorted(self._swarm.driven().union(driven))
 
     def _stepping(self) -> bool:
         return self._running.is_set() and not self._controls.idle()

@@ -1,0 +1,110 @@
+"""The simulator's swarm ports: every robot's step in one message out, many robots' answers in one message in.
+
+`swarm/observation` (published only while someone reads it) carries each step's odometry, ground truth, wheels and
+raw IR of every robot; `swarm/command` takes a controller's answers for the robots it names
+(`swarm_messages`). Each robot named in a command is answered through the simulator's own command handler, the
+one every robot's `wheel_cmd` goes through (`SimNode._on_command`: paired with the step by the name it carries,
+then `Lockstep.answer`), so a swarm's run is step for step the one its per-robot topics would give. The per-robot
+topics stay, for everyone who reads or drives a robot by them.
+
+Lockstep membership: a swarm controller declares the robots it drives before its first answer (a command with no
+fields, `swarm_messages`), on a transient-local topic, so the simulator learns them as soon as it matches the
+controller, however late: they are driven from then on (`driven`, while the topic has a publisher), and
+`Lockstep.declare` keeps them in lockstep however long the first answer takes.
+"""
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+
+import numpy as np
+from rclpy.node import Node
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+from std_msgs.msg import Float64MultiArray
+
+from epuck_ros.conversions import nanoseconds_from_stamp
+from epuck_ros.nodes.robot_ports import WARN_PERIOD, CommandHandler, quiet_publisher
+from epuck_ros.nodes.swarm_messages import (COMMAND_FIELDS, COMMAND_TOPIC, OBSERVATION_FIELDS, OBSERVATION_TOPIC,
+                                            SwarmLayout, SwarmReader)
+from epuck_ros.simulation import Simulation
+
+COMMAND_READER_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE,
+                                durability=DurabilityPolicy.TRANSIENT_LOCAL)
+"""How the simulator reads `swarm/command`: transient local, so a controller's declaration, sent before the
+simulator may have matched it, arrives once it does."""
+
+
+class SwarmPorts:
+    """`swarm/observation` out and `swarm/command` in, for the robots `names` (the simulation's, in its order)."""
+
+    def __init__(self, node: Node, names: Sequence[str], stream_qos: QoSProfile, on_command: CommandHandler,
+                 on_declare: Callable[[list[int]], None]) -> None:
+        """`on_command`: the node's handler of one robot's command; `on_declare(robots)`: a controller declared it
+        answers these robots' steps by name."""
+        self._index = {name: index for index, name in enumerate(names)}
+        self._on_command, self._on_declare = on_command, on_declare
+        self._logger = node.get_logger()
+        self._layout = SwarmLayout(names, OBSERVATION_FIELDS)
+        self._values = np.zeros((len(names), len(OBSERVATION_FIELDS)))
+        self._publisher = quiet_publisher(node, Float64MultiArray, OBSERVATION_TOPIC, stream_qos)
+        self.stream_publishers = [self._publisher]
+        self._subscription = node.create_subscription(Float64MultiArray, COMMAND_TOPIC, self._on_message,
+                                                      COMMAND_READER_QOS, raw=True)
+        self._topic = self._subscription.topic_name
+        self._reader = SwarmReader()
+        self._rows: tuple[tuple[str, ...], list[int]] = ((), [])
+        """The robots of the last command's layout and their rows in the simulation."""
+        self._declared: frozenset[int] = frozenset()
+        """Robots some swarm controller named (declared or answered for): driven while the topic has a publisher."""
+
+    def driven(self) -> frozenset[int]:
+        """The robots a swarm controller drives now (lockstep waits for their answers)."""
+        if not self._subscription.get_publisher_count():
+            self._declared = frozenset()   # its controller left: a new one declares its own
+        return self._declared
+
+    def publish(self, sim: Simulation, stamp: tuple[int, int]) -> None:
+        """Every robot's step in one message, if someone reads it (`stamp`: the step's (sec, nanosec))."""
+        if not self._publisher.get_subscription_count():
+            return
+        values = self._values
+        values[:, 0:3] = sim.odom_pose
+        values[:, 3:5] = sim.odom_twist
+        values[:, 5:8] = sim.true_pose
+        values[:, 8:10] = sim.wheel_angles
+        values[:, 10:12] = sim.wheel_speeds
+        values[:, 12:20] = sim.ir_raw
+        self._publisher.publish(self._layout.to_bytes(values, stamp))
+
+    def _on_message(self, data: bytes) -> None:
+        read = self._reader.read(data)
+        if read is None or read.fields not in (COMMAND_FIELDS, ()):
+            got = 'bytes that are no swarm array' if read is None else f'fields {",".join(read.fields)}'
+            self._warn(f'data must be a swarm array of fields {",".join(COMMAND_FIELDS)} (or none: a '
+                       f'declaration), got {got}')
+            return
+        rows = self._rows_of(read.robots)
+        if rows is None:
+            return
+        if not self._declared.issuperset(rows):
+            self._declared = self._declared | frozenset(rows)
+        if not read.fields:
+            self._on_declare(rows)
+            return
+        named = None if read.stamp is None else nanoseconds_from_stamp(*read.stamp)
+        for robot, (left, right) in zip(rows, read.data.tolist()):
+            self._on_command(robot, self._topic, 'wheels', left, right, named)
+
+    def _rows_of(self, robots: tuple[str, ...]) -> list[int] | None:
+        """The simulation's rows of `robots` (kept for the next message of the same robots); None: one is unknown or
+        named twice (said)."""
+        if robots == self._rows[0]:
+            return self._rows[1]
+        unknown = [name for name in robots if name not in self._index]
+        if unknown or len(set(robots)) != len(robots):
+            self._warn(f'no robot {unknown[0]!r} in this simulation' if unknown else 'a robot is named twice')
+            return None
+        self._rows = (robots, [self._index[name] for name in robots])
+        return self._rows[1]
+
+    def _warn(self, why: str) -> None:
+        self._logger.warning(f'{self._topic} refused: {why}', throttle_duration_sec=WARN_PERIOD)
