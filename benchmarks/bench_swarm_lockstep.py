@@ -38,10 +38,12 @@ ARENA_FROM = 200
 TIMEOUT = 1800.0
 SPEED = re.compile(r'\[bringup\] simulated ([\d.]+) s in ([\d.]+) s wall \(([\d.]+)x real time\); ([\d.]+)x real time '
                    r'from the first step, which came ([\d.]+) s after the resume')
-FIGURES = re.compile(r'^\[bringup\] (epuck\d+: .*|  .*)$', re.MULTILINE)
+FIGURES = re.compile(r'^\[bringup\] (?!simulated|running|reproducible|note|ROS)(.*)$', re.MULTILINE)
+"""bringup's lines of what the robots did (each robot's distance, contacts and shape)."""
 
 
 def unpack(rev: str, into: Path) -> Path:
+    into.mkdir()
     archive = subprocess.run(['git', '-C', str(HERE), 'archive', rev], check=True, capture_output=True).stdout
     subprocess.run(['tar', '-x', '-C', str(into)], input=archive, check=True)
     return into
@@ -102,7 +104,7 @@ def main() -> None:
                           f'wall in all, CPU {result["cpu"] / max(result["sim"], 1e-9):6.2f} s per simulated s, '
                           f'reproducible: {"yes" if result["reproducible"] else "NO"}', flush=True)
                 if len(figures) == 2:
-                    same = figures['this'] == figures['baseline'] and len(figures['this']) >= robots
+                    same = figures['this'] == figures['baseline'] and len(figures['this']) >= 1
                     print(f'{"":8} {robots:5} robots: every robot\'s figures equal in both runs: '
                           f'{"yes" if same else "NO"}', flush=True)
     print('\nmedians of the runs that exited 0:')

@@ -32,13 +32,21 @@ class SwarmFollower:
         self._reader = SwarmReader()
         self.driven: frozenset[str] = frozenset()
         """Robots a swarm controller named (declared, or answered for)."""
-        node.create_subscription(Float64MultiArray, COMMAND_TOPIC, self._on_command, COMMAND_READER_QOS, raw=True)
+        self._commands = node.create_subscription(Float64MultiArray, COMMAND_TOPIC, self._on_command,
+                                                  COMMAND_READER_QOS, raw=True)
         self._samples: list[Sample | None] = []
 
     def _on_command(self, data: bytes) -> None:
         read = self._reader.read(data)
-        if read is not None and not self.driven.issuperset(read.robots):
+        if read is None:
+            return
+        if not self.driven.issuperset(read.robots):
             self.driven = self.driven | frozenset(read.robots)
+        if read.stamp is not None and self._commands is not None:
+            # An answer: the run is under way, its readiness was decided before the resume. One reader fewer for
+            # the controller to send each step to.
+            self._node.destroy_subscription(self._commands)
+            self._commands = None
 
     def controllers(self, robot: str) -> list[tuple[str, str]]:
         """(name, namespace) of the nodes publishing `swarm/command`, if one of them named `robot`."""

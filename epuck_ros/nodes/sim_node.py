@@ -339,6 +339,9 @@ class SimNode(Node):
                 continue
             if not self._sim.steps:
                 self._acks.await_readers(self.count_subscribers, self._stepping)
+            if resend or not self._sim.steps:   # each reader matched by now gets this step (`robot_ports.Matched`)
+                for ports in self.ports:
+                    ports.read_matches()
             self._lockstep.step(resend)
             resend = self._lockstep_on and not self._lockstep.await_answers()
             self._acks.published(self._sim.steps)

@@ -9,7 +9,7 @@ topics stay, for everyone who reads or drives a robot by them.
 
 Lockstep membership: a swarm controller declares the robots it drives before its first answer (a command with no
 fields, `swarm_messages`), on a transient-local topic, so the simulator learns them as soon as it matches the
-controller, however late: they are driven from then on (`driven`, while the topic has a publisher), and
+controller, however late: they are driven from then on (`driven`, while the controller is connected both ways), and
 `Lockstep.declare` keeps them in lockstep however long the first answer takes.
 """
 from __future__ import annotations
@@ -57,10 +57,12 @@ class SwarmPorts:
         """Robots some swarm controller named (declared or answered for): driven while the topic has a publisher."""
 
     def driven(self) -> frozenset[int]:
-        """The robots a swarm controller drives now (lockstep waits for their answers)."""
+        """The robots a swarm controller drives now (lockstep waits for their answers): those it named, once it is
+        connected both ways (the observation has a reader too: a first step published before this simulator matched
+        that reader would be lost, and answered only once re-sent, a second later)."""
         if not self._subscription.get_publisher_count():
             self._declared = frozenset()   # its controller left: a new one declares its own
-        return self._declared
+        return self._declared if self._publisher.get_subscription_count() else frozenset()
 
     def publish(self, sim: Simulation, stamp: tuple[int, int]) -> None:
         """Every robot's step in one message, if someone reads it (`stamp`: the step's (sec, nanosec))."""
