@@ -33,6 +33,7 @@ from epuck_ros.nodes.dds_profile import use_package_profile, warn_if_not_fast_dd
 from epuck_ros.nodes.qos import CLOCK_KEPT, LATCHED
 from epuck_ros.nodes.robot_ports import topic_prefix
 from epuck_ros.nodes.sense_ports import RECORDER_NODE
+from epuck_ros.nodes.swarm_messages import COMMAND_TOPIC as SWARM_COMMAND_TOPIC
 from epuck_ros.world import World, WorldError, world_from_dict
 
 SIM_NODE = 'sim'
@@ -249,6 +250,7 @@ class RunMonitor:
             return False
         commands = [] if self.world is None else [node.resolve_topic_name(robot_topic(self.world, robot, topic))
                                                   for robot in self.world.names for topic in COMMAND_TOPICS]
+        commands.append(node.resolve_topic_name(SWARM_COMMAND_TOPIC))
         needed = [(topic, True) for topic, _ in published if topic != '/rosout']
         for topic, always in needed + [(topic, False) for topic in commands]:
             if topic in self._recorded:
