@@ -1,8 +1,7 @@
 """What `bringup`'s monitor reads of the swarm topics (nodes/swarm_messages.py), with several robots.
 
-- Which robots a swarm controller drives: its declaration on `swarm/command` (transient local, so it arrives
-  however late this node matches the controller) names them; such a robot's controller is the node publishing
-  `swarm/command` (the readiness `bringup` waits for, as it waits for a robot's `wheel_cmd` publisher).
+- Which robots a swarm controller drives (`swarm_ports.DeclaredRobots`); such a robot's controller is the node
+  publishing `swarm/command` (the readiness `bringup` waits for, as it waits for a robot's `wheel_cmd` publisher).
 - Every robot's ground truth of each step, from `swarm/observation`: one message per step instead of one
   `ground_truth` per robot (each a send the simulator makes in its loop).
 """
@@ -15,8 +14,8 @@ from rclpy.qos import QoSProfile
 from std_msgs.msg import Float64MultiArray
 
 from epuck_ros.conversions import nanoseconds_from_stamp, quaternion_from_yaw, yaw_from_quaternion
-from epuck_ros.nodes.swarm_messages import COMMAND_TOPIC, OBSERVATION_FIELDS, OBSERVATION_TOPIC, SwarmReader
-from epuck_ros.nodes.swarm_ports import COMMAND_READER_QOS
+from epuck_ros.nodes.swarm_messages import OBSERVATION_FIELDS, OBSERVATION_TOPIC, SwarmReader
+from epuck_ros.nodes.swarm_ports import DeclaredRobots
 
 _TRUTH = [OBSERVATION_FIELDS.index(field) for field in ('truth_x', 'truth_y', 'truth_yaw')]
 
@@ -30,30 +29,12 @@ class SwarmFollower:
     def __init__(self, node: Node) -> None:
         self._node = node
         self._reader = SwarmReader()
-        self.driven: frozenset[str] = frozenset()
-        """Robots a swarm controller named (declared, or answered for)."""
-        self._commands = node.create_subscription(Float64MultiArray, COMMAND_TOPIC, self._on_command,
-                                                  COMMAND_READER_QOS, raw=True)
+        self._declared = DeclaredRobots(node, until_answered=True)   # readiness is decided before the first step
         self._samples: list[Sample | None] = []
 
-    def _on_command(self, data: bytes) -> None:
-        read = self._reader.read(data)
-        if read is None:
-            return
-        if not self.driven.issuperset(read.robots):
-            self.driven = self.driven | frozenset(read.robots)
-        if read.stamp is not None and self._commands is not None:
-            # An answer: the run is under way, its readiness was decided before the resume. One reader fewer for
-            # the controller to send each step to.
-            self._node.destroy_subscription(self._commands)
-            self._commands = None
-
     def controllers(self, robot: str) -> list[tuple[str, str]]:
-        """(name, namespace) of the nodes publishing `swarm/command`, if one of them named `robot`."""
-        if robot not in self.driven:
-            return []
-        return [(info.node_name, info.node_namespace)
-                for info in self._node.get_publishers_info_by_topic(self._node.resolve_topic_name(COMMAND_TOPIC))]
+        """(name, namespace) of the swarm controllers that drive `robot`."""
+        return self._declared.controllers(robot)
 
     def follow(self, robots: Mapping[str, Sample], qos: QoSProfile) -> None:
         """From now on, each step's ground truth of the robots named in `robots` goes to their `Sample`: the yaw as

@@ -110,3 +110,36 @@ class SwarmPorts:
 
     def _warn(self, why: str) -> None:
         self._logger.warning(f'{self._topic} refused: {why}', throttle_duration_sec=WARN_PERIOD)
+
+
+class DeclaredRobots:
+    """Which robots the swarm controllers on the domain drive, as a third party learns it (bringup's monitor, the
+    `epuck_sim` fixture): from their declarations on `swarm/command` (transient local: they arrive however late this
+    node matches the controller), and the robots every later command names. `until_answered`: stop reading the
+    commands at the first answer to a step (the run is under way; one reader fewer for the controller to send each
+    step to: the controller's send took 0.7 ms a step with bringup's monitor reading them, 0.15 ms without)."""
+
+    def __init__(self, node: Node, until_answered: bool = False) -> None:
+        self._node = node
+        self._reader = SwarmReader()
+        self._until_answered = until_answered
+        self.robots: frozenset[str] = frozenset()
+        self._subscription = node.create_subscription(Float64MultiArray, COMMAND_TOPIC, self._on_command,
+                                                      COMMAND_READER_QOS, raw=True)
+
+    def _on_command(self, data: bytes) -> None:
+        read = self._reader.read(data)
+        if read is None:
+            return
+        if not self.robots.issuperset(read.robots):
+            self.robots = self.robots | frozenset(read.robots)
+        if read.stamp is not None and self._until_answered and self._subscription is not None:
+            self._node.destroy_subscription(self._subscription)
+            self._subscription = None
+
+    def controllers(self, robot: str) -> list[tuple[str, str]]:
+        """(name, namespace) of the nodes publishing `swarm/command`, if one of them named `robot`."""
+        if robot not in self.robots:
+            return []
+        return [(info.node_name, info.node_namespace)
+                for info in self._node.get_publishers_info_by_topic(self._node.resolve_topic_name(COMMAND_TOPIC))]
