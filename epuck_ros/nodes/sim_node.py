@@ -16,6 +16,7 @@ import sys
 import threading
 import time
 
+import numpy as np
 import rclpy
 import yaml
 from rcl_interfaces.msg import SetParametersResult
@@ -150,7 +151,7 @@ class SimNode(Node):
         history = history_steps(len(world.robots))
         stream = QoSProfile(depth=history, reliability=ReliabilityPolicy.RELIABLE)
         self.ports = self._make_ports(values, stream)
-        self._swarm = SwarmPorts(self, self._sim.names, stream, self._on_command, self._on_declare) \
+        self._swarm = SwarmPorts(self, self._sim.names, stream, self._on_swarm_command, self._on_declare) \
             if len(self.ports) > 1 else None
         self._senses = SenseFeeds(self, self._sim, stream, values['frame_prefix'], self._forced_senses, _stop_if_asked)
         self.create_timer(SENSE_POLL, self._update_sense_wants)
@@ -272,6 +273,30 @@ class SimNode(Node):
             # step to the loop thread was one more thread wake-up per lockstep round trip.
             self._lockstep.answer(robot, verdict, named)
 
+    def _on_swarm_command(self, robots: list[int], speeds: np.ndarray, named: int | None) -> None:
+        """A swarm controller's answers (`SwarmPorts`): `_on_command`'s rule for each robot. When they answer the
+        current step for every robot (a lockstep run's every step) the speeds are set in one NumPy operation
+        (`Simulation.command_all_wheels`, the same numbers as robot by robot), then each robot's answer goes through
+        `Lockstep.answer`; anything else (some robots, a repeat, an unstamped stop, a refused number) robot by robot."""
+        if self._lockstep_on and named is not None and len(robots) == len(self.ports):
+            with self._lock:   # the step cannot change between the verdicts and the commands
+                current = nanoseconds_from_seconds(self._sim.time)
+                answered = all(self._lockstep.classify(robot, named, current) is Answer.STEP for robot in robots)
+                if answered:
+                    everyone = np.empty_like(speeds)
+                    everyone[robots] = speeds
+                    try:
+                        self._sim.command_all_wheels(everyone)
+                    except CommandError:   # each robot's own verdict below
+                        answered = False
+            if answered:
+                for robot in robots:
+                    self._lockstep.answer(robot, Answer.STEP, named)
+                return
+        topic = self._swarm.topic
+        for robot, (left, right) in zip(robots, speeds.tolist()):
+            self._on_command(robot, topic, 'wheels', left, right, named)
+
     def _on_declare(self, robots: list[int]) -> None:
         """A swarm controller answers these robots' steps by name (`SwarmPorts`): lockstep waits for them, however
         long their first answer takes."""
@@ -387,7 +412,7 @@ class SimNode(Node):
             self._senses.update_all()
 
     def _after_step(self, events: StepEvents, now_sim: float) -> None:
-        names = self._sim.names
+        names = self._sim.names if events.timed_out or events.new_contacts else ()   # a tuple made anew each call
         for robot in events.timed_out:
             self._timeouts.happened(names[robot], f'{names[robot]}: no command for {self._sim.cmd_timeout:g} s: '
                                                   f'wheels stopped (t={now_sim:.2f} s)')

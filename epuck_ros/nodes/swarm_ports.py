@@ -2,10 +2,10 @@
 
 `swarm/observation` (published only while someone reads it) carries each step's odometry, ground truth, wheels and
 raw IR of every robot; `swarm/command` takes a controller's answers for the robots it names
-(`swarm_messages`). Each robot named in a command is answered through the simulator's own command handler, the
-one every robot's `wheel_cmd` goes through (`SimNode._on_command`: paired with the step by the name it carries,
-then `Lockstep.answer`), so a swarm's run is step for step the one its per-robot topics would give. The per-robot
-topics stay, for everyone who reads or drives a robot by them.
+(`swarm_messages`). Each robot named in a command is answered by the rule of every robot's `wheel_cmd`
+(`SimNode._on_swarm_command`: paired with the step by the name it carries, then `Lockstep.answer` per robot), so a
+swarm's run is step for step the one its per-robot topics would give. The per-robot topics stay, for everyone who
+reads or drives a robot by them.
 
 Lockstep membership: a swarm controller declares the robots it drives before its first answer (a command with no
 fields, `swarm_messages`), on a transient-local topic, so the simulator learns them as soon as it matches the
@@ -22,11 +22,14 @@ from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from std_msgs.msg import Float64MultiArray
 
 from epuck_ros.conversions import nanoseconds_from_stamp
-from epuck_ros.nodes.robot_ports import WARN_PERIOD, CommandHandler, quiet_publisher
+from epuck_ros.nodes.robot_ports import WARN_PERIOD, quiet_publisher
 from epuck_ros.nodes.swarm_messages import (COMMAND_FIELDS, COMMAND_TOPIC, OBSERVATION_FIELDS, OBSERVATION_TOPIC,
                                             SwarmLayout, SwarmReader)
 from epuck_ros.simulation import Simulation
 
+CommandsHandler = Callable[[list[int], np.ndarray, 'int | None'], None]
+"""(robots, their wheel speeds (robots x 2, rad/s), the step they answer in ns or None): what the node does with a
+swarm command."""
 COMMAND_READER_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE,
                                 durability=DurabilityPolicy.TRANSIENT_LOCAL)
 """How the simulator reads `swarm/command`: transient local, so a controller's declaration, sent before the
@@ -36,12 +39,13 @@ simulator may have matched it, arrives once it does."""
 class SwarmPorts:
     """`swarm/observation` out and `swarm/command` in, for the robots `names` (the simulation's, in its order)."""
 
-    def __init__(self, node: Node, names: Sequence[str], stream_qos: QoSProfile, on_command: CommandHandler,
+    def __init__(self, node: Node, names: Sequence[str], stream_qos: QoSProfile, on_commands: CommandsHandler,
                  on_declare: Callable[[list[int]], None]) -> None:
-        """`on_command`: the node's handler of one robot's command; `on_declare(robots)`: a controller declared it
-        answers these robots' steps by name."""
+        """`on_commands(robots, speeds, named)`: the node's handler of these robots' wheel speeds (rad/s, one row
+        each), naming step `named` (ns; None: none); `on_declare(robots)`: a controller declared it answers these
+        robots' steps by name."""
         self._index = {name: index for index, name in enumerate(names)}
-        self._on_command, self._on_declare = on_command, on_declare
+        self._on_commands, self._on_declare = on_commands, on_declare
         self._logger = node.get_logger()
         self._layout = SwarmLayout(names, OBSERVATION_FIELDS)
         self._values = np.zeros((len(names), len(OBSERVATION_FIELDS)))
@@ -49,7 +53,7 @@ class SwarmPorts:
         self.stream_publishers = [self._publisher]
         self._subscription = node.create_subscription(Float64MultiArray, COMMAND_TOPIC, self._on_message,
                                                       COMMAND_READER_QOS, raw=True)
-        self._topic = self._subscription.topic_name
+        self.topic = self._subscription.topic_name
         self._reader = SwarmReader()
         self._rows: tuple[tuple[str, ...], list[int]] = ((), [])
         """The robots of the last command's layout and their rows in the simulation."""
@@ -92,9 +96,7 @@ class SwarmPorts:
         if not read.fields:
             self._on_declare(rows)
             return
-        named = None if read.stamp is None else nanoseconds_from_stamp(*read.stamp)
-        for robot, (left, right) in zip(rows, read.data.tolist()):
-            self._on_command(robot, self._topic, 'wheels', left, right, named)
+        self._on_commands(rows, read.data, None if read.stamp is None else nanoseconds_from_stamp(*read.stamp))
 
     def _rows_of(self, robots: tuple[str, ...]) -> list[int] | None:
         """The simulation's rows of `robots` (kept for the next message of the same robots); None: one is unknown or
@@ -109,7 +111,7 @@ class SwarmPorts:
         return self._rows[1]
 
     def _warn(self, why: str) -> None:
-        self._logger.warning(f'{self._topic} refused: {why}', throttle_duration_sec=WARN_PERIOD)
+        self._logger.warning(f'{self.topic} refused: {why}', throttle_duration_sec=WARN_PERIOD)
 
 
 class DeclaredRobots:
