@@ -6,7 +6,10 @@ monitor. Printed per run: the real-time factor from the first step to the last (
 the resume, when the first step came after the start, the CPU seconds of bringup and all its processes per
 simulated second, whether bringup said the run was reproducible, and whether every robot's figures (distance,
 contacts, the shape driven) equal the other checkout's of the same run (the same seed: the same run, to the bit,
-whichever way the robots talk to the simulator). Then the medians and the ratio this / baseline.
+whichever way the robots talk to the simulator), and to the headless trial's (`experiments.trial.run` of the same
+world, robots, seed and duration in this process, its lines printed by bringup's own `format_figures`: a robot whose
+run differed by one bit anywhere would, with contacts among hundreds of robots, differ in its figures). Then the
+medians and the ratio this / baseline.
 
 The baseline is a commit of this repository (`--baseline-rev`, default the one before the swarm topics), unpacked
 with `git archive` into a temporary directory; processes run with PYTHONPATH at each checkout, so each runs its own
@@ -70,6 +73,18 @@ def run_once(checkout: Path, robots: int, duration: float, world: Path | None, d
     return result
 
 
+ROBOT_LINE = re.compile(r'^\[bringup\] (epuck\d+: .*)$', re.MULTILINE)
+
+
+def headless_lines(robots: int, duration: float, world: Path | None) -> set[str]:
+    """Each robot's summary line of the headless trial of the run (as bringup prints them)."""
+    from epuck_ros.bag.summary_text import format_figures
+    from epuck_ros.experiments.trial import Trial, controller_from, run
+    _, tally = run(Trial(controller_from('avoid'), world=str(world) if world else 'default', robots=robots, seed=1,
+                         duration=duration))
+    return set(format_figures(tally.figures).splitlines())
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument('--counts', default='1,50,200', help='comma-separated numbers of robots')
@@ -91,6 +106,10 @@ def main() -> None:
             for repeat in range(args.repeats):
                 order = list(checkouts) if repeat % 2 == 0 else list(reversed(checkouts))
                 figures = {}
+                started = time.monotonic()
+                expected = headless_lines(robots, args.duration, world if robots >= ARENA_FROM else None) \
+                    if robots > 1 else None
+                headless_wall = time.monotonic() - started
                 for label in order:
                     load = os.getloadavg()[0]
                     result = run_once(checkouts[label], robots, args.duration,
@@ -98,6 +117,12 @@ def main() -> None:
                     runs += 1
                     results.setdefault((label, robots), []).append(result)
                     figures[label] = result['figures']
+                    if expected is not None:
+                        got = set(ROBOT_LINE.findall('\n'.join(f'[bringup] {line}' for line in result['figures'])))
+                        print(f'{"":8} {robots:5} robots: {label}\'s figures equal the headless trial\'s '
+                              f'({headless_wall:.1f} s wall, start-up included) for every robot: '
+                              f'{"yes" if got == expected else f"NO ({len(got ^ expected)} lines differ)"}',
+                              flush=True)
                     print(f'{label:8} {robots:5} robots (load {load:4.1f}): exit {result["code"]}, '
                           f'{result["rtf"]:6.1f}x real time from the first step ({result["rtf_resume"]:6.1f}x from '
                           f'the resume, first step {result["first"]:5.2f} s after it), bringup {result["wall"]:6.1f} s '

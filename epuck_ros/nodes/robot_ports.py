@@ -48,26 +48,33 @@ CommandHandler = Callable[[int, str, str, float, float, 'int | None'], None]
 when it names none): what the node does with a command."""
 
 
-class Matched:
-    """How many peers an endpoint has matched, kept from its matched events instead of asked at every step: asking
-    costs 1.2 us a call, and a step asked each robot's five publishers and two command subscriptions (0.4 ms a step
-    at 50 robots, a quarter of a step at 20x real time; 8 ms at 1,000). `read` asks the middleware itself: before the
-    first step and for a re-sent one, so a reader matched by then is served from that very step, however far the
-    executor thread is behind with the events."""
+MATCH_COLUMNS = 7
+"""A robot's matched peers, by column: readers of odom, ground_truth, ir_raw, proximity, joint_states (READERS), then
+the controllers on wheel_cmd and cmd_vel (CONTROLLERS)."""
+READERS, CONTROLLERS = slice(0, 5), slice(5, 7)
 
-    def __init__(self) -> None:
-        self.count = 0
+
+class Matched:
+    """How many peers an endpoint has matched, kept from its matched events in a column of `counts` instead of asked
+    at every step: asking costs 1.2 us a call, and a step asked each robot's five publishers and two command
+    subscriptions (0.4 ms a step at 50 robots, a quarter of a step at 20x real time; 8 ms at 1,000), where a node's
+    robots' counts in one array are read at once (`SimNode._driven`, `_publish`). `read` asks the middleware itself:
+    before the first step and for a re-sent one, so a reader matched by then is served from that very step, however
+    far the executor thread is behind with the events."""
+
+    def __init__(self, counts: np.ndarray, column: int) -> None:
+        self._counts, self._column = counts, column
         self._ask: Callable[[], int] = lambda: 0
 
     def on_matched(self, status: object) -> None:
-        self.count = status.current_count
+        self._counts[self._column] = status.current_count
 
     def bind(self, ask: Callable[[], int]) -> None:
         self._ask = ask
         self.read()
 
     def read(self) -> None:
-        self.count = self._ask()
+        self._counts[self._column] = self._ask()
 
 
 def topic_prefix(name: str, several: bool) -> str:
@@ -86,9 +93,10 @@ class RobotPorts:
     def __init__(self, node: Node, index: int, name: str, several: bool, stream_qos: QoSProfile,
                  latched_qos: QoSProfile, on_command: CommandHandler, frames_prefix: str = '',
                  cmd_vel_stamped: bool = False, model: RobotModel = RobotModel(),
-                 patches: PatchCache | None = None) -> None:
+                 patches: PatchCache | None = None, matches: np.ndarray | None = None) -> None:
         """`patches`: shared by the robots of a node, so that each robot's messages are located from the first
-        robot's of the same layout (`PatchCache`)."""
+        robot's of the same layout (`PatchCache`); `matches`: this robot's row of the node's matched counts
+        (MATCH_COLUMNS integers, see `Matched`)."""
         self.index, self.name = index, name
         topics = topic_prefix(name, several)
         frames = frame_prefix(name, several, frames_prefix)
@@ -98,8 +106,8 @@ class RobotPorts:
         self._logger = node.get_logger()
         self._make_messages(frames, world_frame, model, patches or PatchCache())
 
-        self._matched = [Matched() for _ in range(7)]
-        """The readers of odom, ground_truth, ir_raw, proximity, joint_states; the controllers on wheel_cmd, cmd_vel."""
+        self.matches = np.zeros(MATCH_COLUMNS, dtype=np.int64) if matches is None else matches
+        self._matched = [Matched(self.matches, column) for column in range(MATCH_COLUMNS)]
         odom, truth, raw, ranges, joints, wheels, twist = self._matched
         self._odom_pub = quiet_publisher(node, Odometry, topics + 'odom', stream_qos, odom)
         self._truth_pub = quiet_publisher(node, Odometry, topics + 'ground_truth', stream_qos, truth)
@@ -172,10 +180,6 @@ class RobotPorts:
         self._on_command(self.index, self._wheels_sub.topic_name, 'wheels', left, right,
                          None if stamp is None else nanoseconds_from_stamp(*stamp))
 
-    def has_controller(self) -> bool:
-        """Some node publishes on this robot's wheel_cmd or cmd_vel (a matched publisher): lockstep waits for it."""
-        return self._matched[5].count > 0 or self._matched[6].count > 0
-
     def read_matches(self) -> None:
         """Ask the middleware now who is matched (see `Matched`)."""
         for matched in self._matched:
@@ -188,17 +192,17 @@ class RobotPorts:
 
         `stamp` is (sec, nanosec) of the step."""
         robot = self.index
-        odom, truth, raw, ranges, joints, _, _ = self._matched
-        if odom.count:
+        odom, truth, raw, ranges, joints, _, _ = self.matches.tolist()
+        if odom:
             self._odom_pub.publish(self._odom.bytes(_odometry(stamp, sim.odom_pose[robot], sim.odom_twist[robot])))
-        if truth.count:
+        if truth:
             self._truth_pub.publish(self._truth.bytes(_odometry(stamp, sim.true_pose[robot], sim.true_twist[robot])))
-        if raw.count:
+        if raw:
             self._raw_pub.publish(array_bytes(sim.ir_raw[robot].tolist(), stamp))
-        if ranges.count:
+        if ranges:
             for patch, value in zip(self._ranges, sim.ir_range[robot].tolist()):
                 self._range_pub.publish(patch.bytes((*stamp, value)))
-        if joints.count:
+        if joints:
             self._joints_pub.publish(self._joints.bytes(
                 (*stamp, *sim.wheel_angles[robot].tolist(), *sim.wheel_speeds[robot].tolist())))
 

@@ -45,7 +45,8 @@ from epuck_ros.nodes.pacing import Controls, Pacer, Settings
 from epuck_ros.nodes.params import ParamSpec, Usage, command_line_value, declare_parameters, prepare_arguments
 from epuck_ros.nodes.qos import LATCHED, clock_kept
 from epuck_ros.nodes.repeated import RepeatedCondition
-from epuck_ros.nodes.robot_ports import JOINT_NAMES, WARN_PERIOD, WORLD_FRAME, RobotPorts, quiet_publisher
+from epuck_ros.nodes.robot_ports import (CONTROLLERS, JOINT_NAMES, MATCH_COLUMNS, READERS, WARN_PERIOD, WORLD_FRAME,
+                                         RobotPorts, quiet_publisher)
 from epuck_ros.nodes.sense_ports import SENSE_POLL, SENSE_TOPICS, SenseError, SenseFeeds
 from epuck_ros.nodes.serialized import Patch, PatchCache
 from epuck_ros.nodes.spinning import end_process, handle_shutdown_signals, shutdown_requested, spin_until_shutdown
@@ -192,10 +193,13 @@ class SimNode(Node):
         several = len(self._sim.names) > 1
         ports = []
         patches = PatchCache()
+        self._matches = np.zeros((len(self._sim.names), MATCH_COLUMNS), dtype=np.int64)
+        """Every robot's matched readers and controllers (`robot_ports.Matched`), read for all robots at once."""
         for index, name in enumerate(self._sim.names):
             _stop_if_asked()
             ports.append(RobotPorts(self, index, name, several, stream, LATCHED, self._on_command,
-                                    values['frame_prefix'], values['cmd_vel_stamped'], patches=patches))
+                                    values['frame_prefix'], values['cmd_vel_stamped'], patches=patches,
+                                    matches=self._matches[index]))
         return ports
 
     def _say_ready(self, world: World, values: dict) -> None:
@@ -396,8 +400,8 @@ class SimNode(Node):
         """One step's messages, robot by robot; `/clock` goes last, so a node whose timer fires on that tick has
         its data."""
         stamp = stamp_from_seconds(self._sim.time)
-        for ports in self.ports:
-            ports.publish(self._sim, stamp)
+        for robot in np.flatnonzero(self._matches[:, READERS].any(axis=1)).tolist():   # robots someone reads
+            self.ports[robot].publish(self._sim, stamp)
         if self._swarm is not None:
             self._swarm.publish(self._sim, stamp)
         self._senses.publish(stamp)
@@ -430,7 +434,7 @@ class SimNode(Node):
     def _driven(self) -> list[int]:
         """The robots with a controller (a matched publisher on wheel_cmd or cmd_vel, or a swarm controller that
         named them): lockstep waits for them."""
-        driven = [ports.index for ports in self.ports if ports.has_controller()]
+        driven = np.flatnonzero(self._matches[:, CONTROLLERS].any(axis=1)).tolist()
         if self._swarm is None:
             return driven
         return sorted(self._swarm.driven().union(driven))
