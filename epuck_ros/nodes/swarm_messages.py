@@ -30,6 +30,7 @@ import numpy as np
 
 from epuck_ros.conversions import stamp_from_label, stamp_label
 from epuck_ros.model import SENSOR_NAMES
+from epuck_ros.simulation import Simulation
 
 OBSERVATION_TOPIC = 'swarm/observation'
 COMMAND_TOPIC = 'swarm/command'
@@ -42,6 +43,20 @@ OBSERVATION_FIELDS = ('odom_x', 'odom_y', 'odom_yaw', 'odom_v', 'odom_w', 'truth
 (pose in the world), the wheel encoders (rad) and applied speeds (rad/s), the eight raw IR values (`ir_raw`)."""
 COMMAND_FIELDS = ('left', 'right')
 """Per robot: wheel speeds in rad/s, as `wheel_cmd`."""
+
+
+def observation_values(sim: Simulation, values: np.ndarray | None = None) -> np.ndarray:
+    """Every robot's row of OBSERVATION_FIELDS now (into `values`, robots x fields, when given)."""
+    if values is None:
+        values = np.empty((len(sim.names), len(OBSERVATION_FIELDS)))
+    values[:, 0:3] = sim.odom_pose
+    values[:, 3:5] = sim.odom_twist
+    values[:, 5:8] = sim.true_pose
+    values[:, 8:10] = sim.wheel_angles
+    values[:, 10:12] = sim.wheel_speeds
+    values[:, 12:20] = sim.ir_raw
+    return values
+
 
 _ENCAPSULATION = b'\x00\x01\x00\x00'
 _HEADER = 4

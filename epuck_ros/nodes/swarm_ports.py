@@ -24,7 +24,7 @@ from std_msgs.msg import Float64MultiArray
 from epuck_ros.conversions import nanoseconds_from_stamp
 from epuck_ros.nodes.robot_ports import WARN_PERIOD, quiet_publisher
 from epuck_ros.nodes.swarm_messages import (COMMAND_FIELDS, COMMAND_TOPIC, OBSERVATION_FIELDS, OBSERVATION_TOPIC,
-                                            SwarmLayout, SwarmReader)
+                                            SwarmLayout, SwarmReader, observation_values)
 from epuck_ros.simulation import Simulation
 
 CommandsHandler = Callable[[list[int], np.ndarray, 'int | None'], None]
@@ -72,14 +72,7 @@ class SwarmPorts:
         """Every robot's step in one message, if someone reads it (`stamp`: the step's (sec, nanosec))."""
         if not self._publisher.get_subscription_count():
             return
-        values = self._values
-        values[:, 0:3] = sim.odom_pose
-        values[:, 3:5] = sim.odom_twist
-        values[:, 5:8] = sim.true_pose
-        values[:, 8:10] = sim.wheel_angles
-        values[:, 10:12] = sim.wheel_speeds
-        values[:, 12:20] = sim.ir_raw
-        self._publisher.publish(self._layout.to_bytes(values, stamp))
+        self._publisher.publish(self._layout.to_bytes(observation_values(sim, self._values), stamp))
 
     def _on_message(self, data: bytes) -> None:
         read = self._reader.read(data)
