@@ -1,10 +1,16 @@
-"""The swarm messages (nodes/swarm_messages.py) as bytes, and the lockstep declaration they carry: no DDS here."""
+"""The swarm messages (nodes/swarm_messages.py) as bytes, the lockstep declaration they carry (without DDS), and what
+the simulator does with bad ones (over DDS)."""
 from __future__ import annotations
 
 import time
 
 import numpy as np
 import pytest
+from conftest import ros_args
+from nav_msgs.msg import Odometry
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+from rosgraph_msgs.msg import Clock
+from std_msgs.msg import Float64MultiArray
 
 from epuck_ros import lockstep
 from epuck_ros.lockstep import Answer, Lockstep
@@ -69,3 +75,33 @@ def test_a_declared_controller_is_waited_for_however_long_its_first_answer_takes
     assert freed == [(1, Answer.SILENT)]
     sync.answer(0, Answer.STEP, 32_000_000)
     assert sync.await_answers()   # answered: the step is done (the free robot 1 waited for OWN_RATE_WAIT at most)
+
+
+def test_bad_swarm_commands_are_refused_in_a_line_and_good_ones_drive(launch, test_node):
+    """Any bytes on `swarm/command` (not a swarm array, an unknown or twice-named robot, NaN): one throttled warning,
+    the simulation goes on; then a good command (naming no step) drives the robots it names, and only those."""
+    log = test_node.watch_log()
+    sim = launch('sim', *ros_args({'robots': 3, 'noise': False, 'real_time_factor': 5.0}))
+    test_node.wait_for_simulator()
+    clocks = test_node.collect(Clock, '/clock', 100)
+    truth = {name: test_node.collect(Odometry, f'/{name}/ground_truth') for name in ('epuck0', 'epuck1', 'epuck2')}
+    pub = test_node.node.create_publisher(Float64MultiArray, '/swarm/command', QoSProfile(
+        depth=10, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL))
+    test_node.spin_until(lambda: clocks and pub.get_subscription_count() > 0, what='the simulator')
+    two = SwarmLayout(['epuck0', 'epuck2'], COMMAND_FIELDS)
+    for bad, said in [(b'\x00\x01\x00\x00' + b'\xff' * 40, 'no swarm array'),
+                      (SwarmLayout(['epuck0', 'nobody'], COMMAND_FIELDS).to_bytes(np.ones((2, 2)), None),
+                       "no robot 'nobody'"),
+                      (SwarmLayout(['epuck1', 'epuck1'], COMMAND_FIELDS).to_bytes(np.ones((2, 2)), None), 'twice'),
+                      (SwarmLayout(['epuck0'], ('left',)).to_bytes(np.ones((1, 1)), None), 'fields left'),
+                      (two.to_bytes(np.array([[np.nan, 1.0], [1.0, 1.0]]), None), 'finite')]:
+        pub.publish(bad)
+        test_node.wait_for_log(log, said, timeout=30.0)
+        test_node.spin_for(1.1)   # the warnings are throttled to one a second (WARN_PERIOD)
+    assert sim.proc.poll() is None
+    pub.publish(two.to_bytes(np.array([[3.0, 3.0], [3.0, 3.0]]), None))
+    test_node.spin_until(lambda: truth['epuck0'] and truth['epuck0'][-1].twist.twist.linear.x > 0.05 and
+                         truth['epuck2'] and truth['epuck2'][-1].twist.twist.linear.x > 0.05, timeout=30.0,
+                         what='epuck0 and epuck2 to drive')
+    assert all(msg.twist.twist.linear.x == 0.0 for msg in truth['epuck1'])
+    assert sim.proc.poll() is None
