@@ -267,7 +267,10 @@ class RunMonitor:
         assert self.world is not None
         if robot in self._controllers:
             return self._controllers[robot]
-        found = self._swarm.controllers(robot)   # a swarm controller names its robots
+        found = self._swarm.controllers(robot)   # a swarm controller names its robots: no look per robot
+        if found:
+            self._controllers[robot] = found
+            return found
         for topic in COMMAND_TOPICS:
             for info in self.node.get_publishers_info_by_topic(robot_topic(self.world, robot, topic)):
                 try:

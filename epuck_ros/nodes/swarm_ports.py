@@ -119,6 +119,8 @@ class DeclaredRobots:
         self._reader = SwarmReader()
         self._until_answered = until_answered
         self.robots: frozenset[str] = frozenset()
+        self._publishers: tuple[frozenset[str], list[tuple[str, str]]] = (self.robots, [])
+        """The robots named when the graph was last asked, and the publishers it showed."""
         self._subscription = node.create_subscription(Float64MultiArray, COMMAND_TOPIC, self._on_command,
                                                       COMMAND_READER_QOS, raw=True)
 
@@ -133,8 +135,14 @@ class DeclaredRobots:
             self._subscription = None
 
     def controllers(self, robot: str) -> list[tuple[str, str]]:
-        """(name, namespace) of the nodes publishing `swarm/command`, if one of them named `robot`."""
+        """(name, namespace) of the nodes publishing `swarm/command`, if one of them named `robot`. The graph is
+        asked once for all the robots named so far (each look reads the whole graph: a swarm's thousands of
+        topics), again only once more robots are named."""
         if robot not in self.robots:
             return []
-        return [(info.node_name, info.node_namespace)
-                for info in self._node.get_publishers_info_by_topic(self._node.resolve_topic_name(COMMAND_TOPIC))]
+        robots, found = self._publishers
+        if robots is not self.robots or not found:
+            found = [(info.node_name, info.node_namespace) for info in
+                     self._node.get_publishers_info_by_topic(self._node.resolve_topic_name(COMMAND_TOPIC))]
+            self._publishers = (self.robots, found)
+        return found
