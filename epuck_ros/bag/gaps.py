@@ -20,13 +20,13 @@ missing billions of messages.
 """
 from __future__ import annotations
 
-import re
 from dataclasses import dataclass, replace
 
 import numpy as np
 
 from epuck_ros.bag.cdr import CDR_BE, CDR_LE, ENCAPSULATION
 from epuck_ros.bag.reader import Bag, Topic
+from epuck_ros.bag.steps import first_field_is_stamp, step_reader
 from epuck_ros.conversions import NS_PER_SECOND
 
 GAP_FACTOR = 1.5
@@ -42,9 +42,6 @@ COVERAGE = 0.1
 event topics whose stamps fall on the step grid (a log line now and then) do not."""
 WALL_CLOCK_FROM = 10**18
 """Stamps from this many ns (2001-09-09 on the wall clock; 31.7 years of simulated time) are wall-clock stamps."""
-_STAMP_TYPES = ('Header', 'std_msgs/Header', 'std_msgs/msg/Header',
-                'builtin_interfaces/Time', 'builtin_interfaces/msg/Time')
-_FIRST_FIELD = re.compile(r'^\s*([A-Za-z0-9_/]+)\s+\w+\s*(?:#.*)?$', re.MULTILINE)
 
 
 @dataclass(frozen=True)
@@ -95,10 +92,7 @@ class TopicGaps:
 
 def is_stamped(topic: Topic) -> bool:
     """Whether the topic's first field is a header or a time (its stamp sits right after the encapsulation)."""
-    if topic.schema_encoding != 'ros2msg':
-        return False
-    match = _FIRST_FIELD.search(topic.schema_text.split('\n===', 1)[0])
-    return match is not None and match.group(1) in _STAMP_TYPES
+    return topic.schema_encoding == 'ros2msg' and first_field_is_stamp(topic.schema_text)
 
 
 def find_gaps(topic: str, stamps: np.ndarray) -> TopicGaps | None:
@@ -140,8 +134,57 @@ def stamps_from_heads(heads: np.ndarray) -> np.ndarray:
     return stamps[little | big]
 
 
-def bag_gaps(bag: Bag) -> tuple[list[str], list[TopicGaps]]:
-    """(periodic topics judged, those with messages missing) of a bag, from the stamp bytes of each message."""
+ANSWER_TOPICS = ('wheel_cmd', 'cmd_vel')
+"""The topics (last name) a lockstep controller answers each step on, naming it."""
+
+
+@dataclass(frozen=True)
+class AnswerGaps:
+    """The steps of a bag's /clock that a robot's controller answered by name and those it did not."""
+
+    topic: str
+    steps: int
+    """The steps it should have answered: from its first answer to the step before the last /clock."""
+    missing: int
+    first_missing_ns: int
+
+    @property
+    def missing_messages(self) -> int:
+        return self.missing
+
+    def describe(self) -> str:
+        return (f'{self.topic}: {self.missing} of {self.steps} steps have no answer naming them (first at '
+                f't={self.first_missing_ns / NS_PER_SECOND:.3f} s)')
+
+
+def answer_gaps(bag: Bag) -> tuple[list[str], list[AnswerGaps]]:
+    """Per answer topic whose messages name steps (a lockstep controller's `wheel_cmd` or stamped `cmd_vel`), the
+    steps of the bag's `/clock` without an answer naming them, from its first answer to the step before the last
+    (the answer to the last step drives nothing: a recorder leaves it out). Returns (topics checked, those with
+    steps unanswered)."""
+    if '/clock' not in bag.topics:
+        return [], []
+    clock = np.unique(stamps_from_heads(next(iter(bag.message_heads(['/clock'], ENCAPSULATION + 8).values()),
+                                             np.zeros((0, ENCAPSULATION + 8), np.uint8))))
+    checked, found = [], []
+    for name, topic in sorted(bag.topics.items()):
+        reader = step_reader(topic.type_name, topic.schema_text)
+        if name.rsplit('/', 1)[-1] not in ANSWER_TOPICS or reader is None or len(clock) < 2:
+            continue
+        named = {step for step in (reader(message.data) for message in bag.messages([name])) if step is not None}
+        if not named:
+            continue   # a controller at its own rate: its commands name no step
+        checked.append(name)
+        due = clock[(clock >= min(named)) & (clock < clock[-1])]
+        missing = due[~np.isin(due, np.fromiter(named, np.int64, len(named)))]
+        if len(missing):
+            found.append(AnswerGaps(name, int(len(due)), int(len(missing)), int(missing[0])))
+    return checked, found
+
+
+def bag_gaps(bag: Bag) -> tuple[list[str], list[TopicGaps | AnswerGaps]]:
+    """(topics judged, those with messages missing) of a bag: the periodic stamped topics, from the stamp bytes of
+    each message, and the answer topics against the steps (`answer_gaps`)."""
     stamped = sorted(name for name, topic in bag.topics.items()
                      if topic.message_count > MIN_STEPS and topic.message_encoding == 'cdr' and is_stamped(topic))
     heads = bag.message_heads(stamped, ENCAPSULATION + 8)
@@ -149,7 +192,9 @@ def bag_gaps(bag: Bag) -> tuple[list[str], list[TopicGaps]]:
               if gaps is not None]
     judged = [_bounded(_with_end(gaps, [other for other in judged if other.wall_clock == gaps.wall_clock]))
               for gaps in judged]
-    return [gaps.topic for gaps in judged], [gaps for gaps in judged if gaps.missing_messages]
+    answered, answers = answer_gaps(bag)
+    return ([gaps.topic for gaps in judged] + answered,
+            [gaps for gaps in judged if gaps.missing_messages] + answers)
 
 
 def _with_end(gaps: TopicGaps, same_clock: list[TopicGaps]) -> TopicGaps:
