@@ -16,7 +16,8 @@ from epuck_ros.bag.cdr import CDR_LE, ENCAPSULATION
 from epuck_ros.conversions import nanoseconds_from_stamp, stamp_from_label
 
 StepReader = Callable[[bytes], 'int | None']
-"""The step (ns of simulated time) a message's bytes name, None if they name none."""
+"""The step (ns of simulated time) a message's bytes name, None if they name none. A stamp of 0 names none: the
+simulator's first step is at one time step, and what it stamps 0 comes before the run (`/tf_static`)."""
 
 _STAMP_TYPES = ('Header', 'std_msgs/Header', 'std_msgs/msg/Header',
                 'builtin_interfaces/Time', 'builtin_interfaces/msg/Time')
@@ -42,7 +43,8 @@ def _stamp_at(offset: int) -> StepReader:
         if len(data) < offset + _TIME.size or data[1] != CDR_LE:
             return None
         sec, nanosec = _TIME.unpack_from(data, offset)
-        return nanoseconds_from_stamp(sec, nanosec) if sec >= 0 and nanosec < 1_000_000_000 else None
+        return nanoseconds_from_stamp(sec, nanosec) if sec >= 0 and nanosec < 1_000_000_000 and (sec or nanosec) \
+            else None
     return read
 
 
@@ -62,7 +64,7 @@ def _labelled_array(data: bytes) -> int | None:
     if not 0 < length <= _LABEL_MAX or len(data) < start + length:
         return None
     stamp = stamp_from_label(data[start:start + length - 1].decode('ascii', errors='replace'))
-    return None if stamp is None else nanoseconds_from_stamp(*stamp)
+    return None if stamp is None or stamp == (0, 0) else nanoseconds_from_stamp(*stamp)
 
 
 def step_reader(type_name: str, schema_text: str) -> StepReader | None:

@@ -35,6 +35,7 @@ import signal
 import sys
 import threading
 import time
+from collections.abc import Callable
 from functools import partial
 from pathlib import Path
 
@@ -164,8 +165,12 @@ class Recorder(Node):
         self._latest_step: dict[str, tuple[int, set[bytes]]] = {}
         """Per step topic, its latest step and the messages of it written (a copy sent again is recorded once)."""
         self._last_clock: int | None = None
-        self._answers: list[tuple[int, str, bytes, int]] = []
-        """Answers (step, topic, data, publish time) naming a step no later /clock has followed yet."""
+        self._latest_named = 0
+        """The latest step any message recorded so far named: the simulator is there at least, whatever the node's
+        clock says (its /clock subscription may lag seconds behind under load)."""
+        self._answers: dict[str, list[tuple[int | None, bytes, int, int]]] = {}
+        """Per answer topic, the answers naming a step no later /clock has followed yet and what came after them, in
+        order: (step or None, data, publish time, log time)."""
         self.answers_left_out = 0
         self.received = 0
         self.domain_id = self.context.get_domain_id()
@@ -270,24 +275,29 @@ class Recorder(Node):
     def _record(self, topic: str, data: bytes, info: dict) -> None:
         self.received += 1
         now = self.get_clock().now().nanoseconds
-        published = info.get('source_timestamp') or now
-        read = self._step_of.get(topic)
-        step = None if read is None else read(data)
-        if step is not None and step <= now + STEP_AHEAD_LIMIT_NS:
-            self._record_step(topic, data, step, published)
-        elif self._use_sim_time and now == 0:
-            # Before the first /clock tick sim time reads 0 (rosbag2 #764): hold the message
-            # and stamp it with the first simulated time instead.
-            self._before_clock.append((topic, data, info.get('source_timestamp') or 0))
-            return
-        else:
-            if self._before_clock:
-                self._write_held(now)
-            self._write(topic, data, now, published)
         if self._max_duration_ns is not None and now:
             self._first_ns = now if self._first_ns is None else self._first_ns
             if now - self._first_ns >= self._max_duration_ns:
                 self.finished = True
+        published = info.get('source_timestamp') or now
+        read = self._step_of.get(topic)
+        step = None if read is None else read(data)
+        if step is not None and step <= now + STEP_AHEAD_LIMIT_NS:
+            self._latest_named = max(self._latest_named, step)
+            self._record_step(topic, data, step, published)
+            return
+        if now and self._use_sim_time:
+            now = max(now, self._latest_named)
+        if self._answers.get(topic):   # behind an answer held (see _record_step): in its order
+            self._answers[topic].append((None, data, published, now))
+        elif self._use_sim_time and now == 0:
+            # Before the first /clock tick sim time reads 0 (rosbag2 #764): hold the message
+            # and stamp it with the first simulated time instead.
+            self._before_clock.append((topic, data, info.get('source_timestamp') or 0))
+        else:
+            if self._before_clock:
+                self._write_held(now)
+            self._write(topic, data, now, published)
 
     def _record_step(self, topic: str, data: bytes, step: int, published: int) -> None:
         """A message of step `step`, logged at it: once (a copy sent again is not), an answer once a later /clock
@@ -303,16 +313,22 @@ class Recorder(Node):
         if step == latest:
             written.add(data)
         if topic.rsplit('/', 1)[-1] in ANSWER_TOPICS and CLOCK_TOPIC in self._recording and \
-                (self._last_clock is None or step >= self._last_clock):
-            self._answers.append((step, topic, data, published))
+                (self._last_clock is None or step >= self._last_clock or self._answers.get(topic)):
+            self._answers.setdefault(topic, []).append((step, data, published, step))
             return
         self._write(topic, data, step, published)
         if topic == CLOCK_TOPIC and (self._last_clock is None or step > self._last_clock):
             self._last_clock = step
-            followed = [answer for answer in self._answers if answer[0] < step]
-            self._answers = [answer for answer in self._answers if answer[0] >= step]
-            for answer_step, answer_topic, answer, answer_published in followed:
-                self._write(answer_topic, answer, answer_step, answer_published)
+            self._release_answers(lambda named: named < step)
+
+    def _release_answers(self, followed: Callable[[int], bool]) -> None:
+        """Write each topic's held answers from the first on while they name a `followed` step (or none)."""
+        for topic, held in self._answers.items():
+            released = next((index for index, (named, *_) in enumerate(held)
+                             if named is not None and not followed(named)), len(held))
+            for _, data, published, log_time in held[:released]:
+                self._write(topic, data, log_time, published)
+            del held[:released]
 
     def _write_held(self, stamp: int) -> None:
         for topic, data, published in self._before_clock:
@@ -333,7 +349,13 @@ class Recorder(Node):
         """Write what is queued, the MCAP summary and metadata.yaml; then say what may be missing."""
         if self._before_clock:  # nothing came after the first /clock tick, or no tick at all
             self._write_held(self.get_clock().now().nanoseconds or time.time_ns())
-        self.answers_left_out, self._answers = len(self._answers), []
+        left = sum(1 for held in self._answers.values() for named, *_ in held if named is not None)
+        self._release_answers(lambda named: False)   # the unnamed messages behind them (a behaviour's last stop)
+        for topic, held in self._answers.items():
+            for named, data, published, log_time in held:
+                if named is None:
+                    self._write(topic, data, log_time, published)
+        self.answers_left_out, self._answers = left, {}
         self._bag.close()
         writer = self._bag.writer
         self.get_logger().info(f'wrote {writer.times.count} messages on {len(writer.topics)} topics '
