@@ -26,7 +26,7 @@ import numpy as np
 
 from epuck_ros.bag.cdr import CDR_BE, CDR_LE, ENCAPSULATION
 from epuck_ros.bag.reader import Bag, Topic
-from epuck_ros.bag.steps import first_field_is_stamp, step_reader
+from epuck_ros.bag.steps import SENSES_ON_TOPIC, first_field_is_stamp, senses_on_from_text, step_reader
 from epuck_ros.conversions import NS_PER_SECOND
 
 GAP_FACTOR = 1.5
@@ -188,13 +188,62 @@ def bag_gaps(bag: Bag) -> tuple[list[str], list[TopicGaps | AnswerGaps]]:
     stamped = sorted(name for name, topic in bag.topics.items()
                      if topic.message_count > MIN_STEPS and topic.message_encoding == 'cdr' and is_stamped(topic))
     heads = bag.message_heads(stamped, ENCAPSULATION + 8)
-    judged = [gaps for gaps in (find_gaps(name, stamps_from_heads(rows)) for name, rows in sorted(heads.items()))
-              if gaps is not None]
+    stamps = {name: stamps_from_heads(rows) for name, rows in heads.items()}
+    judged = [gaps for gaps in (find_gaps(name, stamps[name]) for name in sorted(stamps)) if gaps is not None]
     judged = [_bounded(_with_end(gaps, [other for other in judged if other.wall_clock == gaps.wall_clock]))
+              for gaps in judged]
+    senses = senses_on(bag)
+    judged = [_sense_steps(gaps, stamps[gaps.topic], senses[gaps.topic], judged) if gaps.topic in senses else gaps
               for gaps in judged]
     answered, answers = answer_gaps(bag)
     return ([gaps.topic for gaps in judged] + answered,
             [gaps for gaps in judged if gaps.missing_messages] + answers)
+
+
+def senses_on(bag: Bag) -> dict[str, list[tuple[int, bool]]]:
+    """Per sense topic of a robot with a `senses_on` topic in the bag, its changes: (after ns, published from the
+    step after on), in order (`bag.steps.senses_on_text`)."""
+    changes: dict[str, list[tuple[int, bool]]] = {}
+    for name in sorted(bag.topics):
+        if name.rsplit('/', 1)[-1] != SENSES_ON_TOPIC or bag.topics[name].type_name != 'std_msgs/msg/String':
+            continue
+        prefix = name[:-len(SENSES_ON_TOPIC)]
+        said = [read for read in (senses_on_from_text(_string(message.data)) for message in bag.messages([name]))
+                if read is not None]
+        for relative in {topic for _, topics in said for topic in topics}:
+            changes[prefix + relative] = [(after, relative in topics) for after, topics in sorted(said)]
+    return changes
+
+
+def _string(data: bytes) -> str:
+    """A little-endian CDR std_msgs/String's text ('' for anything else)."""
+    if len(data) < ENCAPSULATION + 4 or data[1] != CDR_LE:
+        return ''
+    length = int(np.frombuffer(data, '<u4', 1, ENCAPSULATION)[0])
+    return data[ENCAPSULATION + 4:ENCAPSULATION + 4 + length].rstrip(b'\0').decode('utf-8', errors='replace')
+
+
+def _sense_steps(gaps: TopicGaps, stamps: np.ndarray, changes: list[tuple[int, bool]],
+                 judged: list[TopicGaps]) -> TopicGaps:
+    """`gaps` of a sense topic counted only over the steps its sense was on (`senses_on`): from the bag's first
+    step of its clock to the last, the steps without a message are missing only while it was published."""
+    period = gaps.period_ns
+    same_clock = [other for other in judged if other.wall_clock == gaps.wall_clock]
+    first = round(min(other.first_ns for other in same_clock) / period)
+    last = round(max(other.last_ns for other in same_clock) / period)
+    steps = np.arange(first, last + 1)
+    on = np.zeros(len(steps), bool)
+    for after, published in changes:
+        on[steps > round(after / period)] = published
+    present = np.isin(steps, np.rint(stamps / period).astype(np.int64))
+    missing = on & ~present
+    runs = np.flatnonzero(np.diff(np.concatenate(([0], missing.astype(np.int8), [0]))))
+    starts, ends = runs[::2], runs[1::2]
+    at_end = int(ends[-1] - starts[-1]) if len(starts) and ends[-1] == len(steps) else 0
+    inner = len(starts) - (1 if at_end else 0)
+    lengths = (ends - starts)[:inner]
+    return replace(gaps, gaps=int(inner), missing_steps=int(lengths.sum()),
+                   longest_gap_ns=int((lengths.max() + 1) * period) if inner else 0, missing_at_end=at_end, limit=None)
 
 
 def _with_end(gaps: TopicGaps, same_clock: list[TopicGaps]) -> TopicGaps:

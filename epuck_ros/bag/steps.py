@@ -74,3 +74,26 @@ def step_reader(type_name: str, schema_text: str) -> StepReader | None:
     if type_name == TF_TYPE:
         return _first_transform
     return _stamp_at(ENCAPSULATION) if first_field_is_stamp(schema_text) else None
+
+
+SENSES_ON_TOPIC = 'senses_on'
+"""Each robot's latched topic (std_msgs/String) of which sense topics the simulator publishes since which step: a
+sense is computed only while something asks for it, so a bag's sense topic has no messages for the steps it was off,
+which are not lost (`senses_on_text`)."""
+_SENSES_ON = re.compile(r'^from the step after (\d{1,10})\.(\d{9}): (.*)$')
+
+
+def senses_on_text(after: tuple[int, int], topics: list[str]) -> str:
+    """`from the step after 1.024000000: camera/image_raw, camera/camera_info` (topics relative to the robot's, none:
+    `none`): from the step after `after` on, exactly these sense topics are published, one message each per step.
+    A topic just turned on also has the message of step `after` itself (published at once for a new reader)."""
+    return f'from the step after {after[0]}.{after[1]:09d}: ' + (', '.join(topics) or 'none')
+
+
+def senses_on_from_text(text: str) -> tuple[int, list[str]] | None:
+    """(after, in ns; topics) of a `senses_on_text`, None for any other text."""
+    match = _SENSES_ON.match(text)
+    if match is None:
+        return None
+    listed = match[3].strip()
+    return nanoseconds_from_stamp(int(match[1]), int(match[2])), [] if listed == 'none' else listed.split(', ')

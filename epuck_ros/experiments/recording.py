@@ -157,11 +157,13 @@ class TrialRecorder:
         with self._lock:
             if not self._ports:
                 self._start(sim)
-            self._stamp = stamp = stamp_from_seconds(sim.time)
+            last, self._stamp = self._stamp, stamp_from_seconds(sim.time)
+            stamp = self._stamp
             self._node.step(stamp)
             for ports, senses in zip(self._ports, self._senses):
                 ports.publish(sim, stamp)
                 _follow(senses, sim)
+                senses.announce(last)
                 if senses.publishing:
                     senses.publish(sim, stamp)
             self._tf.publish(sim, stamp)
@@ -177,6 +179,7 @@ class TrialRecorder:
             senses = self._senses[robot]
             _follow(senses, sim)
             senses.publish(sim, self._stamp, [kind])
+            senses.announce(self._stamp)
 
     def answered(self, robot: int, left: float, right: float) -> None:
         """Robot `robot`'s controller answered the current step with these wheel speeds (rad/s), naming it."""
