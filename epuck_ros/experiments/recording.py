@@ -163,7 +163,7 @@ class TrialRecorder:
             for ports, senses in zip(self._ports, self._senses):
                 ports.publish(sim, stamp)
                 _follow(senses, sim)
-                senses.announce(last)
+                senses.announce(last)   # what changed since the last step, said with this one (as the sim node)
                 if senses.publishing:
                     senses.publish(sim, stamp)
             self._tf.publish(sim, stamp)
@@ -179,7 +179,6 @@ class TrialRecorder:
             senses = self._senses[robot]
             _follow(senses, sim)
             senses.publish(sim, self._stamp, [kind])
-            senses.announce(self._stamp)
 
     def answered(self, robot: int, left: float, right: float) -> None:
         """Robot `robot`'s controller answered the current step with these wheel speeds (rad/s), naming it."""

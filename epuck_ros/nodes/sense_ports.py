@@ -181,9 +181,9 @@ class SensePorts:
             self._make_messages()
 
     def announce(self, after: tuple[int, int]) -> None:
-        """Say on `senses_on` which sense topics are published from the step after `after` on (the last step
-        published), if that changed since it last said (`bag.steps.senses_on_text`): a recorder and `bag info` tell a
-        sense that was off from one that was lost."""
+        """Say on `senses_on` which sense topics are published from the step after `after` on (called as that step
+        is published), if that changed since it last said (`bag.steps.senses_on_text`): a recorder and `bag info`
+        tell a sense that was off from one that was lost."""
         published = [ON_DEMAND_TOPICS[kind] for kind in SENSE_TOPICS if self.subscribed[kind]]
         published += [ON_DEMAND_TOPICS[_CAMERA_INFO]] if self._info_subscribed else []
         if published == self._announced:
@@ -254,9 +254,17 @@ class SenseFeeds:
         """The sense topics without a publisher yet (on demand), by their full names."""
         self._publishing: list[SensePorts] = []
         """The robots with a reader on some sense topic: their sense messages are published after each step."""
+        self._unannounced: set[SensePorts] = set()
+        """The robots whose senses may have changed since their `senses_on` last said: said with the next step (a
+        change after the last step is none)."""
+        self._last_stamp = (0, 0)
         self._turn = 0
 
     def publish(self, stamp: tuple[int, int]) -> None:
+        for ports in self._unannounced:
+            ports.announce(self._last_stamp)
+        self._unannounced.clear()
+        self._last_stamp = stamp
         for ports in self._publishing:
             ports.publish(self._sim, stamp)
 
@@ -289,4 +297,4 @@ class SenseFeeds:
             self._publishing = [ports for ports in self.ports if ports.publishing]
         if new and self._sim.steps:   # no step published yet: the first one will carry it
             ports.publish(self._sim, stamp_from_seconds(self._sim.time), new)
-        ports.announce(stamp_from_seconds(self._sim.time))
+        self._unannounced.add(ports)
