@@ -22,8 +22,8 @@ SHORT = '0.5'
 
 def sample_commands() -> list[tuple[str, list[str]]]:
     """(folder, arguments) of each `record FOLDER BEHAVIOUR DURATION [OPTION ...]` line of the script."""
-    return [(words[1], words[1:]) for words in (shlex.split(line) for line in SCRIPT.read_text().splitlines()
-                                                 if line.startswith('record '))]
+    lines = [line for line in SCRIPT.read_text().splitlines() if line.startswith('record ')]
+    return [(words[1], words[1:]) for words in map(shlex.split, lines)]
 
 
 def record(arguments: list[str], folder: Path) -> None:
@@ -43,8 +43,8 @@ def topics(bag: Path) -> set[str]:
 
 
 def test_the_script_makes_every_sample_bag():
-    assert sorted(folder for folder, _ in sample_commands()) == sorted(p.name for p in (REPO / 'bags').iterdir()
-                                                                        if p.is_dir())
+    samples = sorted(path.name for path in (REPO / 'bags').iterdir() if path.is_dir())
+    assert sorted(folder for folder, _ in sample_commands()) == samples
 
 
 @pytest.mark.parametrize('folder, arguments', sample_commands(), ids=[folder for folder, _ in sample_commands()])

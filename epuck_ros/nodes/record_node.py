@@ -88,6 +88,9 @@ publisher on the domain can put a message hours into a bag's future (a player wo
 ANSWER_TOPICS = ('wheel_cmd', 'cmd_vel')
 """The topics (last name) of the controllers' answers, held until a later /clock (see the module)."""
 CLOCK_TOPIC = '/clock'
+SAME_STEP_REMEMBERED = 1024
+"""Messages of one topic's latest step remembered to drop a copy sent again: a step has a few (8 on `proximity`); a
+publisher that names one step for ever cannot grow the recorder's memory."""
 
 
 def default_output() -> Path:
@@ -162,8 +165,9 @@ class Recorder(Node):
         """Samples DDS reported lost per topic (message-lost events)."""
         self._step_of: dict[str, StepReader] = {}
         """Under use_sim_time, how to read the step a topic's messages name (its types that name one)."""
-        self._latest_step: dict[str, tuple[int, set[bytes]]] = {}
-        """Per step topic, its latest step and the messages of it written (a copy sent again is recorded once)."""
+        self._latest_step: dict[str, tuple[int, set[int]]] = {}
+        """Per step topic, its latest step and the hashes of its messages of that step written (a copy sent again is
+        recorded once), at most SAME_STEP_REMEMBERED of them."""
         self._last_clock: int | None = None
         self._latest_named = 0
         """The latest step any message recorded so far named: the simulator is there at least, whatever the node's
@@ -305,13 +309,14 @@ class Recorder(Node):
         if self._before_clock:
             self._write_held(step)
         latest, written = self._latest_step.get(topic, (-1, set()))
-        if step == latest and data in written:
+        digest = hash(data)
+        if step == latest and digest in written:
             return
         if step > latest:
             latest, written = step, set()
             self._latest_step[topic] = (latest, written)
-        if step == latest:
-            written.add(data)
+        if step == latest and len(written) < SAME_STEP_REMEMBERED:
+            written.add(digest)
         if topic.rsplit('/', 1)[-1] in ANSWER_TOPICS and CLOCK_TOPIC in self._recording and \
                 (self._last_clock is None or step >= self._last_clock or self._answers.get(topic)):
             self._answers.setdefault(topic, []).append((step, data, published, step))
