@@ -27,7 +27,7 @@ def sample_commands() -> list[tuple[str, list[str]]]:
 
 
 def record(arguments: list[str], folder: Path) -> None:
-    """The script's own record() function (its bringup command), run in `folder`: it writes `folder`/bags/NAME."""
+    """The script's own `record` function (its bringup command), run in `folder`: it writes `folder`/bags/NAME."""
     function = subprocess.run(['sed', '-n', '/^record() {/,/^}/p', str(SCRIPT)], capture_output=True, text=True,
                               check=True).stdout
     assert 'bringup' in function, function
