@@ -27,8 +27,11 @@ def recorded(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return bag
 
 
-def copy_without(source: Path, target: Path, topic: str, drop: set[int]) -> None:
-    """`source` copied to `target` without the messages of `topic` at indexes `drop`."""
+def copy_without(source: Path, target: Path, topic: str, drop: set[int],
+                 replace: dict[str, bytes] | None = None) -> None:
+    """`source` copied to `target` without the messages of `topic` at indexes `drop`, and with the messages of the
+    topics in `replace` replaced by those bytes."""
+    replace = replace or {}
     writer = BagWriter(target)
     with Bag(source) as bag:
         index = 0
@@ -39,7 +42,8 @@ def copy_without(source: Path, target: Path, topic: str, drop: set[int]) -> None
                 index += 1
                 if index - 1 in drop:
                     continue
-            writer.write(message.topic, message.data, message.log_time, message.publish_time)
+            writer.write(message.topic, replace.get(message.topic, message.data), message.log_time,
+                         message.publish_time)
     writer.close()
 
 
@@ -63,3 +67,22 @@ def test_missing_answers_are_listed_by_bag_info_and_the_bringup_summary(recorded
     assert '/wheel_cmd: 3 of 62 steps have no answer naming them (first at t=0.192 s)' in info, info
     assert 'none in the' not in info
     assert recording_losses(lossy) == [answers.describe()]
+
+
+def test_answers_are_checked_only_while_the_run_was_lockstep(recorded, tmp_path):
+    """A run that stopped being reproducible at t=0.1 s (a controller at its own rate skips steps: nothing is lost)
+    is checked up to then only."""
+    from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
+
+    from epuck_ros.integrity import Integrity
+    from epuck_ros.nodes.serialized import exact_cdr
+    level, name, message, values = Integrity(False, 'a controller at its own rate', 0.1).fields()
+    status = DiagnosticStatus(level=bytes([level]), name=name, message=message,
+                              values=[KeyValue(key=key, value=value) for key, value in values])
+    broken = tmp_path / 'broken'
+    copy_without(recorded, broken, '/wheel_cmd', {5, 6, 40}, {'/lockstep_status': exact_cdr(status)})
+    with Bag(broken) as bag:
+        assert answer_gaps(bag) == (['/wheel_cmd'], [])
+    copy_without(recorded, tmp_path / 'early', '/wheel_cmd', {1}, {'/lockstep_status': exact_cdr(status)})
+    with Bag(tmp_path / 'early') as bag:
+        assert [gaps.missing for gaps in answer_gaps(bag)[1]] == [1]

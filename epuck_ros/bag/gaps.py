@@ -25,6 +25,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from epuck_ros.bag.cdr import CDR_BE, CDR_LE, ENCAPSULATION
+from epuck_ros.bag.lockstep_status import recorded_integrity
 from epuck_ros.bag.reader import Bag, Topic
 from epuck_ros.bag.steps import SENSES_ON_TOPIC, first_field_is_stamp, senses_on_from_text, step_reader
 from epuck_ros.conversions import NS_PER_SECOND
@@ -160,10 +161,13 @@ class AnswerGaps:
 def answer_gaps(bag: Bag) -> tuple[list[str], list[AnswerGaps]]:
     """Per answer topic whose messages name steps (a lockstep controller's `wheel_cmd` or stamped `cmd_vel`), the
     steps of the bag's `/clock` without an answer naming them, from its first answer to the step before the last
-    (the answer to the last step drives nothing: a recorder leaves it out). Returns (topics checked, those with
-    steps unanswered)."""
-    if '/clock' not in bag.topics:
+    (the answer to the last step drives nothing: a recorder leaves it out). Only while the run was lockstep, as its
+    `lockstep_status` says (a controller at its own rate, or with `--no-lockstep`, skips steps without anything being
+    lost): a bag without one is not checked. Returns (topics checked, those with steps unanswered)."""
+    integrity = recorded_integrity(bag) if '/clock' in bag.topics else None
+    if integrity is None or (not integrity.reproducible and integrity.since is None):
         return [], []
+    held_until = None if integrity.reproducible else round(integrity.since * NS_PER_SECOND)
     clock = np.unique(stamps_from_heads(next(iter(bag.message_heads(['/clock'], ENCAPSULATION + 8).values()),
                                              np.zeros((0, ENCAPSULATION + 8), np.uint8))))
     checked, found = [], []
@@ -176,6 +180,7 @@ def answer_gaps(bag: Bag) -> tuple[list[str], list[AnswerGaps]]:
             continue   # a controller at its own rate: its commands name no step
         checked.append(name)
         due = clock[(clock >= min(named)) & (clock < clock[-1])]
+        due = due if held_until is None else due[due < held_until]
         missing = due[~np.isin(due, np.fromiter(named, np.int64, len(named)))]
         if len(missing):
             found.append(AnswerGaps(name, int(len(due)), int(len(missing)), int(missing[0])))
