@@ -168,11 +168,13 @@ class TrialRecorder:
                 self._start(sim)
             if self._swarm is not None:
                 self._swarm.answers_of(self._stamp)   # the last step's, before this one's messages
-            self._stamp = stamp = stamp_from_seconds(sim.time)
+            last, self._stamp = self._stamp, stamp_from_seconds(sim.time)
+            stamp = self._stamp
             self._node.step(stamp)
             for ports, senses in zip(self._ports, self._senses):
                 ports.publish(sim, stamp)
                 _follow(senses, sim)
+                senses.announce(last)   # what changed since the last step, said with this one (as the sim node)
                 if senses.publishing:
                     senses.publish(sim, stamp)
             if self._swarm is not None:

@@ -22,10 +22,11 @@ from collections.abc import Callable, Iterable, Mapping
 
 from rclpy.node import Node
 from rclpy.publisher import Publisher
-from rclpy.qos import QoSProfile
+from rclpy.qos import DurabilityPolicy, QoSProfile
 from sensor_msgs.msg import CameraInfo, Image, Imu, Range
-from std_msgs.msg import Float64MultiArray
+from std_msgs.msg import Float64MultiArray, String
 
+from epuck_ros.bag.steps import SENSES_ON_TOPIC, senses_on_text
 from epuck_ros.description import IMU_FRAME
 from epuck_ros.model import CAMERA_FOV, TOF_APERTURE, TOF_NAME
 from epuck_ros.nodes.robot_ports import STAMP_FIELDS, frame_prefix, quiet_publisher, topic_prefix
@@ -54,6 +55,8 @@ ON_DEMAND_TOPICS = {**SENSE_TOPICS, _CAMERA_INFO: 'camera/camera_info'}
 """Every sense topic of a robot by kind (the camera has two); `_TYPES`: their message types."""
 _TYPES = {'camera': Image, _CAMERA_INFO: CameraInfo, 'ground': Float64MultiArray, 'light': Float64MultiArray,
           'imu': Imu, 'tof': Range}
+SENSES_ON_QOS = QoSProfile(depth=100, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+"""`senses_on` is latched with its last changes: a recorder that subscribes late still learns when each began."""
 RECORDER_NODE = 'recorder'
 """The node name of `record` (nodes/record_node.py): its subscribers record a sense topic without asking for it."""
 _UNKNOWN_NODE = '_NODE_NAME_UNKNOWN_'
@@ -106,6 +109,7 @@ class SensePorts:
         frames = frame_prefix(name, several, frames_prefix)
         width, height = sim.senses.camera_size
         self._node, self._qos = node, stream_qos
+        self._prefix = topics
         self.topics = {kind: topics + topic for kind, topic in ON_DEMAND_TOPICS.items()}
         """Each of its topics (relative to the node's namespace) by kind: SENSE_TOPICS' and 'camera_info'."""
         self._publishers: dict[str, Publisher | None] = dict.fromkeys(ON_DEMAND_TOPICS)
@@ -124,6 +128,10 @@ class SensePorts:
         """The same for camera/camera_info: read, and asked for or the camera wanted."""
         self.publishing = False
         """Some sense topic of this robot is published: the node calls `publish` after each step."""
+        self._senses_on: Publisher | None = None
+        self._announced: list[str] = []
+        """The topics `senses_on` said are published (made at its first message: most robots of a swarm never
+        have one)."""
 
     def offers(self, kind: str) -> bool:
         """Whether the topic of `kind` has its publisher."""
@@ -184,6 +192,19 @@ class SensePorts:
         self.publishing = self._info_subscribed or any(self.subscribed.values())
         if self.publishing and not self._made:
             self._make_messages()
+
+    def announce(self, after: tuple[int, int]) -> None:
+        """Say on `senses_on` which sense topics are published from the step after `after` on (called as that step
+        is published), if that changed since it last said (`bag.steps.senses_on_text`): a recorder and `bag info`
+        tell a sense that was off from one that was lost."""
+        published = [ON_DEMAND_TOPICS[kind] for kind in SENSE_TOPICS if self.subscribed[kind]]
+        published += [ON_DEMAND_TOPICS[_CAMERA_INFO]] if self._info_subscribed else []
+        if published == self._announced:
+            return
+        if self._senses_on is None:
+            self._senses_on = quiet_publisher(self._node, String, self._prefix + SENSES_ON_TOPIC, SENSES_ON_QOS)
+        self._announced = published
+        self._senses_on.publish(String(data=senses_on_text(after, published)))
 
     def _readers_of(self, kind: str) -> tuple[int, int]:
         """How many readers the topic of `kind` has, and how many of them ask for it: any reader but a recorder's
@@ -248,9 +269,17 @@ class SenseFeeds:
         """The sense topics without a publisher yet (on demand), by their full names."""
         self._publishing: list[SensePorts] = []
         """The robots with a reader on some sense topic: their sense messages are published after each step."""
+        self._unannounced: set[SensePorts] = set()
+        """The robots whose senses may have changed since their `senses_on` last said: said with the next step (a
+        change after the last step is none)."""
+        self._last_stamp = (0, 0)
         self._turn = 0
 
     def publish(self, stamp: tuple[int, int]) -> None:
+        for ports in self._unannounced:
+            ports.announce(self._last_stamp)
+        self._unannounced.clear()
+        self._last_stamp = stamp
         for ports in self._publishing:
             ports.publish(self._sim, stamp)
 
@@ -283,3 +312,4 @@ class SenseFeeds:
             self._publishing = [ports for ports in self.ports if ports.publishing]
         if new and self._sim.steps:   # no step published yet: the first one will carry it
             ports.publish(self._sim, stamp_from_seconds(self._sim.time), new)
+        self._unannounced.add(ports)
