@@ -61,6 +61,11 @@ FIGURES = {
         'both wheels at 6.28 rad/s for 32 steps (1.024 s) from rest', '6.43072', '6.42770', '-0.00302 (-0.05 %)',
         "E-puck.proto's PositionSensor resolution 0.00628 (the proto's comment says 2 pi / 1000; we quantise "
         "to 2 pi / 1000)"),
+    'ToF tof': Figure(
+        'a wall 0.3 m ahead along its ray (e-puck2), noise off: getValue() / the `tof` Range', '323.23 / 0.3',
+        '323.23 / 0.3', '0 / 0',
+        'E-puck.proto version "2": DistanceSensor "tof", type "generic" (no reflection factor), one ray 2 m long, table '
+        '(0.2 m: 218.9, 0.5 m: 531.9); webots_ros2 Ros2DistanceSensor.cpp and Math.cpp (the inverse table)'),
     'LEDs': Figure(
         'set(1) on led0, led8, led9: get() and the colour lit', '1: red, green, orange (1, 0.3, 0)',
         '1: red, green, orange (1, 0.3, 0)', '0',
@@ -152,6 +157,19 @@ def test_encoders_after_one_second_at_full_speed():
     assert sim.wheel_angles[0, 1] == sim.wheel_angles[0, 0]
 
 
+def test_tof_wall_thirty_centimetres_ahead():
+    from epuck_ros.model import TOF_POSE, TOF_LOOKUP_TABLE
+    from epuck_ros.sensors.tof import range_from_value
+    x, _, _, yaw = TOF_POSE
+    world = World(arena_size=(2.0, 2.0), boxes=[Box(x + 0.3 * math.cos(yaw) + 0.05, 0.0, 0.1, 0.4)],
+                  robots=[RobotStart('epuck', 0.0, 0.0, 0.0)])
+    sim = Simulation(world, noise=False)
+    sim.senses.want('tof', [0])
+    webots = float(np.interp(0.3, TOF_LOOKUP_TABLE[:, 0], TOF_LOOKUP_TABLE[:, 1]))   # 218.9 + 313 / 3
+    assert numbers(FIGURES['ToF tof'].webots) == pytest.approx([webots, 0.3], abs=0.006)
+    agrees('ToF tof', [float(sim.senses.tof[0]), float(range_from_value(sim.senses.tof[0]))])
+
+
 def test_leds_hold_their_value_and_light_in_their_colour():
     from epuck_ros.webots.devices import LED
     leds = [LED(f'led{i}') for i in (0, 8, 9)]
@@ -163,7 +181,9 @@ def test_leds_hold_their_value_and_light_in_their_colour():
 
 
 def test_the_readme_table_quotes_these_figures():
-    rows = {line.split('|')[1].strip(): line for line in README.read_text().splitlines()
+    """The table may be in README.md or in a page under docs/ (the README is being split into docs/*.md)."""
+    pages = [README, *sorted(README.parent.joinpath('docs').rglob('*.md'))]
+    rows = {line.split('|')[1].strip(): line for page in pages for line in page.read_text().splitlines()
             if line.startswith('| ') and line.split('|')[1].strip() in FIGURES}
     assert sorted(rows) == sorted(FIGURES)
     for device, figure in FIGURES.items():
