@@ -34,7 +34,8 @@ types: its even LEDs are red on/off, its odd ones RGB as 0xRRGGBB; led8 and led9
 BOOL_LEDS = frozenset({0, 2, 4, 6})
 SCAN_TOPIC, SCAN_FRAME = 'scan', 'laser_scanner'
 SCAN_FRAME_HEIGHT = 0.033
-"""m: base_link -> laser_scanner's z, Webots' (the height of the IR ring the slots come from; the physical driver: 0)."""
+"""m: base_link -> laser_scanner's z, Webots' (the IR ring's height, where the slots come from; the physical
+driver: 0)."""
 SCAN_ANGLE_MIN, SCAN_ANGLE_MAX, SCAN_ANGLE_INCREMENT = -150 * math.pi / 180, 150 * math.pi / 180, 15 * math.pi / 180
 """The 21 slots of the scan, in epuck_node.py's (and driver.cpp's) own arithmetic."""
 SCAN_IR_LIMIT = 0.04

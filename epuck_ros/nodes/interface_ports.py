@@ -41,6 +41,8 @@ IR topics or its camera_info published."""
 _SENSES = ('tof', 'light', 'camera')
 _TYPES = {**dict.fromkeys(iface.IR_TOPICS, Range), iface.SCAN_TOPIC: LaserScan,
           **dict.fromkeys(iface.LIGHT_TOPICS, Illuminance), 'image_raw': Image, 'camera_info': CameraInfo}
+INTERFACE_TOPICS = tuple(_TYPES)
+"""The kinds of the topics it publishes."""
 _SCAN_FIELDS = STAMP_FIELDS + [(f'ranges[{slot}]', 'f') for slot in range(len(iface.SCAN_SLOTS))]
 
 
