@@ -94,8 +94,8 @@ SIM_PARAMETERS = [
     ParamSpec('frame_prefix', '', 'prefix of every frame_id (e.g. "sim1/"); with several robots each robot\'s '
                                   'frames are <prefix><name>/odom, ...', read_only=True),
     ParamSpec('senses', '', 'comma-separated senses every robot computes whether or not their topics have '
-                            'subscribers: camera, ground, light, imu (a sense is computed anyway while its topic has '
-                            'a subscriber)', read_only=True),
+                            'subscribers: camera, ground, light, imu, tof (a sense is computed anyway while its topic '
+                            'has a subscriber)', read_only=True),
     ParamSpec('camera_width', 52, 'camera image width in pixels (the field of view stays 0.84 rad)', (1, 1024),
               read_only=True),
     ParamSpec('camera_height', 39, 'camera image height in pixels', (1, 1024), read_only=True),

@@ -209,8 +209,8 @@ class SampledSensor(Device):
 
 
 class DistanceSensor(SampledSensor):
-    """An infra-red DistanceSensor: psN (the ring) or gsN (the ground sensors); getValue() is the raw lookup-table
-    value, with the simulator's noise."""
+    """A DistanceSensor: psN (the ring) or gsN (the ground sensors), infra-red, or the e-puck2's tof, generic;
+    getValue() is the raw lookup-table value, with the simulator's noise."""
 
     API_PREFIX = 'wb_distance_sensor'
 

@@ -6,7 +6,7 @@ step the controller has seen (`stamp=SEC.NANOSEC` in its layout), then wait unti
 complete here: every topic the script reads — `joint_states` (stamped), `ir_raw` (its label names the step) and
 each enabled sense — has its message of one step, newer than the last (`_complete`). Messages are paired by the
 step they name, never by arrival order or counts; a step sent again is seen once.
-The other senses (camera, ground and light sensors, IMU) are subscribed when the script enables one (`want`). The
+The other senses (camera, ground and light sensors, IMU, ToF) are subscribed when the script enables one (`want`). The
 simulator computes a sense while its topic has a subscriber, and publishes the current step's reading as soon as it
 sees a new one: the answer to the current step waits for that message, so the sense is sure to be read on the next
 step, as in Webots (a device enabled before `step()` has its value after it), whenever discovery comes.
@@ -28,7 +28,7 @@ from rclpy.node import Node
 from rclpy.parameter_client import AsyncParameterClient
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 import numpy as np
-from sensor_msgs.msg import Image, Imu, JointState
+from sensor_msgs.msg import Image, Imu, JointState, Range
 from std_msgs.msg import Float64MultiArray, Int32MultiArray
 
 from epuck_ros.conversions import nanoseconds_from_stamp, stamp_from_nanoseconds
@@ -39,6 +39,7 @@ from epuck_ros.nodes.robot_ports import JOINT_NAMES
 from epuck_ros.nodes.sense_ports import SENSE_TOPICS
 from epuck_ros.nodes.serialized import array_bytes, array_values
 from epuck_ros.sensors.imu import gyro_values
+from epuck_ros.sensors.tof import value_from_range
 
 QOS = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
 COMMAND_TOPIC = 'wheel_cmd'
@@ -77,7 +78,8 @@ class StepData:
     ir_raw: tuple[float, ...]
     senses: dict[str, Any] = field(default_factory=dict)
     """The enabled senses' readings of this step: 'camera' (H, W, 3) uint8, 'ground' (3 values), 'light' (8),
-    'imu' ((ax, ay, az) m/s^2, gyro values (3)); a sense whose first message has not come yet is absent."""
+    'imu' ((ax, ay, az) m/s^2, gyro values (3)), 'tof' (its value); a sense whose first message has not come yet is
+    absent."""
 
 
 class _Stream:
@@ -116,6 +118,8 @@ class _SenseFeed(_Stream):
         stamp = nanoseconds_from_stamp(msg.header.stamp.sec, msg.header.stamp.nanosec)
         if self.kind == 'camera':
             self._add(stamp, np.frombuffer(bytes(msg.data), dtype=np.uint8).reshape(msg.height, msg.width, 3))
+        elif self.kind == 'tof':   # the value back from the Range's range (sensors/tof.py: `carried`)
+            self._add(stamp, float(value_from_range(msg.range)))
         else:
             rates = (msg.angular_velocity.x, msg.angular_velocity.y, msg.angular_velocity.z)
             self._add(stamp, ((msg.linear_acceleration.x, msg.linear_acceleration.y, msg.linear_acceleration.z),
@@ -282,11 +286,11 @@ class SimLink:
         return self._next_step()
 
     def want(self, kind: str) -> None:
-        """From now on gather sense `kind` ('camera', 'ground', 'light', 'imu') with every step."""
+        """From now on gather sense `kind` ('camera', 'ground', 'light', 'imu', 'tof') with every step."""
         if kind in self._feeds:
             return
         feed = self._feeds[kind] = _SenseFeed(kind)
-        message = {'camera': Image, 'imu': Imu}.get(kind, Float64MultiArray)
+        message = {'camera': Image, 'imu': Imu, 'tof': Range}.get(kind, Float64MultiArray)
         self._subscriptions_of_senses.append(self.node.create_subscription(
             message, self._prefix + SENSE_TOPICS[kind], feed.on_message, QOS, raw=message is Float64MultiArray))
 

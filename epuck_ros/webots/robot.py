@@ -31,7 +31,8 @@ from rclpy.signals import SignalHandlerOptions
 
 from epuck_ros.model import (
     ACCELEROMETER_LOOKUP_TABLE, CAMERA_FOV, CAMERA_NEAR, GROUND_LOOKUP_TABLE,
-    GROUND_SENSOR_NAMES, GYRO_LOOKUP_TABLE, LIGHT_LOOKUP_TABLE, LIGHT_SENSOR_NAMES, SENSOR_NAMES, RobotModel)
+    GROUND_SENSOR_NAMES, GYRO_LOOKUP_TABLE, LIGHT_LOOKUP_TABLE, LIGHT_SENSOR_NAMES, SENSOR_NAMES, TOF_APERTURE,
+    TOF_LOOKUP_TABLE, TOF_NAME, RobotModel)
 from epuck_ros.nodes.dds_profile import use_package_profile
 from epuck_ros.nodes.spinning import end_process
 from epuck_ros.webots.devices import (
@@ -45,7 +46,7 @@ _THREAD = threading.local()
 MOTOR_NAMES = ('left wheel motor', 'right wheel motor')
 ENCODER_NAMES = ('left wheel sensor', 'right wheel sensor')
 LED_NAMES = tuple(f'led{i}' for i in range(10))
-NOT_SIMULATED = ('speaker', 'emitter', 'receiver', 'tof')
+NOT_SIMULATED = ('speaker', 'emitter', 'receiver')
 """Devices of Webots' e-puck that this simulator does not model."""
 SINGLE_ROBOT_NAME = 'epuck'
 """`getName()` of the robot of a one-robot world (its topics carry no name)."""
@@ -111,7 +112,7 @@ def _first_robot() -> Robot | None:
 
 class Robot:
     """The e-puck: motors, wheel encoders, ps0..ps7, led0..led9, camera, gs0..gs2, ls0..ls7, accelerometer, gyro,
-    simulated time."""
+    the e-puck2's tof, simulated time."""
 
     created: Robot | None = None
 
@@ -161,9 +162,10 @@ class Robot:
         self._light_sensors = [LightSensor(name, now, LIGHT_LOOKUP_TABLE) for name in LIGHT_SENSOR_NAMES]
         self._accelerometer = Accelerometer('accelerometer', now, ACCELEROMETER_LOOKUP_TABLE)
         self._gyro = Gyro('gyro', now, GYRO_LOOKUP_TABLE)
+        self._tof = DistanceSensor(TOF_NAME, now, TOF_LOOKUP_TABLE, TOF_APERTURE)
         self._senses: dict[str, list[SampledSensor]] = {
             'camera': [self._camera], 'ground': self._ground_sensors, 'light': self._light_sensors,
-            'imu': [self._accelerometer, self._gyro]}
+            'imu': [self._accelerometer, self._gyro], 'tof': [self._tof]}
         """The devices of each sense the simulator computes on demand: enabling one asks for the sense."""
         self._to_ask = self._to_send = False
         """A device was enabled, an LED changed, since the last step: the next one asks for senses, sends LEDs."""
@@ -174,7 +176,8 @@ class Robot:
         self._devices: dict[str, Device] = {
             device.getName(): device
             for device in (*self._motors, *self._encoders, *self._distance_sensors, *self._ground_sensors,
-                           *self._light_sensors, self._camera, self._accelerometer, self._gyro, *self._leds)}
+                           *self._light_sensors, self._camera, self._accelerometer, self._gyro, self._tof,
+                           *self._leds)}
 
     # --- time ---------------------------------------------------------------------------------------------------
 
@@ -272,6 +275,8 @@ class Robot:
             if 'imu' in senses:
                 self._accelerometer.sample(time_ns, senses['imu'][0])
                 self._gyro.sample(time_ns, senses['imu'][1])
+            if 'tof' in senses:
+                self._tof.sample(time_ns, senses['tof'])
 
     # --- devices ------------------------------------------------------------------------------------------------
 
