@@ -1,0 +1,189 @@
+"""The e-puck's own ROS 2 interface (epuck_ros/epuck_interface.py, nodes/interface_ports.py) from the real `sim`
+process over DDS: what `ros2 topic echo /ps1` gets, the scan against one built from /ps* and /tof as
+webots_ros2_epuck's epuck_node.py builds it, the LEDs, the robots' namespaces, a swarm's topics made on demand, the
+headless trial's bag, and the example nodes of epuck_ros/examples/epuck2 run as a user runs them."""
+from __future__ import annotations
+
+import math
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+from geometry_msgs.msg import TransformStamped
+from nav_msgs.msg import Odometry
+from rclpy.parameter import Parameter
+from rclpy.parameter_client import AsyncParameterClient
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from sensor_msgs.msg import CameraInfo, Illuminance, Image, LaserScan, Range
+from std_msgs.msg import Bool, Float64MultiArray, Int32, Int32MultiArray, UInt32
+from std_srvs.srv import Trigger
+
+from conftest import EVERY_MESSAGE, ros_args
+from epuck_ros import epuck_interface as iface
+from epuck_ros.conversions import stamp_from_label
+from epuck_ros.ir_sensor import distance_from_raw
+from epuck_ros.model import IR_LOOKUP_TABLE
+from epuck_ros.nodes.qos import LATCHED
+from epuck_ros.nodes.sense_ports import SENSE_TOPICS_ON_DEMAND_FROM
+
+EXAMPLES = Path(__file__).resolve().parents[1] / 'epuck_ros' / 'examples' / 'epuck2'
+STEP = 0.032
+ECHO_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=5, reliability=ReliabilityPolicy.RELIABLE,
+                      durability=DurabilityPolicy.VOLATILE)
+"""What `ros2 topic echo` subscribes with here (ros2cli's choose_qos): its default preset, sensor_data (depth 5),
+with the reliability and durability every publisher of the topic offers (ours: reliable, volatile)."""
+
+
+def seconds(stamp: object) -> float:
+    return stamp.sec + 1e-9 * stamp.nanosec
+
+
+def near_wall_world(tmp_path: Path, robots: int = 1) -> Path:
+    """A robot 0.05 m from a wall on its front left, so that ps7, ps6 and the ToF see something."""
+    world = tmp_path / 'near_wall.yaml'
+    starts = [{'name': f'epuck{i}', 'start': [0.0, 0.3 * i, 0.4]} for i in range(robots)]
+    world.write_text(yaml.safe_dump({'arena': {'size': [1.0, 1.0]}, 'robots': starts,
+                                     'boxes': [{'position': [0.12, 0.0], 'size': [0.05, 0.9]}]}))
+    return world
+
+
+# --- the pure part ------------------------------------------------------------------------------------------------
+
+def epuck_node_scan(ir: list[float], tof: float) -> list[float]:
+    """webots_ros2_epuck's epuck_node.py, its arithmetic as written there, on the Range messages' float32 values,
+    stored in a LaserScan (float32)."""
+    laser_dists = [0.0 if dist > 0.04 else dist for dist in ir]
+    dist_tof = 0.0 if tof > 1.0 else tof
+    msg = LaserScan()
+    msg.ranges = [laser_dists[3] + 0.035, 0.0, 0.0, 0.0, laser_dists[2] + 0.035, 0.0, 0.0, laser_dists[1] + 0.035,
+                  0.0, laser_dists[0] + 0.035, dist_tof + 0.035, laser_dists[7] + 0.035, 0.0,
+                  laser_dists[6] + 0.035, 0.0, 0.0, laser_dists[5] + 0.035, 0.0, 0.0, 0.0, laser_dists[4] + 0.035]
+    return msg.ranges.tolist()
+
+
+def test_scan_ranges_are_epuck_nodes_to_the_bit() -> None:
+    rng = np.random.default_rng(0)
+    for _ in range(2000):
+        ranges = rng.uniform(0.0, 0.08, 8).tolist()
+        ranges[rng.integers(8)] = 0.04 + float(rng.choice([-1e-9, 0.0, 1e-9]))   # at the limit
+        tof = float(rng.choice([rng.uniform(0.0, 2.0), 1.0, 0.9999999]))
+        as_received = [float(np.float32(r)) for r in ranges]   # a Range's float32, as a reader gets it
+        assert iface.scan_ranges(ranges, tof) == epuck_node_scan(as_received, float(np.float32(tof)))
+
+
+def test_led_values_are_webots_led_values() -> None:
+    assert [iface.led_value(0, True), iface.led_value(0, False), iface.led_value(1, 0x00FF00),
+            iface.led_value(8, 1), iface.led_value(9, 0)] == [1, 0, 0x00FF00, 1, 0]
+    assert sorted(iface.BOOL_LEDS) == [0, 2, 4, 6]
+
+
+# --- over DDS -----------------------------------------------------------------------------------------------------
+
+def step_once(test_node: object) -> None:
+    client = test_node.node.create_client(Trigger, 'step')
+    assert client.wait_for_service(timeout_sec=20.0)
+    future = client.call_async(Trigger.Request())
+    test_node.spin_until(future.done, what='the step service')
+    assert future.result().success, future.result().message
+
+
+def test_echo_ps1_prints_range_messages_of_each_step(launch: object, test_node: object, tmp_path: Path) -> None:
+    """`ros2 topic echo /ps1` as the tutorial runs it: the topic and its type are in the graph before anyone reads
+    it, and a reader with echo's QoS gets Range messages (frame ps1, INFRARED, the physical driver's fov and limits),
+    each stamped with its step, whose range is the raw value of that step back through the table (as both sources
+    publish it); ir_raw of the same steps says which."""
+    launch('sim', *ros_args({'world': str(near_wall_world(tmp_path)), 'real_time_factor': 1.0}))
+    test_node.wait_for_simulator()
+    node = test_node.node
+    test_node.spin_until(lambda: ('/ps1', ['sensor_msgs/msg/Range']) in node.get_topic_names_and_types(),
+                         what='/ps1 in the graph')
+    raws = test_node.collect(Float64MultiArray, 'ir_raw', EVERY_MESSAGE)
+    echoed = test_node.collect(Range, '/ps1', ECHO_QOS)
+    test_node.spin_until(lambda: len(echoed) > 20, what='ps1 messages')
+    msg = echoed[-1]
+    assert (msg.header.frame_id, msg.radiation_type) == ('ps1', Range.INFRARED)
+    assert (msg.field_of_view, msg.min_range, msg.max_range) == \
+        tuple(float(np.float32(v)) for v in (math.radians(15), 0.009, 0.025))
+    by_stamp = {label_seconds(m): m.data.tolist() for m in raws}
+    compared = 0
+    for msg in echoed:
+        t = seconds(msg.header.stamp)
+        assert round(t / STEP) * STEP == pytest.approx(t, abs=1e-9)
+        if t in by_stamp:
+            assert msg.range == float(np.float32(distance_from_raw(by_stamp[t][1], IR_LOOKUP_TABLE)))
+            compared += 1
+    assert compared > 10
+
+
+def test_scan_equals_one_built_from_ps_and_tof_as_epuck_node_builds_it(launch: object, test_node: object,
+                                                                       tmp_path: Path) -> None:
+    """Our `scan` against the example node scan_from_ranges.py (epuck_node.py's arithmetic on our /ps* and /tof,
+    one scan per instant once its nine readings are in): the same ranges to the bit, step by step, with IR noise
+    and a wall that ps6, ps7 and the ToF see; the rest of the message as epuck_node.py fills it; the TF frame."""
+    launch('sim', *ros_args({'world': str(near_wall_world(tmp_path)), 'real_time_factor': 1.0}))
+    test_node.wait_for_simulator()
+    launch('python', str(EXAMPLES / 'scan_from_ranges.py'))
+    ours = test_node.collect(LaserScan, 'scan', EVERY_MESSAGE)
+    rebuilt = test_node.collect(LaserScan, 'scan_rebuilt', EVERY_MESSAGE)
+    static = test_node.collect(_tf_message(), '/tf_static', LATCHED)
+    test_node.spin_until(lambda: len(rebuilt) > 30 and len(ours) > 30 and static, timeout=60.0,
+                         what='both scans')
+    by_stamp = {seconds(m.header.stamp): m for m in ours}
+    pairs = [(by_stamp[seconds(m.header.stamp)], m) for m in rebuilt if seconds(m.header.stamp) in by_stamp]
+    assert len(pairs) > 20
+    for mine, theirs in pairs:
+        assert mine.ranges.tolist() == theirs.ranges.tolist()
+        assert (mine.header.frame_id, mine.angle_min, mine.angle_max, mine.angle_increment, mine.range_min,
+                mine.range_max) == (theirs.header.frame_id, theirs.angle_min, theirs.angle_max,
+                                    theirs.angle_increment, theirs.range_min, theirs.range_max)
+        assert mine.scan_time == pytest.approx(STEP)
+    seen = np.array([m.ranges.tolist() for m, _ in pairs])
+    assert (seen[:, 10] > 0.035).all() and (seen[:, 13] > 0.035).all()   # the ToF and ps6 see the wall
+    assert len({tuple(row) for row in seen}) > 1                          # noise: the steps differ
+    [laser] = [t for t in static[-1].transforms if t.child_frame_id == 'laser_scanner']
+    assert laser.header.frame_id == 'base_link' and laser.transform.translation.z == pytest.approx(0.033)
+
+
+def _tf_message() -> type:
+    from tf2_msgs.msg import TFMessage
+    return TFMessage
+
+
+def test_leds_light_light_and_camera_topics_under_each_robots_name(launch: object, test_node: object,
+                                                                 tmp_path: Path) -> None:
+    """With two robots every interface topic is under the robot's name, its frames prefixed; led0 (Bool), led1
+    (Int32 0xRRGGBB) and led9 set that robot's `leds` as Webots' LED.set takes them; ls0..ls7 carry light_raw's
+    values (the physical driver's raw value), image_raw the camera's rgb8, stamped with the step."""
+    launch('sim', *ros_args({'world': str(near_wall_world(tmp_path, robots=2)), 'real_time_factor': 1.0}))
+    test_node.wait_for_simulator()
+    node = test_node.node
+    leds = test_node.collect(Int32MultiArray, 'epuck1/leds', LATCHED)
+    light = test_node.collect(Float64MultiArray, 'epuck1/light_raw', EVERY_MESSAGE)
+    ls3 = test_node.collect(Illuminance, 'epuck1/ls3', EVERY_MESSAGE)
+    images = test_node.collect(Image, 'epuck0/image_raw', EVERY_MESSAGE)
+    infos = test_node.collect(CameraInfo, 'epuck0/camera_info', EVERY_MESSAGE)
+    ranges = test_node.collect(Range, 'epuck1/ps7', EVERY_MESSAGE)
+    publishers = [(node.create_publisher(Bool, 'epuck1/led0', 10), Bool(data=True)),
+                  (node.create_publisher(Int32, 'epuck1/led1', 10), Int32(data=0x00FF00)),
+                  (node.create_publisher(Int32, 'epuck1/led9', 10), Int32(data=1))]
+    test_node.spin_until(lambda: all(pub.get_subscription_count() for pub, _ in publishers), what='the LEDs')
+    for publisher, msg in publishers:
+        publisher.publish(msg)
+    test_node.spin_until(lambda: leds and leds[-1].data.tolist() == [1, 0x00FF00] + [0] * 7 + [1],
+                         what='epuck1/leds')
+    test_node.spin_until(lambda: len(ls3) > 5 and len(images) > 5 and infos and ranges, what='the sense topics')
+    assert ranges[-1].header.frame_id == 'epuck1/ps7' and ls3[-1].header.frame_id == 'epuck1/ls3'
+    assert images[-1].header.frame_id == 'epuck0/camera' and images[-1].encoding == 'rgb8'
+    assert infos[-1].header.frame_id == 'epuck0/camera'
+    raw = {label_seconds(m): m.data.tolist() for m in light}
+    matched = [(msg.illuminance, raw[seconds(msg.header.stamp)][3]) for msg in ls3 if seconds(msg.header.stamp) in raw]
+    assert matched and all(ours == theirs for ours, theirs in matched)
+    assert node.count_publishers('/ps7') == 0   # no robot is unnamed
+
+
+def label_seconds(msg: Float64MultiArray) -> float:
+    """The step a raw array names (its layout's label), in seconds."""
+    sec, nanosec = stamp_from_label(msg.layout.dim[0].label)
+    return sec + 1e-9 * nanosec
