@@ -187,3 +187,61 @@ def label_seconds(msg: Float64MultiArray) -> float:
     """The step a raw array names (its layout's label), in seconds."""
     sec, nanosec = stamp_from_label(msg.layout.dim[0].label)
     return sec + 1e-9 * nanosec
+
+
+# --- the example nodes, as a user runs them beside `sim` ----------------------------------------------------------
+
+class ExampleRun:
+    """`sim` (lockstep, real_time_factor 0, paused until the example's cmd_vel is in the graph, pausing at
+    `duration`) and an example node of epuck_ros/examples/epuck2 run with python, as a user runs it. A Twist names no
+    step: the simulator waits at most OWN_RATE_WAIT a step for it (it is at its own rate)."""
+
+    def __init__(self, launch: object, test_node: object, example: str, duration: float, world: Path | None = None,
+                 *args: str) -> None:
+        self.test_node, self.duration = test_node, duration
+        self.truth = test_node.collect(Odometry, 'ground_truth', EVERY_MESSAGE)
+        self.collisions = test_node.collect(UInt32, 'collisions', LATCHED)
+        params = {'real_time_factor': 0.0, 'lockstep': True, 'paused': True, 'pause_at': float(duration),
+                  **({'world': str(world)} if world else {})}
+        self.sim = launch('sim', *ros_args(params))
+        test_node.wait_for_simulator()
+        self.node = launch('python', str(EXAMPLES / f'{example}.py'), *args)
+        test_node.spin_until(lambda: test_node.node.count_publishers('cmd_vel') > 0 or self.node.proc.poll() is not None,
+                             what=f'{example}\'s cmd_vel')
+        client = AsyncParameterClient(test_node.node, 'sim')
+        assert client.wait_for_services(20.0)
+        future = client.set_parameters([Parameter('lockstep_controllers', value=1), Parameter('paused', value=False)])
+        test_node.spin_until(future.done, what='sim to resume')
+
+    def finish(self) -> np.ndarray:
+        """Spin until the sim paused at `duration`; the ground truth as rows (x, y)."""
+        self.test_node.spin_until(lambda: self.truth and seconds(self.truth[-1].header.stamp) >= self.duration - 1e-6,
+                                  timeout=60.0 + 3.0 * self.duration, what=f'{self.duration} simulated s')
+        return np.array([(m.pose.pose.position.x, m.pose.pose.position.y) for m in self.truth])
+
+
+def test_odometry_drive_example_stops_after_its_distance(launch: object, test_node: object) -> None:
+    """odometry_drive.py (an odometry loop on `odom` with a Twist on `cmd_vel`, as drive_calibrator.py) drives 0.2 m
+    by odometry, stops and exits 0; the ground truth says it went that far."""
+    run = ExampleRun(launch, test_node, 'odometry_drive', 10.0, None, '--ros-args', '-p', 'distance:=0.2')
+    assert run.node.proc.wait(timeout=120) == 0, run.node.output()
+    path = run.finish()
+    travelled = float(np.hypot(*(path[-1] - path[0])))
+    print(f'odometry_drive: {travelled:.4f} m by ground truth')
+    assert travelled == pytest.approx(0.2, abs=0.01)
+    assert 'stopping' in run.node.output()
+
+
+def test_random_walker_example_avoids_the_walls_for_a_minute(launch: object, test_node: object,
+                                                            tmp_path: Path) -> None:
+    """random_walker.py reads `tof`, `ps0` and `ps7` (Range) and drives with a Twist: in a walled 1 m arena, 60
+    simulated seconds without a contact, going places. (Three front rays miss a box's corner that passes between
+    them at the body's edge: on the core, 6 of 20 seeds touched a box of the default arena; 0 of 30 a wall here.)"""
+    world = tmp_path / 'walls.yaml'
+    world.write_text('arena: {size: [1.0, 1.0]}\n')
+    run = ExampleRun(launch, test_node, 'random_walker', 60.0, world, '--ros-args', '-p', 'seed:=3')
+    path = run.finish()
+    travelled = float(np.hypot(*np.diff(path, axis=0).T).sum())
+    contacts = max((m.data for m in run.collisions), default=0)
+    print(f'random_walker: {travelled:.2f} m in 60 s, {contacts} contacts')
+    assert contacts == 0 and travelled > 1.0
