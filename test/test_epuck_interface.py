@@ -29,6 +29,7 @@ from epuck_ros.nodes.qos import LATCHED
 from epuck_ros.nodes.sense_ports import SENSE_TOPICS_ON_DEMAND_FROM
 
 EXAMPLES = Path(__file__).resolve().parents[1] / 'epuck_ros' / 'examples' / 'epuck2'
+WORLDS = Path(__file__).resolve().parents[1] / 'epuck_ros' / 'worlds'
 STEP = 0.032
 ECHO_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=5, reliability=ReliabilityPolicy.RELIABLE,
                       durability=DurabilityPolicy.VOLATILE)
@@ -245,3 +246,66 @@ def test_random_walker_example_avoids_the_walls_for_a_minute(launch: object, tes
     contacts = max((m.data for m in run.collisions), default=0)
     print(f'random_walker: {travelled:.2f} m in 60 s, {contacts} contacts')
     assert contacts == 0 and travelled > 1.0
+
+
+def test_a_swarms_interface_topics_are_made_once_read(launch: object, test_node: object, tmp_path: Path) -> None:
+    """From SENSE_TOPICS_ON_DEMAND_FROM robots no interface topic is in the graph at start (a swarm's discovery costs
+    what it did): a reader of epuck7/ps2 makes its publisher, a writer of epuck7/led8 its subscription; that robot
+    then publishes its ps2 each step and its `leds` when told, and no other robot's topic exists."""
+    world = tmp_path / 'big.yaml'
+    world.write_text('arena: {size: [10.0, 10.0]}\n')
+    launch('sim', *ros_args({'world': str(world), 'robots': SENSE_TOPICS_ON_DEMAND_FROM, 'paused': True}))
+    test_node.wait_for_simulator(timeout=120)
+    node = test_node.node
+    names = {name for name, _ in node.get_topic_names_and_types()}
+    assert '/epuck7/odom' in names and not names & {f'/epuck{i}/{topic}' for i in range(SENSE_TOPICS_ON_DEMAND_FROM)
+                                                    for topic in ('ps2', 'scan', 'ls0', 'image_raw', 'camera_info')}
+    assert node.count_subscribers('/epuck7/led8') == 0
+    ranges = test_node.collect(Range, '/epuck7/ps2', EVERY_MESSAGE)
+    leds = test_node.collect(Int32MultiArray, '/epuck7/leds', LATCHED)
+    led8 = node.create_publisher(Int32, '/epuck7/led8', 10)
+    test_node.spin_until(lambda: node.count_publishers('/epuck7/ps2') and led8.get_subscription_count(),
+                         timeout=30, what='the sim to make the topics read and written')
+    step_once(test_node)
+    test_node.spin_until(lambda: ranges, what='the step\'s ps2')
+    assert seconds(ranges[0].header.stamp) == pytest.approx(STEP) and ranges[0].header.frame_id == 'epuck7/ps2'
+    led8.publish(Int32(data=1))
+    test_node.spin_until(lambda: leds, what='epuck7/leds')
+    assert leds[-1].data.tolist() == [0] * 8 + [1, 0]
+    assert node.count_publishers('/epuck8/ps2') == 0 and node.count_subscribers('/epuck8/led8') == 0
+
+
+LIGHT_SCRIPT = """
+from controller import Robot
+robot = Robot()
+sensors = [robot.getDevice(f'ls{i}') for i in range(8)]
+for sensor in sensors:
+    sensor.enable(32)
+for name, speed in (('left wheel motor', 2.0), ('right wheel motor', 3.0)):
+    robot.getDevice(name).setPosition(float('inf'))
+    robot.getDevice(name).setVelocity(speed)
+while robot.step(32) != -1:
+    pass
+"""
+
+
+def test_a_headless_bag_has_the_interface_topics_a_recorder_gets_over_ros(tmp_path: Path) -> None:
+    """A script that reads its light sensors, through `bringup --controller --record` and `webots_controller
+    --headless --record`: both bags have ls0..ls7 (each Illuminance the step's light_raw value, frame lsN), equal
+    topic by topic (test_bag_headless's comparison); the topics nobody read are in neither (the IR's, scan,
+    image_raw: a recorder alone asks for nothing)."""
+    from test_bag_headless import compare, read, run_both, step_of
+    script = tmp_path / 'light.py'
+    script.write_text(LIGHT_SCRIPT)
+    options = ['--seed', '4', '--duration', '2', '--world', str(WORLDS / 'lit_arena.yaml')]
+    ros = run_both(tmp_path, ['--controller', str(script), *options],
+                   ['webots_controller', str(script), '--headless', *options, '--record', str(tmp_path / 'headless')])
+    over_ros, headless = read(ros), read(tmp_path / 'headless')
+    for bag in (over_ros, headless):
+        assert bag['/ls5']['type'] == 'sensor_msgs/msg/Illuminance'
+        assert not {'/image_raw', '/scan', '/ps0', '/camera_info', '/leds'} & set(bag)
+        light = {step_of(msg): msg.data.tolist() for msg in bag['/light_raw']['messages']}
+        ls5 = bag['/ls5']['messages']
+        assert len(ls5) > 50 and ls5[0].header.frame_id == 'ls5'
+        assert all(light[(msg.header.stamp.sec, msg.header.stamp.nanosec)][5] == msg.illuminance for msg in ls5)
+    compare(over_ros, headless, (2, 16_000_000))
