@@ -5,13 +5,11 @@ headless trial's bag, and the example nodes of epuck_ros/examples/epuck2 run as 
 from __future__ import annotations
 
 import math
-import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
 import yaml
-from geometry_msgs.msg import TransformStamped
 from nav_msgs.msg import Odometry
 from rclpy.parameter import Parameter
 from rclpy.parameter_client import AsyncParameterClient
@@ -152,8 +150,8 @@ def _tf_message() -> type:
     return TFMessage
 
 
-def test_leds_light_light_and_camera_topics_under_each_robots_name(launch: object, test_node: object,
-                                                                 tmp_path: Path) -> None:
+def test_leds_light_and_camera_topics_under_each_robots_name(launch: object, test_node: object,
+                                                             tmp_path: Path) -> None:
     """With two robots every interface topic is under the robot's name, its frames prefixed; led0 (Bool), led1
     (Int32 0xRRGGBB) and led9 set that robot's `leds` as Webots' LED.set takes them; ls0..ls7 carry light_raw's
     values (the physical driver's raw value), image_raw the camera's rgb8, stamped with the step."""
@@ -207,8 +205,8 @@ class ExampleRun:
         self.sim = launch('sim', *ros_args(params))
         test_node.wait_for_simulator()
         self.node = launch('python', str(EXAMPLES / f'{example}.py'), *args)
-        test_node.spin_until(lambda: test_node.node.count_publishers('cmd_vel') > 0 or self.node.proc.poll() is not None,
-                             what=f'{example}\'s cmd_vel')
+        test_node.spin_until(lambda: test_node.node.count_publishers('cmd_vel') > 0
+                             or self.node.proc.poll() is not None, what=f'{example}\'s cmd_vel')
         client = AsyncParameterClient(test_node.node, 'sim')
         assert client.wait_for_services(20.0)
         future = client.set_parameters([Parameter('lockstep_controllers', value=1), Parameter('paused', value=False)])
@@ -234,7 +232,7 @@ def test_odometry_drive_example_stops_after_its_distance(launch: object, test_no
 
 
 def test_random_walker_example_avoids_the_walls_for_a_minute(launch: object, test_node: object,
-                                                            tmp_path: Path) -> None:
+                                                             tmp_path: Path) -> None:
     """random_walker.py reads `tof`, `ps0` and `ps7` (Range) and drives with a Twist: in a walled 1 m arena, 60
     simulated seconds without a contact, going places. (Three front rays miss a box's corner that passes between
     them at the body's edge: on the core, 6 of 20 seeds touched a box of the default arena; 0 of 30 a wall here.)"""

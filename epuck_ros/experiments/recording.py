@@ -6,7 +6,8 @@ bag instead of sending over DDS. So a headless bag has the topics, types, bytes 
 construction: robot_description, /tf_static and /tf, odom, ground_truth, proximity, joint_states, ir_raw and
 collisions per robot, the senses a controller read while it read them (as the simulator publishes them: from the step
 after it asked) and the e-puck interface's topics of those senses (`InterfacePorts`: ls0..ls7 with the light,
-image_raw and camera_info with the camera), world, world_markers and /clock; each topic offered with the QoS a recorder reads from the graph.
+image_raw and camera_info with the camera), world, world_markers and /clock; each topic offered with the QoS a
+recorder reads from the graph.
 A sense is published from the step its controller asked for it on, as the simulator publishes a newly wanted sense's
 current step at once, and `lockstep_status` says the run held (a headless trial is lockstep, always).
 The controllers' side as their nodes publish it: each robot's `wheel_cmd`, one answer per step before the last (the

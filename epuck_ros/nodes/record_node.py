@@ -2,16 +2,16 @@
 
     record [-o DIR] [--compression none|zstd|lz4] [--max-duration S] [TOPIC ...] [--ros-args ...]
 
-Topics (all visible ones when none is named) are found from the graph every `DISCOVERY_PERIOD`
-seconds, so topics that appear later are recorded too. The simulator's on-demand sense topics (camera, ground and
-light sensors, IMU: `nodes/sense_ports.py`; the e-puck interface's: `nodes/interface_ports.py`) are recorded as they
-are published, without asking for them: the simulator computes a sense while something else reads it (a controller, the view, an echo) or its `senses` parameter
-says so, and a recorder alone must not make it render a camera every step. Such a topic enters the bag with its first
-message. `--senses` / `--all-senses` (or naming the topic) ask for them: those subscriptions are made by a second node,
-`SENSE_ASKER_NODE`, which the simulator counts as a reader that asks. Messages are subscribed raw — the CDR
-bytes go to the bag untouched — with a QoS that matches every publisher, and a thread writes
-the bag so callbacks only enqueue. log_time is the node's clock (simulated time under
-``use_sim_time``); publish_time is the publisher's source timestamp, as rosbag2 records them.
+Topics (all visible ones when none is named) are found from the graph every `DISCOVERY_PERIOD` seconds, so topics that
+appear later are recorded too. The simulator's on-demand sense topics (camera, ground and light sensors, IMU:
+`nodes/sense_ports.py`; the e-puck interface's: `nodes/interface_ports.py`) are recorded as they are published, without
+asking for them: the simulator computes a sense while something else reads it (a controller, the view, an echo) or its
+`senses` parameter says so, and a recorder alone must not make it render a camera every step. Such a topic enters the
+bag with its first message. `--senses` / `--all-senses` (or naming the topic) ask for them: those subscriptions are
+made by a second node, `SENSE_ASKER_NODE`, which the simulator counts as a reader that asks. Messages are subscribed
+raw — the CDR bytes go to the bag untouched — with a QoS that matches every publisher, and a thread writes the bag so
+callbacks only enqueue. log_time is the node's clock (simulated time under ``use_sim_time``); publish_time is the
+publisher's source timestamp, as rosbag2 records them.
 
 At the end it says what may be missing: samples DDS reported lost (message-lost events) and gaps
 in the header stamps of the bag it wrote (`epuck_ros.bag.gaps`, the same check as ``bag info``).
