@@ -73,6 +73,11 @@ class InterfacePorts:
         self._asked = dict.fromkeys((*_SENSES, 'ir', 'camera_info'), False)
         """What its readers that ask ask for (`_ASKS`)."""
         self._asking: dict[str, int] = {}
+        self._counts: list[int] = []
+        self._computed: list[bool] | None = None
+        self._settled = False
+        """The readers' counts and the senses' states `update_wants` last followed, and whether the graph had shown
+        every reader's node by then."""
         self._published: list[str] = []
         """The kinds published after each step: read, and their sense computed."""
         self._patches: dict[str, Patch] = {}
@@ -111,7 +116,14 @@ class InterfacePorts:
         """Ask for the senses its topics need while a reader that asks reads them; follow the readers (and
         `wanted`: whether a sense is computed, whoever asked). The kinds to publish at once: newly published, or
         with one more reader that asks (a lockstep controller that just subscribed waits for this step's)."""
+        counts = [0 if publisher is None else publisher.handle.get_subscription_count()   # rclpy's own call,
+                  for publisher in self._publishers.values()]                             # without its lock
+        computed = [wanted(sense) for sense in _SENSES] if wanted is not None else None
+        if counts == self._counts and computed == self._computed and self._settled:
+            return []   # nothing changed: the simulator looks every step, at a few microseconds
+        self._counts, self._computed = counts, computed
         readers = {kind: self._readers_of(kind) for kind in _TYPES}
+        self._settled = all(self._readers.get(kind, (0,))[0] == count for kind, (count, _) in readers.items())
         asked = dict.fromkeys(self._asked, False)
         for kind, (_, asking) in readers.items():
             for what in _ASKS[kind] if asking else ():

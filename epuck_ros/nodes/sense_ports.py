@@ -194,19 +194,18 @@ class SensePorts:
         sense is computed, whoever asked (the e-puck interface's topics ask too, `SenseFeeds`); by default what
         these topics ask."""
         readers = {kind: self._readers_of(kind) for kind in ON_DEMAND_TOPICS}
-        new = []
+        new, computed = [], {}
         for kind in SENSE_TOPICS:
             count, asking = readers[kind]
             asks = asking > 0 or kind in forced
             if asks != self._wanted[kind]:
                 self._wanted[kind] = asks
                 want(kind, self.index, asks)
-            computed = asks if wanted is None else wanted(kind)
-            if asking > self._asking[kind] or (count and computed and not self.subscribed[kind]):
+            computed[kind] = asks if wanted is None else wanted(kind)
+            if asking > self._asking[kind] or (count and computed[kind] and not self.subscribed[kind]):
                 new.append(kind)
             self._asking[kind] = asking
-        self.follow(self._wanted if wanted is None else {kind: wanted(kind) for kind in SENSE_TOPICS},
-                    {kind: count > 0 for kind, (count, _) in readers.items()}, readers[_CAMERA_INFO][1] > 0)
+        self.follow(computed, {kind: count > 0 for kind, (count, _) in readers.items()}, readers[_CAMERA_INFO][1] > 0)
         return new
 
     def follow(self, wanted: Mapping[str, bool], read: Mapping[str, bool], info_asked: bool = False) -> None:
