@@ -11,6 +11,7 @@ import sys
 import rclpy
 from geometry_msgs.msg import Twist
 from nav_msgs.msg import Odometry
+from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 
 SPEED = 0.05   # m/s
@@ -42,10 +43,12 @@ class OdometryDrive(Node):
 def main():
     rclpy.init(args=sys.argv)
     node = OdometryDrive()
-    while rclpy.ok() and not node.done:
-        rclpy.spin_once(node, timeout_sec=0.1)
-    node.destroy_node()
-    rclpy.shutdown()
+    try:
+        while rclpy.ok() and not node.done:
+            rclpy.spin_once(node, timeout_sec=0.1)
+    except (KeyboardInterrupt, ExternalShutdownException):   # Ctrl-C, or the process told to stop
+        pass
+    rclpy.try_shutdown()
 
 
 if __name__ == '__main__':

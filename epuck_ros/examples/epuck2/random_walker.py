@@ -11,6 +11,7 @@ from functools import partial
 
 import rclpy
 from geometry_msgs.msg import Twist
+from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from sensor_msgs.msg import Range
 
@@ -53,8 +54,9 @@ def main():
     node = RandomWalker()
     try:
         rclpy.spin(node)
-    except KeyboardInterrupt:
+    except (KeyboardInterrupt, ExternalShutdownException):   # Ctrl-C, or the process told to stop
         pass
+    rclpy.try_shutdown()
 
 
 if __name__ == '__main__':

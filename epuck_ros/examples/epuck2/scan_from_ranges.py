@@ -11,6 +11,7 @@ from functools import partial
 from math import pi
 
 import rclpy
+from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from sensor_msgs.msg import LaserScan, Range
 
@@ -67,8 +68,9 @@ def main():
     node = ScanFromRanges()
     try:
         rclpy.spin(node)
-    except KeyboardInterrupt:
+    except (KeyboardInterrupt, ExternalShutdownException):   # Ctrl-C, or the process told to stop
         pass
+    rclpy.try_shutdown()
 
 
 if __name__ == '__main__':
