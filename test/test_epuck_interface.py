@@ -227,15 +227,20 @@ def test_odometry_drive_example_stops_after_its_distance(launch: object, test_no
     path = run.finish()
     travelled = float(np.hypot(*(path[-1] - path[0])))
     print(f'odometry_drive: {travelled:.4f} m by ground truth')
-    assert travelled == pytest.approx(0.2, abs=0.01)
+    # A Twist is at its own rate: the stop comes a step or a few late (under load the simulator waits 10 ms a step
+    # for it), and cmd_timeout (0.5 s, 0.025 m at its speed) bounds that whatever the load.
+    assert 0.2 - 0.002 <= travelled <= 0.2 + 0.025 + 0.002
+    assert (path[-1] == path[-2]).all()   # it stands
     assert 'stopping' in run.node.output()
 
 
 def test_random_walker_example_avoids_the_walls_for_a_minute(launch: object, test_node: object,
                                                              tmp_path: Path) -> None:
     """random_walker.py reads `tof`, `ps0` and `ps7` (Range) and drives with a Twist: in a walled 1 m arena, 60
-    simulated seconds without a contact, going places. (Three front rays miss a box's corner that passes between
-    them at the body's edge: on the core, 6 of 20 seeds touched a box of the default arena; 0 of 30 a wall here.)"""
+    simulated seconds without a contact, going places. A Twist is at its own rate, so the walker may answer some
+    steps late under load: on the core, with its commands 10 steps late, 0 of 20 seeds touched a wall. (Three front
+    rays miss a box's corner that passes between them at the body's edge: 6 of 20 seeds touched a box of the default
+    arena, so the arena here has walls only.)"""
     world = tmp_path / 'walls.yaml'
     world.write_text('arena: {size: [1.0, 1.0]}\n')
     run = ExampleRun(launch, test_node, 'random_walker', 60.0, world, '--ros-args', '-p', 'seed:=3')

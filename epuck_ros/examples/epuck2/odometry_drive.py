@@ -11,6 +11,7 @@ import sys
 import rclpy
 from geometry_msgs.msg import Twist
 from nav_msgs.msg import Odometry
+from rclpy.duration import Duration
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 
@@ -46,6 +47,7 @@ def main():
     try:
         while rclpy.ok() and not node.done:
             rclpy.spin_once(node, timeout_sec=0.1)
+        node.publisher.wait_for_all_acked(Duration(seconds=1.0))   # the stop delivered before the process ends
     except (KeyboardInterrupt, ExternalShutdownException):   # Ctrl-C, or the process told to stop
         pass
     rclpy.try_shutdown()
