@@ -25,7 +25,7 @@ from epuck_ros.ir_sensor import distance_from_raw
 from epuck_ros.model import RobotModel
 from epuck_ros.nodes.qos import LED_QOS
 from epuck_ros.nodes.robot_ports import STAMP_FIELDS, frame_prefix, quiet_publisher, topic_prefix
-from epuck_ros.nodes.sense_ports import camera_messages, readers_of
+from epuck_ros.nodes.sense_ports import ImagePatch, camera_messages, readers_of
 from epuck_ros.nodes.serialized import Patch
 from epuck_ros.sensors.tof import range_from_value
 from epuck_ros.simulation import Simulation
@@ -80,7 +80,7 @@ class InterfacePorts:
         every reader's node by then."""
         self._published: list[str] = []
         """The kinds published after each step: read, and their sense computed."""
-        self._patches: dict[str, Patch] = {}
+        self._patches: dict[str, Patch | ImagePatch] = {}
         self.publishing = False
         """Some topic of this robot is published: the node calls `publish` after each step."""
 
@@ -158,14 +158,14 @@ class InterfacePorts:
 
     # --- publishing --------------------------------------------------------------------------------------------
 
-    def _patch(self, kind: str) -> Patch:
+    def _patch(self, kind: str) -> Patch | ImagePatch:
         """The message of `kind`, made when first published (a swarm's robots mostly never are)."""
         patch = self._patches.get(kind)
         if patch is None:
             patch = self._patches[kind] = self._make(kind)
         return patch
 
-    def _make(self, kind: str) -> Patch:
+    def _make(self, kind: str) -> Patch | ImagePatch:
         frames = self._frames
         if kind in iface.IR_TOPICS:
             msg = Range(radiation_type=Range.INFRARED, field_of_view=iface.IR_FIELD_OF_VIEW,
