@@ -94,6 +94,10 @@ IMU_POSITION = (0.0, 0.0, 0.0)
 """x, y, z (m) of the accelerometer and gyro (frame `imu`, axes those of base_link): E-puck.proto gives them no
 translation, so they sit at the robot's origin, base_link's (on the floor midway between the wheels)."""
 
+TURRET_SLOT = (-0.0095, 0.0, 0.0486)
+"""x, y, z (m) in base_link of the turret slot, where a world's GPS, Compass or InertialUnit sits with the robot's axes:
+E-puck.proto's `TURRET_SLOT` Transform (translation -0.0095 0 0.0486, no rotation)."""
+
 TOF_NAME = 'tof'
 """The e-puck2's time-of-flight sensor (a VL53L0X): Webots' DistanceSensor "tof", E-puck.proto when version is "2"."""
 TOF_POSE = (0.034, -0.0018, 0.033, -0.0008)

@@ -64,8 +64,8 @@ FIGURES = {
     'ToF tof': Figure(
         'a wall 0.3 m ahead along its ray (e-puck2), noise off: getValue() / the `tof` Range', '323.23 / 0.3',
         '323.23 / 0.3', '0 / 0',
-        'E-puck.proto version "2": DistanceSensor "tof", type "generic" (no reflection factor), one ray 2 m long, table '
-        '(0.2 m: 218.9, 0.5 m: 531.9); webots_ros2 Ros2DistanceSensor.cpp and Math.cpp (the inverse table)'),
+        'E-puck.proto version "2": DistanceSensor "tof", type "generic" (no reflection factor), one ray 2 m long, '
+        'table (0.2 m: 218.9, 0.5 m: 531.9); webots_ros2 Ros2DistanceSensor.cpp and Math.cpp (the inverse table)'),
     'LEDs': Figure(
         'set(1) on led0, led8, led9: get() and the colour lit', '1: red, green, orange (1, 0.3, 0)',
         '1: red, green, orange (1, 0.3, 0)', '0',

@@ -128,3 +128,42 @@ def test_tof_device_over_ros_reads_what_it_reads_headless(launch: object, test_n
     compared = [(over_ros[round(p['t'] * 1000)], p['v']) for p in headless[1:] if round(p['t'] * 1000) in over_ros]
     assert len(compared) >= 90
     assert all(a == b for a, b in compared), compared[:5]
+
+
+TOF_AND_GPS = '''
+from controller import Robot
+robot = Robot()
+tof, gps = robot.getDevice('tof'), robot.getDevice('gps')
+tof.enable(32)
+gps.enable(32)
+for name in ('left wheel motor', 'right wheel motor'):
+    robot.getDevice(name).setPosition(float('inf'))
+    robot.getDevice(name).setVelocity(4.0)
+while robot.step(32) != -1:
+    if tof.getValue() < 90.0:   # about 12 cm from the wall: turn away
+        robot.getDevice('left wheel motor').setVelocity(-2.0)
+'''
+
+
+def test_a_headless_tof_scripts_bag_is_the_bringup_bag_of_the_same_run(tmp_path: Path) -> None:
+    """A script reading its tof and a turret GPS (noise on, seed 6, 3 s): `webots_controller --headless --record`
+    writes the `tof` topic (from the step the script asked for it on) and every other topic as `bringup --controller
+    --record` does over ROS, message for message."""
+    from test_bag_headless import compare, read, run_both
+    script = tmp_path / 'tof_and_gps.py'
+    script.write_text(textwrap.dedent(TOF_AND_GPS))
+    world = tmp_path / 'world.yaml'
+    world.write_text(yaml.safe_dump({'arena': {'size': [0.6, 0.6]}, 'robot': {'start': [0.0, 0.0, 0.0],
+                                                                              'turret': ['GPS']}}))
+    options = ['--seed', '6', '--duration', '3', '--world', str(world)]
+    ros = read(run_both(tmp_path, ['--controller', str(script), *options],
+                        ['webots_controller', str(script), '--headless', *options, '--record',
+                         str(tmp_path / 'headless')]))
+    headless = read(tmp_path / 'headless')
+    assert {'/tof', '/ground_truth'} <= set(headless)
+    first = headless['/tof']['messages'][0]
+    assert (first.header.stamp.sec, first.header.stamp.nanosec) == (0, 32_000_000)
+    assert first.header.frame_id == 'tof' and first.radiation_type == Range.INFRARED
+    ranges = [msg.range for msg in headless['/tof']['messages']]
+    assert min(ranges) < 0.15 < max(ranges)   # it drove up to the wall
+    compare(ros, headless, (3, 8_000_000))

@@ -106,7 +106,7 @@ USAGE = Usage(
     'sim',
     'The e-puck simulator: steps the robots of a world and publishes, per robot, odom, ground_truth, proximity '
     '(8 Range), ir_raw (the 8 raw IR values), joint_states and collisions, the latched robot_description, and '
-    'while they have subscribers camera/image_raw, camera/camera_info, ground_raw, light_raw and imu, plus the '
+    'while they have subscribers camera/image_raw, camera/camera_info, ground_raw, light_raw, imu and tof, plus the '
     'latched world, world_markers and /tf_static, and /tf and /clock; the e-puck\'s own interface while read '
     '(ps0..ps7, scan, ls0..ls7, image_raw, camera_info; led0..led9 taken); takes cmd_vel (Twist) or wheel_cmd '
     '([left, right] rad/s) per robot; services '
