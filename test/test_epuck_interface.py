@@ -176,6 +176,9 @@ def test_leds_light_and_camera_topics_under_each_robots_name(launch: object, tes
     assert ranges[-1].header.frame_id == 'epuck1/ps7' and ls3[-1].header.frame_id == 'epuck1/ls3'
     assert images[-1].header.frame_id == 'epuck0/camera' and images[-1].encoding == 'rgb8'
     assert infos[-1].header.frame_id == 'epuck0/camera'
+    for msg in (*images, *ls3, *ranges):   # each stamped with its step
+        t = seconds(msg.header.stamp)
+        assert round(t / STEP) * STEP == pytest.approx(t, abs=1e-9)
     raw = {label_seconds(m): m.data.tolist() for m in light}
     matched = [(msg.illuminance, raw[seconds(msg.header.stamp)][3]) for msg in ls3 if seconds(msg.header.stamp) in raw]
     assert matched and all(ours == theirs for ours, theirs in matched)
