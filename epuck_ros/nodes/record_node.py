@@ -2,15 +2,15 @@
 
     record [-o DIR] [--compression none|zstd|lz4] [--max-duration S] [TOPIC ...] [--ros-args ...]
 
-Topics (all visible ones when none is named) are found from the graph every `DISCOVERY_PERIOD`
-seconds, so topics that appear later are recorded too. The simulator's on-demand sense topics (camera, ground and
-light sensors, IMU: `nodes/sense_ports.py`) are recorded as they are published, without asking for them: the
-simulator computes a sense while something else reads it (a controller, the view, an echo) or its `senses` parameter
-says so, and a recorder alone must not make it render a camera every step. Such a topic enters the bag with its first
-message. `--senses` / `--all-senses` (or naming the topic) ask for them: those subscriptions are made by a second node,
-`SENSE_ASKER_NODE`, which the simulator counts as a reader that asks. Messages are subscribed raw — the CDR
-bytes go to the bag untouched — with a QoS that matches every publisher, and a thread writes
-the bag so callbacks only enqueue. publish_time is the publisher's source timestamp, as rosbag2 records it.
+Topics (all visible ones when none is named) are found from the graph every `DISCOVERY_PERIOD` seconds, so topics that
+appear later are recorded too. The simulator's on-demand sense topics (camera, ground and light sensors, IMU:
+`nodes/sense_ports.py`; the e-puck interface's: `nodes/interface_ports.py`) are recorded as they are published, without
+asking for them: the simulator computes a sense while something else reads it (a controller, the view, an echo) or its
+`senses` parameter says so, and a recorder alone must not make it render a camera every step. Such a topic enters the
+bag with its first message. `--senses` / `--all-senses` (or naming the topic) ask for them: those subscriptions are
+made by a second node, `SENSE_ASKER_NODE`, which the simulator counts as a reader that asks. Messages are subscribed
+raw — the CDR bytes go to the bag untouched — with a QoS that matches every publisher, and a thread writes the bag so
+callbacks only enqueue. publish_time is the publisher's source timestamp, as rosbag2 records it.
 
 log_time: under ``use_sim_time``, a message that names a simulator step (`epuck_ros.bag.steps`: a header stamp, a
 TF's, a `stamp=` label) is logged at that step's simulated time, whenever it arrived; any other message at the node's
@@ -60,6 +60,7 @@ from epuck_ros.bag.reader import Bag, BagError
 from epuck_ros.bag.writer import COMPRESSIONS, BackgroundWriter, BagExistsError, BagWriteError, BagWriter
 from epuck_ros.exit_codes import EXIT_FAILED, refuse
 from epuck_ros.nodes.dds_profile import use_package_profile, warn_if_not_fast_dds
+from epuck_ros.nodes.interface_ports import INTERFACE_TOPICS
 from epuck_ros.nodes.sense_ports import ON_DEMAND_TOPICS, RECORDER_NODE, SENSE_TOPICS
 
 DISCOVERY_PERIOD = 0.2
@@ -124,9 +125,12 @@ def subscription_qos(offered: list[QoSProfile]) -> QoSProfile:
 
 
 def sense_of(topic: str) -> str | None:
-    """Which on-demand sense topic `topic` is (a key of sense_ports.ON_DEMAND_TOPICS, any robot's), None for others."""
-    return next((kind for kind, name in ON_DEMAND_TOPICS.items() if topic == '/' + name or topic.endswith('/' + name)),
-                None)
+    """Which on-demand sense topic `topic` is (a key of sense_ports.ON_DEMAND_TOPICS, or a topic of the e-puck
+    interface, interface_ports.INTERFACE_TOPICS; any robot's), None for others."""
+    return next((kind for kind, name in _ON_DEMAND if topic == '/' + name or topic.endswith('/' + name)), None)
+
+
+_ON_DEMAND = [*ON_DEMAND_TOPICS.items(), *((kind, kind) for kind in INTERFACE_TOPICS)]
 
 
 def message_class(type_name: str) -> type:
