@@ -16,6 +16,7 @@ esac
 scripts/setup.sh
 . scripts/env.sh
 # Two test processes (pytest-xdist), each on a ROS domain of its own (README, Tests: how long it takes).
-# --dist loadfile keeps each test file in one process: the README's commands build on each other (test_readme.py).
-exec python -m pytest -n 2 --dist loadfile "${tier[@]}" --cov=epuck_ros --cov-branch --cov-report=term:skip-covered \
-  "$@"
+# --dist loadfile keeps each test file in one process: the README's commands build on each other (test_readme.py);
+# the files are handed out longest first (test/conftest.py), not reordered by xdist.
+exec python -m pytest -n 2 --dist loadfile --no-loadscope-reorder "${tier[@]}" \
+  --cov=epuck_ros --cov-branch --cov-report=term:skip-covered "$@"
