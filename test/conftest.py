@@ -67,10 +67,11 @@ def pytest_report_header() -> str:
     return f'ROS_DOMAIN_ID={_DOMAIN} ({_DOMAIN_CHOICE}), ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST'
 
 
-LONGEST_FILES = ('test_readme.py', 'test_bringup.py', 'test_webots.py', 'test_same_run.py', 'test_sweep_hostile.py',
-                 'test_experiments.py', 'test_bag_on_demand.py', 'test_multi_robot_nodes.py',
-                 'test_multi_controller.py', 'test_bag_headless.py', 'test_behaviour_nodes.py', 'test_bag_readers.py',
-                 'test_bag_fuzz.py', 'test_view_node.py', 'test_lint.py', 'test_swarm_bringup.py')
+LONGEST_FILES = ('test_bringup.py', 'test_readme.py', 'test_same_run.py', 'test_webots.py', 'test_sim_node.py',
+                 'test_sweep_hostile.py', 'test_experiments.py', 'test_bag_fuzz.py', 'test_bag_on_demand.py',
+                 'test_bag_record.py', 'test_senses_ros.py', 'test_bag_headless.py', 'test_multi_robot_nodes.py',
+                 'test_multi_controller.py', 'test_bag_readers.py', 'test_behaviour_nodes.py', 'test_bag_shapes.py',
+                 'test_view_node.py', 'test_bag_cli.py', 'test_lint.py', 'test_evolution.py')
 """The test files that take longest (`pytest --durations=0`, summed per file), longest first."""
 
 
