@@ -304,14 +304,16 @@ def test_a_headless_bag_has_the_interface_topics_a_recorder_gets_over_ros(tmp_pa
     script = tmp_path / 'light.py'
     script.write_text(LIGHT_SCRIPT)
     options = ['--seed', '4', '--duration', '2', '--world', str(WORLDS / 'lit_arena.yaml')]
-    ros = run_both(tmp_path, ['--controller', str(script), *options],
-                   ['webots_controller', str(script), '--headless', *options, '--record', str(tmp_path / 'headless')])
-    over_ros, headless = read(ros), read(tmp_path / 'headless')
-    for bag in (over_ros, headless):
+    ros = [read(bag) for bag in run_both(tmp_path, ['--controller', str(script), *options],
+                                         ['webots_controller', str(script), '--headless', *options, '--record',
+                                          str(tmp_path / 'headless')])]
+    headless = read(tmp_path / 'headless')
+    for bag in (*ros, headless):
         assert bag['/ls5']['type'] == 'sensor_msgs/msg/Illuminance'
         assert not {'/image_raw', '/scan', '/ps0', '/camera_info', '/leds'} & set(bag)
         light = {step_of(msg): msg.data.tolist() for msg in bag['/light_raw']['messages']}
         ls5 = bag['/ls5']['messages']
         assert len(ls5) > 50 and ls5[0].header.frame_id == 'ls5'
         assert all(light[(msg.header.stamp.sec, msg.header.stamp.nanosec)][5] == msg.illuminance for msg in ls5)
-    compare(over_ros, headless, (2, 16_000_000))
+    for over_ros in ros:
+        compare(over_ros, headless)

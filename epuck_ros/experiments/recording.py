@@ -181,10 +181,11 @@ class TrialRecorder:
             for ports, senses, interface in zip(self._ports, self._senses, self._interface):
                 ports.publish(sim, stamp)
                 _follow(senses, sim)
-                senses.announce(last)   # what changed since the last step, said with this one (as the sim node)
+                _follow_interface(interface, sim)
+                # what changed since the last step, said with this one (as the sim node)
+                senses.announce(last, interface.published_topics)
                 if senses.publishing:
                     senses.publish(sim, stamp)
-                _follow_interface(interface, sim)
                 if interface.publishing:
                     interface.publish(sim, stamp)
             if self._swarm is not None:

@@ -153,6 +153,11 @@ class InterfacePorts:
         self.publishing = bool(self._published)
         return [kind for kind in self._published if kind not in was]
 
+    @property
+    def published_topics(self) -> list[str]:
+        """Its topics published after each step, relative to the robot's (what `senses_on` says beside the senses)."""
+        return list(self._published)
+
     def _readers_of(self, kind: str) -> tuple[int, int]:
         return readers_of(self._node, self._publishers[kind], self._readers, kind)
 

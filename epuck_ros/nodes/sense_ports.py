@@ -227,12 +227,14 @@ class SensePorts:
         if self.publishing and not self._made:
             self._make_messages()
 
-    def announce(self, after: tuple[int, int]) -> None:
+    def announce(self, after: tuple[int, int], also: Iterable[str] = ()) -> None:
         """Say on `senses_on` which sense topics are published from the step after `after` on (called as that step
         is published), if that changed since it last said (`bag.steps.senses_on_text`): a recorder and `bag info`
-        tell a sense that was off from one that was lost."""
+        tell a sense that was off from one that was lost. `also`: the robot's other on-demand topics published (the
+        e-puck interface's, `InterfacePorts.published_topics`)."""
         published = [ON_DEMAND_TOPICS[kind] for kind in SENSE_TOPICS if self.subscribed[kind]]
         published += [ON_DEMAND_TOPICS[_CAMERA_INFO]] if self._info_subscribed else []
+        published += also
         if published == self._announced:
             return
         if self._senses_on is None:
@@ -294,7 +296,7 @@ class SenseFeeds:
         """Per (robot, sense), which of its ports ask for the sense (by position): it is computed while one does."""
         self._publishing: list[SensePorts] = []
         """The ports with a reader on some topic: their messages are published after each step."""
-        self._unannounced: set[SensePorts] = set()
+        self._unannounced: set[int] = set()
         """The robots whose senses may have changed since their `senses_on` last said: said with the next step (a
         change after the last step is none)."""
         self._last_stamp = (0, 0)
@@ -302,8 +304,9 @@ class SenseFeeds:
         self._wants_changed = False
 
     def publish(self, stamp: tuple[int, int]) -> None:
-        for ports in self._unannounced:
-            ports.announce(self._last_stamp)
+        for robot in self._unannounced:
+            *companions, senses = self.ports[robot]
+            senses.announce(self._last_stamp, [topic for ports in companions for topic in ports.published_topics])
         self._unannounced.clear()
         self._last_stamp = stamp
         for ports in self._publishing:
@@ -348,7 +351,7 @@ class SenseFeeds:
                     ports.publish(self._sim, stamp_from_seconds(self._sim.time), new)
             if not self._wants_changed:
                 break
-        self._unannounced.add(self.ports[robot][-1])
+        self._unannounced.add(robot)
         if changed:
             self._publishing = [ports for groups in self.ports for ports in groups if ports.publishing]
 
