@@ -22,6 +22,7 @@ from std_msgs.msg import Float64MultiArray, UInt32
 
 from epuck_ros.conversions import nanoseconds_from_stamp, quaternion_from_yaw
 from epuck_ros.description import JOINT_NAMES
+from epuck_ros.lockstep import Controller
 from epuck_ros.model import SENSOR_NAMES, RobotModel
 from epuck_ros.nodes.serialized import PatchCache, array_bytes, array_values
 from epuck_ros.simulation import Simulation
@@ -73,7 +74,8 @@ class RobotPorts:
         self.odom_frame, self.base_frame = frames + 'odom', frames + 'base_link'
         world_frame = frames_prefix + WORLD_FRAME  # shared by all robots, as are the world's markers
         self._on_command = on_command
-        self._logger = node.get_logger()
+        self._node, self._logger = node, node.get_logger()
+        self._stamped = cmd_vel_stamped
         self._make_messages(frames, world_frame, model, patches or PatchCache())
 
         self._odom_pub = quiet_publisher(node, Odometry, topics + 'odom', stream_qos)
@@ -144,6 +146,26 @@ class RobotPorts:
     def has_controller(self) -> bool:
         """Some node publishes on this robot's wheel_cmd or cmd_vel (a matched publisher): lockstep waits for it."""
         return self._wheels_sub.get_publisher_count() > 0 or self._twist_sub.get_publisher_count() > 0
+
+    @property
+    def command_topics(self) -> tuple[str, str]:
+        """The fully qualified topics of its commands (wheel_cmd, cmd_vel): what a declaration names."""
+        return self._wheels_sub.topic_name, self._twist_sub.topic_name
+
+    def controller(self, declared: Controller | None) -> Controller:
+        """What the graph says of its controller before its first answer: a publisher of a type that can name a step
+        (wheel_cmd, TwistStamped) is what it `declared`; only plain Twist ones cannot answer by name."""
+        if self._wheels_sub.get_publisher_count() or (self._stamped and self._twist_sub.get_publisher_count()):
+            return declared or Controller.UNDECLARED
+        return Controller.UNNAMING
+
+    def publishers(self) -> str:
+        """The publishers of its commands, as the graph shows them (node, topic, endpoint GID)."""
+        found = [f'{info.node_namespace.rstrip("/")}/{info.node_name} on {sub.topic_name} '
+                 f'(gid {bytes(info.endpoint_gid).hex()})'
+                 for sub in (self._wheels_sub, self._twist_sub)
+                 for info in self._node.get_publishers_info_by_topic(sub.topic_name)]
+        return ', '.join(found) or 'none left on the graph'
 
     # --- publishing -------------------------------------------------------------------------------------
 

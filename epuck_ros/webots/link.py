@@ -32,8 +32,10 @@ from sensor_msgs.msg import Image, Imu, JointState
 from std_msgs.msg import Float64MultiArray, Int32MultiArray
 
 from epuck_ros.conversions import nanoseconds_from_stamp, stamp_from_nanoseconds
+from epuck_ros.lockstep import Controller
 from epuck_ros.model import CAMERA_HEIGHT, CAMERA_WIDTH
 from epuck_ros.nodes.ack_window import command_qos
+from epuck_ros.nodes.declaration import Declarer
 from epuck_ros.nodes.qos import LED_QOS
 from epuck_ros.nodes.robot_ports import JOINT_NAMES
 from epuck_ros.nodes.sense_ports import SENSE_TOPICS
@@ -137,6 +139,9 @@ class SimLink:
         self._stop_waiting = stop_waiting
         self._executor = SingleThreadedExecutor(context=self.node.context)
         self._executor.add_node(self.node)
+        # Declared before it is made: lockstep waits for its answers from the first step (epuck_ros/lockstep.py).
+        self._declarer = Declarer(self.node)
+        self._declarer.declare(Controller.LOCKSTEP, [self.node.resolve_topic_name(self._prefix + COMMAND_TOPIC)])
         self._publisher = self.node.create_publisher(Float64MultiArray, self._prefix + COMMAND_TOPIC, command_qos(1))
         self._joints = _Stream()
         self._ir_raw = _Stream()
