@@ -142,7 +142,7 @@ class Lockstep:
     def __init__(self, robots: int, step: StepFunction, timeout: float = 0.0,
                  driven: Callable[[], Sequence[int]] | None = None, lend: Callable[[], bool] = lambda: False,
                  on_stall: Callable[[Sequence[int], float, Sequence[int]], None] = lambda robots, waited, gone: None,
-                 on_resend: Callable[[], None] = lambda: None,
+                 on_resend: Callable[[Sequence[int]], None] = lambda back: None,
                  on_free: Callable[[int, Answer | Controller], None] = lambda robot, why: None,
                  on_timeout: Callable[[Sequence[int]], None] = lambda robots: None, over_dds: bool = True,
                  controller: Callable[[int], Controller] = lambda robot: Controller.UNDECLARED) -> None:
@@ -151,10 +151,11 @@ class Lockstep:
         step's last answer takes the next step (asked under the condition while the holder waits, so nothing the holder
         writes changes meanwhile); `on_stall(robots, waited, gone)`: every STALL_REPORT while a step waits for them,
         `waited` wall seconds since it first went out, `gone` those of them whose controller left the graph;
-        `on_resend()`: the step is about to be sent again; `on_free(robot, why)`: that robot's controller is free from
-        now on, for what its answer was or what it is; `on_timeout(robots)`: the step goes on without their answers;
-        `over_dds`: steps and answers travel over DDS (resends and the first answer's wait, see the module);
-        `controller(robot)`: what is known of a driven robot's controller before its first answer."""
+        `on_resend(back)`: the step is about to be sent again (`back`: for these robots, whose controller is back on the
+        graph; else for a first answer); `on_free(robot, why)`: that robot's controller is free from now on, for what
+        its answer was or what it is; `on_timeout(robots)`: the step goes on without their answers; `over_dds`: steps
+        and answers travel over DDS (resends and the first answer's wait, see the module); `controller(robot)`: what is
+        known of a driven robot's controller before its first answer."""
         self._robots = robots
         self._step = step
         self._timeout = timeout if timeout > 0.0 else math.inf
@@ -184,8 +185,8 @@ class Lockstep:
         """Robots in lockstep: their controller answered by name, and is not free."""
         self._gone: set[int] = set()
         """Robots in lockstep whose controller is no longer on the graph."""
-        self._returned = False
-        """A controller of a robot in `_gone` is on the graph again: the current step is to be sent again."""
+        self._back: set[int] = set()
+        """Robots of `_gone` whose controller is on the graph again: the current step is to be sent again."""
         self._awaited: set[int] = set()
         """Robots in lockstep (or not yet answered) whose answer to the current step is still awaited."""
         self._free_awaited: set[int] = set()
@@ -335,9 +336,9 @@ class Lockstep:
                 self._on_timeout(sorted(self._awaited))
                 self._take_answers()
                 return True
-            if self._returned:   # a controller that had left is back: it may have missed the step
-                self._returned = False
-                self._on_resend()
+            if self._back:   # a controller that had left is back: it may have missed the step
+                self._on_resend(sorted(self._back))
+                self._back.clear()
                 return False
             unanswered = [robot for robot in self._awaited if not self._answered_once[robot]] if self._over_dds else []
             for robot in unanswered:
@@ -347,7 +348,7 @@ class Lockstep:
             if unanswered and not self._awaited:
                 continue
             if unanswered and now - self._started >= RESEND_AFTER:
-                self._on_resend()
+                self._on_resend([])
                 return False
             next_report = self._sent + STALL_REPORT * (self._stall_reports + 1)
             if self._awaited and now >= next_report:
@@ -384,8 +385,7 @@ class Lockstep:
         driven = set(self._driven())
         members = self._members
         gone = members - driven
-        if self._gone - gone:
-            self._returned = True
+        self._back |= self._gone - gone
         self._gone = gone
         free = set()
         for robot in driven - members:
@@ -407,4 +407,4 @@ class Lockstep:
                     self._members.add(robot)
         self._answered = [False] * self._robots
         self._awaited, self._free_awaited = set(), set()
-        self._returned = False   # whoever came back has answered
+        self._back.clear()   # whoever came back has answered

@@ -239,7 +239,7 @@ def test_answers_are_paired_with_the_step_they_name():
 def test_a_resend_publishes_the_same_step_again_keeps_its_answers_and_says_so(monkeypatch):
     monkeypatch.setattr(lockstep_module, 'RESEND_AFTER', SHORT)
     resent = []
-    step, sim = lockstep(robots=2, timeout=0.0, on_resend=lambda: resent.append(sim.count))
+    step, sim = lockstep(robots=2, timeout=0.0, on_resend=lambda back: resent.append(sim.count))
     step.step()
     step.answer(0)
     assert not step.await_answers()
@@ -419,7 +419,7 @@ def test_a_robot_in_lockstep_whose_controller_left_the_graph_is_waited_for_and_s
     on_graph = [0, 1]
     stalls: list[tuple[list[int], list[int]]] = []
     resent = []
-    step, sim = lockstep(robots=2, timeout=0.0, driven=lambda: list(on_graph), on_resend=lambda: resent.append(1),
+    step, sim = lockstep(robots=2, timeout=0.0, driven=lambda: list(on_graph), on_resend=resent.append,
                          on_stall=lambda robots, waited, gone: stalls.append((list(robots), list(gone))))
     step.step()
     step.answer(0)
@@ -437,7 +437,7 @@ def test_a_robot_in_lockstep_whose_controller_left_the_graph_is_waited_for_and_s
     back = in_thread(come_back)
     assert step.await_answers() is False
     back.join()
-    assert stalls[:2] == [([0], [0])] * 2 and resent == [1]
+    assert stalls[:2] == [([0], [0])] * 2 and resent == [[0]]
     step.step(resend=True)
     step.answer(0)
     assert step.await_answers()
@@ -468,7 +468,7 @@ def test_a_controller_that_cannot_or_says_it_will_not_answer_by_name_is_not_wait
     monkeypatch.setattr(lockstep_module, 'RESEND_AFTER', SHORT)
     freed: list[tuple[int, object]] = []
     resent = []
-    step, sim = lockstep(robots=2, timeout=0.0, on_resend=lambda: resent.append(1),
+    step, sim = lockstep(robots=2, timeout=0.0, on_resend=resent.append,
                          on_free=lambda robot, why: freed.append((robot, why)),
                          controller=lambda robot: kind if robot == 1 else Controller.LOCKSTEP)
     for _ in range(3):

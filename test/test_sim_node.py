@@ -39,6 +39,10 @@ def stamp_seconds(msg: object) -> float:
     return msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
 
 
+def stamp_seconds_of(clock: Clock) -> float:
+    return clock.clock.sec + clock.clock.nanosec * 1e-9
+
+
 def start_sim(launch, test_node, **params):
     sim = launch('sim', *ros_args({'noise': False, 'real_time_factor': 5.0, **params}))
     test_node.wait_for_simulator()
@@ -553,6 +557,8 @@ def test_a_lockstep_controller_that_left_the_graph_is_waited_for_and_sent_its_st
     back = test_node.node.create_publisher(Float64MultiArray, 'wheel_cmd', 10)
     test_node.spin_until(lambda: len(clocks) > seen and clocks[-1].clock == waiting.clock,
                          what='the step sent again once a controller is back')
+    sim.wait_for_output(
+        f'the controller of epuck is back on the graph: sending t={stamp_seconds_of(waiting):.3f} s again')
     back.publish(answer(1.0, 1.0, waiting))
     test_node.spin_until(lambda: clocks[-1].clock != waiting.clock, what='the step after the answer')
     assert statuses[-1].level == DiagnosticStatus.OK, statuses[-1].message

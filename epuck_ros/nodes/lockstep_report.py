@@ -29,8 +29,12 @@ class LockstepReport:
         self._logger.info(f'lockstep: waiting for {required} controller{"s" * (required != 1)} before the first '
                           f'step (lockstep_controllers); connected: {connected}')
 
-    def resend(self) -> None:
-        self._logger.info(f'lockstep: no first answer to t={self._now():.3f} s yet, sending it again')
+    def resend(self, back: Sequence[int]) -> None:
+        if back:
+            self._logger.info(f'lockstep: the controller of {self._named(back)} is back on the graph: sending '
+                              f't={self._now():.3f} s again')
+        else:
+            self._logger.info(f'lockstep: no first answer to t={self._now():.3f} s yet, sending it again')
 
     def stall(self, robots: Sequence[int], waited: float, gone: Sequence[int]) -> None:
         limit = f'lockstep_timeout {self._timeout:g} s' if self._timeout else 'lockstep_timeout 0: as long as it takes'
