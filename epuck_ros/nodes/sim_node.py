@@ -283,6 +283,8 @@ class SimNode(Node):
             self._lockstep.answer(robot, verdict, named, command)
 
     def _report_conflict(self, robot: int, named: int, command: tuple[str, float, float]) -> None:
+        if not self._report.integrity.reproducible:
+            return   # said already (the first reason stays): no look at the graph for each of an intruder's answers
         last_named, last_command = self._lockstep.last_answer(robot)
         said = f'[{command[1]!r}, {command[2]!r}] on {command[0]}'
         if last_named == named:
