@@ -6,19 +6,22 @@ the current step by that name, never by arrival order. A robot whose controller 
 lockstep*: each step waits for its answer, however long (a line every STALL_REPORT while it waits), unless the user
 set a `timeout` — also once its controller has left the graph (a process stopped, frozen or crashed leaves no word,
 and DDS drops it after its lease): it may come back, and when a controller of that robot is seen again the step is
-sent again. Stepping on without it would make the rest of the run depend on the moment it left. A controller
-recognised by what it sends as one that does not answer each step — answers that name no step (a plain Twist, an
-unstamped wheel_cmd: a timer, a joystick) or that name an older step than the one it is asked — is *free*: its
-commands drive when they arrive, each step waits at most OWN_RATE_WAIT for it, and the run is no longer reproducible
-(`on_free` says so once; so does `on_timeout` for a step that went on without an answer). Until a controller has
-answered at all, the step it has not answered is sent again every RESEND_AFTER: it may have subscribed after the
-step went out. Before its first answer the graph and the controller's declaration say what to expect (`Controller`,
-`controller()`): one declared in lockstep is waited for as long as it takes; one that publishes only a type that
-cannot name a step (plain Twist), or that declared its own rate, is free from the moment the graph shows it (it is
-said only once its commands drive); an undeclared one that has not answered within FIRST_ANSWER_WAIT is taken for
-free too: a timer on simulated time cannot answer before time moves on. All this only over DDS (`over_dds`): in one
-process (the headless trials) no step is lost in transit, and a controller that has not answered yet is still
-computing its answer (a script that loops without stepping is its time limit's to end).
+sent again. Stepping on without it would make the rest of the run depend on the moment it left. A controller that
+ends on purpose while the simulation runs says goodbye: it declares its own rate for its topics (see below), and
+once it has left the graph its robot is no longer waited for (its last answer drives on, whenever the simulator
+learns it: the run stays a function of the answers). A controller recognised by what it sends as one that does not
+answer each step — answers that name no step (a plain Twist, an unstamped wheel_cmd: a timer, a joystick) or that
+name an older step than the one it is asked — is *free*: its commands drive when they arrive, each step waits at
+most OWN_RATE_WAIT for it, and the run is no longer reproducible (`on_free` says so once; so does `on_timeout` for a
+step that went on without an answer). Until a controller has answered at all, the step it has not answered is sent
+again every RESEND_AFTER: it may have subscribed after the step went out. Before its first answer the graph and the
+controller's declaration say what to expect (`Controller`, `controller()`): one declared in lockstep is waited for
+as long as it takes; one that publishes only a type that cannot name a step (plain Twist), or that declared its own
+rate, is free from the moment the graph shows it (it is said only once its commands drive); an undeclared one that
+has not answered within FIRST_ANSWER_WAIT is taken for free too: a timer on simulated time cannot answer before time
+moves on. All this only over DDS (`over_dds`): in one process (the headless trials) no step is lost in transit, and
+a controller that has not answered yet is still computing its answer (a script that loops without stepping is its
+time limit's to end).
 
 Two different answers to one step (a second publisher answering by name, or one answering twice, differently) are
 a CONFLICT: the first drives, and the run is no longer reproducible (which one came first is a matter of timing).
@@ -145,7 +148,8 @@ class Lockstep:
                  on_resend: Callable[[Sequence[int]], None] = lambda back: None,
                  on_free: Callable[[int, Answer | Controller], None] = lambda robot, why: None,
                  on_timeout: Callable[[Sequence[int]], None] = lambda robots: None, over_dds: bool = True,
-                 controller: Callable[[int], Controller] = lambda robot: Controller.UNDECLARED) -> None:
+                 controller: Callable[[int], Controller] = lambda robot: Controller.UNDECLARED,
+                 on_leave: Callable[[int], None] = lambda robot: None) -> None:
         """`timeout`: wall seconds a step waits for the answers of controllers in lockstep, 0 = as long as it takes;
         `driven()`: the robots that have a controller on the graph now (default: all); `lend()`: whether the thread of a
         step's last answer takes the next step (asked under the condition while the holder waits, so nothing the holder
@@ -155,7 +159,8 @@ class Lockstep:
         graph; else for a first answer); `on_free(robot, why)`: that robot's controller is free from now on, for what
         its answer was or what it is; `on_timeout(robots)`: the step goes on without their answers; `over_dds`: steps
         and answers travel over DDS (resends and the first answer's wait, see the module); `controller(robot)`: what is
-        known of a driven robot's controller before its first answer."""
+        known of a driven robot's controller before its first answer (and of one that left the graph: OWN_RATE is its
+        goodbye); `on_leave(robot)`: that robot's controller left, declared at its own rate: no longer waited for."""
         self._robots = robots
         self._step = step
         self._timeout = timeout if timeout > 0.0 else math.inf
@@ -163,7 +168,7 @@ class Lockstep:
         self._lend = lend
         self._on_stall, self._on_resend, self._on_free, self._on_timeout = on_stall, on_resend, on_free, on_timeout
         self._over_dds = over_dds
-        self._controller = controller
+        self._controller, self._on_leave = controller, on_leave
         self._holder: int | None = None
         """The thread (ident) that may step now."""
         self._changed = threading.Condition()
@@ -383,6 +388,10 @@ class Lockstep:
         """Which robots' answers the current step waits for: those with a controller on the graph, and those in
         lockstep whose controller left it (see the module); free ones at most OWN_RATE_WAIT."""
         driven = set(self._driven())
+        for robot in self._gone - driven:
+            if self._controller(robot) is Controller.OWN_RATE:   # its goodbye: it left on purpose
+                self._members.discard(robot)
+                self._on_leave(robot)
         members = self._members
         gone = members - driven
         self._back |= self._gone - gone

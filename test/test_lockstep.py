@@ -515,3 +515,36 @@ def test_a_declaration_names_the_kind_and_the_topics_and_anything_else_is_refuse
     for bad in ['', 'lockstep', 'maybe /wheel_cmd', 'lockstep wheel_cmd', 'lockstep ' + '/w' * MAX_DECLARATION]:
         with pytest.raises(ValueError):
             read_declaration(bad)
+
+
+def test_a_controller_that_leaves_declared_at_its_own_rate_is_no_longer_waited_for(monkeypatch):
+    """Its goodbye: a controller that ends on purpose while the simulation runs declares its own rate, then leaves;
+    its robot is waited for until the simulator has both seen it leave and read the goodbye, in either order."""
+    monkeypatch.setattr(lockstep_module, 'STALL_REPORT', SHORT)
+    on_graph = [0, 1]
+    declared = {0: Controller.LOCKSTEP, 1: Controller.LOCKSTEP}
+    gone: list[list[int]] = []
+    left: list[int] = []
+    step, sim = lockstep(robots=2, timeout=0.0, driven=lambda: list(on_graph), controller=declared.__getitem__,
+                         on_leave=left.append, on_stall=lambda robots, waited, away: gone.append(list(away)))
+    step.step()
+    step.answer(0)
+    step.answer(1)
+    assert step.await_answers()
+    step.step()
+    step.answer(1)
+    on_graph.remove(0)
+
+    def say_goodbye() -> None:
+        while [0] not in gone:   # seen gone (and waited for) before the goodbye is read
+            threading.Event().wait(SHORT)
+        declared[0] = Controller.OWN_RATE
+
+    goodbye = in_thread(say_goodbye)
+    assert step.await_answers()
+    goodbye.join()
+    assert left == [0]
+    step.step()
+    step.answer(1)
+    assert step.await_answers()
+    assert len(sim.steps) == 3

@@ -43,6 +43,10 @@ class LockstepReport:
         self._logger.warning(f'lockstep: t={self._now():.3f} s has waited {waited:.0f} s for the answer of '
                              f'{self._named(robots)} ({limit}){left}')
 
+    def leave(self, robot: int) -> None:
+        self._logger.info(f'lockstep: the controller of {self._names[robot]} left, declared at its own rate: no '
+                          f'longer waited for (t={self._now():.3f} s)')
+
     def timeout(self, robots: Sequence[int]) -> None:
         self.broken(f't={self._now():.3f} s went on without the answer of {self._named(robots)} '
                     f'(lockstep_timeout {self._timeout:g} s)')

@@ -153,11 +153,12 @@ class RobotPorts:
         return self._wheels_sub.topic_name, self._twist_sub.topic_name
 
     def controller(self, declared: Controller | None) -> Controller:
-        """What the graph says of its controller before its first answer: a publisher of a type that can name a step
-        (wheel_cmd, TwistStamped) is what it `declared`; only plain Twist ones cannot answer by name."""
-        if self._wheels_sub.get_publisher_count() or (self._stamped and self._twist_sub.get_publisher_count()):
-            return declared or Controller.UNDECLARED
-        return Controller.UNNAMING
+        """What the graph says of its controller: only plain Twist publishers cannot answer by name; else it is
+        what it `declared` (also once it has left the graph: its goodbye)."""
+        naming = self._wheels_sub.get_publisher_count() or (self._stamped and self._twist_sub.get_publisher_count())
+        if not naming and self._twist_sub.get_publisher_count():
+            return Controller.UNNAMING
+        return declared or Controller.UNDECLARED
 
     def publishers(self) -> str:
         """The publishers of its commands, as the graph shows them (node, topic, endpoint GID)."""

@@ -170,7 +170,8 @@ class SimNode(Node):
         self._robot_of_topic = {topic: ports.index for ports in self.ports for topic in ports.command_topics}
         self._lockstep = Lockstep(len(self.ports), self._take_step, self._lockstep_timeout, driven=self._driven,
                                   lend=self._lend_on_answers, on_stall=report.stall, on_resend=report.resend,
-                                  on_free=report.free, on_timeout=report.timeout, controller=self._controller)
+                                  on_free=report.free, on_timeout=report.timeout, controller=self._controller,
+                                  on_leave=report.leave)
         if self._lockstep_on:
             read_declarations(self, self._on_declaration, self._on_bad_declaration)
         self._lockstep.require_controllers(values['lockstep_controllers'])
