@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import math
+import signal
 import time
 from pathlib import Path
 
@@ -584,8 +585,9 @@ def test_a_controller_declared_at_its_own_rate_is_not_waited_for(launch, test_no
     declares itself (epuck_ros/lockstep.py, DECLARATION_TOPIC) and is not waited for. A declaration that is no
     declaration costs a line."""
     sim, clocks, statuses = lockstep_sim(launch, test_node)
+    nonsense = test_node.node.create_publisher(String, DECLARATION_TOPIC, LATCHED)   # a writer each: both kept
+    nonsense.publish(String(data='whatever /wheel_cmd'))
     declarations = test_node.node.create_publisher(String, DECLARATION_TOPIC, LATCHED)
-    declarations.publish(String(data='whatever /wheel_cmd'))
     declarations.publish(String(data=declaration(Controller.OWN_RATE, ['/wheel_cmd'])))
     pub = test_node.node.create_publisher(Float64MultiArray, 'wheel_cmd', 10)
     test_node.spin_until(lambda: clocks and clocks[-1].clock.nanosec >= 500_000_000, what='half a simulated second')
@@ -607,3 +609,16 @@ def test_the_behaviours_and_the_webots_link_declare_lockstep(launch, test_node):
         link.node.destroy_node()
     assert sorted(message.data for message in declared) == [
         'lockstep /epuck3/wheel_cmd', 'lockstep /wheel_cmd', 'own_rate /epuck2/wheel_cmd']
+
+
+def test_a_behaviour_that_ends_says_goodbye_and_a_lockstep_run_goes_on_without_it(launch, test_node):
+    """A controller that left without a word is waited for (item 4); one that ends on purpose (Ctrl-C) says so
+    first, and the simulation goes on without it."""
+    sim, clocks, _ = lockstep_sim(launch, test_node)
+    forward = launch('forward', *ros_args({'use_sim_time': True}))
+    test_node.spin_until(lambda: clocks and clocks[-1].clock.sec >= 1, timeout=60, what='a second driven by forward')
+    forward.proc.send_signal(signal.SIGINT)
+    test_node.spin_until(lambda: forward.proc.poll() is not None, what='forward to end')
+    sim.wait_for_output('lockstep: the controller of epuck left, declared at its own rate: no longer waited for')
+    seen = len(clocks)
+    test_node.spin_until(lambda: len(clocks) > seen + 10, what='steps without it')

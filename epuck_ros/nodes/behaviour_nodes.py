@@ -209,8 +209,8 @@ class BehaviourNode(Node):
         # Last: a lockstep simulator waits for the answers of a robot whose wheel_cmd has a publisher; declared
         # before it is made, lockstep knows from its first step how to wait for it (epuck_ros/lockstep.py).
         self.declarer = declarer or Declarer(self, process_robots)
-        self.declarer.declare(Controller.LOCKSTEP if self._stepped else Controller.OWN_RATE,
-                              [self.resolve_topic_name('wheel_cmd')])
+        self.command_topic = self.resolve_topic_name('wheel_cmd')
+        self.declarer.declare(Controller.LOCKSTEP if self._stepped else Controller.OWN_RATE, [self.command_topic])
         self._publisher = self.create_publisher(Float64MultiArray, 'wheel_cmd', command_qos(process_robots))
         self._logged_status = ''
         summary = ', '.join(f'{setting}={value}' for setting, value in settings.items())
@@ -320,8 +320,9 @@ class BehaviourNode(Node):
         self._publisher.publish(array_bytes((0.0, 0.0)))
 
     def stopped(self) -> bool:
-        """Whether every reader acknowledged the zero command (not waiting: rclpy holds the GIL while it waits)."""
-        return self._publisher.wait_for_all_acked(Duration(seconds=0))
+        """Whether every reader acknowledged the zero command and the goodbye (not waiting: rclpy holds the GIL while
+        it waits)."""
+        return self._publisher.wait_for_all_acked(Duration(seconds=0)) and self.declarer.delivered()
 
 
 def wait_until_stopped(nodes: Sequence[BehaviourNode], timeout: float) -> None:
@@ -424,6 +425,8 @@ def main(name: str, args: list[str] | None = None) -> None:
         code = 2
     finally:
         stopping = [node for node in nodes if node.context.ok()]
+        if stopping:   # a lockstep simulator that still runs goes on without them (epuck_ros/lockstep.py)
+            stopping[0].declarer.goodbye([node.command_topic for node in stopping])
         for node in stopping:
             node.stop_robot()
         wait_until_stopped(stopping, STOP_ACK_TIMEOUT)

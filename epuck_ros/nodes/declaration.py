@@ -5,6 +5,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 
+from rclpy.duration import Duration
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from std_msgs.msg import String
@@ -23,12 +24,21 @@ class Declarer:
     def __init__(self, node: Node, robots: int = 1) -> None:
         """`node`: any of the process's nodes, that lives as long as its controllers publish (the declarations go
         with its publisher)."""
-        self._publisher = node.create_publisher(String, DECLARATION_TOPIC, QoSProfile(
+        self.publisher = node.create_publisher(String, DECLARATION_TOPIC, QoSProfile(
             depth=max(1, robots), reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL))
 
     def declare(self, controller: Controller, topics: Sequence[str]) -> None:
         """The publishers on `topics` (fully qualified) are `controller`: said before they are made."""
-        self._publisher.publish(String(data=declaration(controller, topics)))
+        self.publisher.publish(String(data=declaration(controller, topics)))
+
+    def goodbye(self, topics: Sequence[str]) -> None:
+        """The controllers on `topics` end on purpose: a lockstep simulator no longer waits for them once they have
+        left (epuck_ros/lockstep.py). Their process waits until it is delivered (`delivered`) before it goes."""
+        self.declare(Controller.OWN_RATE, topics)
+
+    def delivered(self) -> bool:
+        """Every reader acknowledged the declarations (not waiting)."""
+        return self.publisher.wait_for_all_acked(Duration(seconds=0))
 
 
 def read_declarations(node: Node, on_declared: Callable[[Controller, list[str]], None],

@@ -342,7 +342,8 @@ class SimLink:
         """The node goes, once every reader has what it published (at most DELIVERY_WAIT): a reader that fell behind
         (a recorder, with `bringup` stopping the controller first) lost the last answers and LEDs with the process."""
         deadline = time.monotonic() + DELIVERY_WAIT
-        for publisher in (self._publisher, self._led_publisher):
+        self._declarer.goodbye([self._publisher.topic_name])   # a lockstep simulator goes on without it
+        for publisher in (self._publisher, self._led_publisher, self._declarer.publisher):
             if publisher is not None and \
                     not publisher.wait_for_all_acked(Duration(seconds=max(0.0, deadline - time.monotonic()))):
                 print(f'webots_controller: a reader of {publisher.topic_name} had not taken everything within '
