@@ -394,7 +394,7 @@ class Lockstep:
                 self._on_leave(robot)
         members = self._members
         gone = members - driven
-        self._back |= self._gone - gone
+        self._back |= (self._gone - gone) & driven
         self._gone = gone
         free = set()
         for robot in driven - members:

@@ -525,20 +525,24 @@ def test_a_controller_that_leaves_declared_at_its_own_rate_is_no_longer_waited_f
     declared = {0: Controller.LOCKSTEP, 1: Controller.LOCKSTEP}
     gone: list[list[int]] = []
     left: list[int] = []
+    resent: list[list[int]] = []
     step, sim = lockstep(robots=2, timeout=0.0, driven=lambda: list(on_graph), controller=declared.__getitem__,
-                         on_leave=left.append, on_stall=lambda robots, waited, away: gone.append(list(away)))
+                         on_leave=left.append, on_stall=lambda robots, waited, away: gone.append(list(away)),
+                         on_resend=resent.append)
     step.step()
     step.answer(0)
     step.answer(1)
     assert step.await_answers()
     step.step()
-    step.answer(1)
     on_graph.remove(0)
 
     def say_goodbye() -> None:
         while [0] not in gone:   # seen gone (and waited for) before the goodbye is read
             threading.Event().wait(SHORT)
         declared[0] = Controller.OWN_RATE
+        while not left:
+            threading.Event().wait(SHORT)
+        step.answer(1)           # the step's other answer comes after
 
     goodbye = in_thread(say_goodbye)
     assert step.await_answers()
@@ -547,4 +551,4 @@ def test_a_controller_that_leaves_declared_at_its_own_rate_is_no_longer_waited_f
     step.step()
     step.answer(1)
     assert step.await_answers()
-    assert len(sim.steps) == 3
+    assert len(sim.steps) == 3 and resent == []   # not "back": it left
