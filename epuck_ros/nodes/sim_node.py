@@ -171,7 +171,7 @@ class SimNode(Node):
         self._lockstep = Lockstep(len(self.ports), self._take_step, self._lockstep_timeout, driven=self._driven,
                                   lend=self._lend_on_answers, on_stall=report.stall, on_resend=report.resend,
                                   on_free=report.free, on_timeout=report.timeout, controller=self._controller,
-                                  on_leave=report.leave)
+                                  on_leave=self._on_leave)
         if self._lockstep_on:
             read_declarations(self, self._on_declaration, self._on_bad_declaration)
         self._lockstep.require_controllers(values['lockstep_controllers'])
@@ -302,6 +302,11 @@ class SimNode(Node):
             robot = self._robot_of_topic.get(topic)
             if robot is not None:
                 self._declared[robot] = controller
+
+    def _on_leave(self, robot: int) -> None:
+        """Its controller left, saying goodbye: the goodbye is spent (a later controller of it declares anew)."""
+        self._declared.pop(robot, None)
+        self._report.leave(robot)
 
     def _on_bad_declaration(self, why: str) -> None:
         self.get_logger().warning(f'a declaration on {DECLARATION_TOPIC} refused: {why}',
