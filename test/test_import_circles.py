@@ -72,8 +72,9 @@ def module_imports() -> dict[str, set[str]]:
         for node in ast.walk(ast.parse(path.read_text(encoding='utf-8'))):
             if isinstance(node, ast.ImportFrom):
                 base = node.module or ''
-                if node.level:
-                    base = '.'.join([*package.split('.')[:len(package.split('.')) - node.level + 1], *filter(None, [base])])
+                if node.level:   # relative: from the module's package, one level up per dot beyond the first
+                    up = package.rsplit('.', node.level - 1)[0] if node.level > 1 else package
+                    base = f'{up}.{base}' if base else up
                 targets = [f'{base}.{alias.name}' if f'{base}.{alias.name}' in paths else base for alias in node.names]
             elif isinstance(node, ast.Import):
                 targets = [alias.name for alias in node.names]
