@@ -31,6 +31,12 @@ RATES = (0.001, 1000.0)
 overflowed) and nothing useful is left (a thousandfold rate plays a minute in a blink)."""
 CLOCK_HZ = (0.1, 10_000.0)
 """`bag play --clock` bounds: /clock publications per wall second."""
+WAIT = (0.0, 3600.0)
+"""`bag play --wait` bounds: wall seconds to look for the subscribers already running."""
+DEFAULT_WAIT = 3.5
+"""`bag play --wait` default: a node under Fast DDS's default profile announces itself every 3 s
+(`nodes.matching.FOREIGN_DISCOVERY_WINDOW`: equal, as test_bag_play checks; that module imports rclpy, this one
+does not)."""
 
 
 def _within(low: float, high: float) -> Callable[[str], float]:
@@ -173,11 +179,13 @@ def _add_play(commands: argparse._SubParsersAction) -> None:
                     '/clock from the log time, as `ros2 bag play --clock` does; Ctrl-C stops. While paused, '
                     'Enter (on a terminal) or the std_srvs/Trigger services ~/resume, ~/pause, '
                     '~/toggle_paused of the `bag_player` node resume or pause. Before the first message it waits '
-                    '3.5 s for the graph to show the subscribers already running (a node under Fast DDS\'s '
-                    'default profile announces itself every 3 s), then (at most 10 s, saying so) until every '
-                    'one on a played topic is matched, so a recorder started first misses nothing',
+                    f'--wait seconds ({DEFAULT_WAIT:g} by default), saying so, for the graph to show the subscribers '
+                    'already running (a node under Fast DDS\'s default profile announces itself every 3 s), then '
+                    '(at most 10 s) until every one on a played topic is matched, so a recorder started first '
+                    'misses nothing',
                     ['bag play bags/avoid', 'bag play bags/avoid --rate 5 --loop',
                      'bag play bags/avoid --start-paused --topics /ground_truth /world',
+                     'bag play bags/avoid --wait 0 --rate 10',
                      'bag play bags/avoid --ros-args -r /odom:=/replayed/odom'])
     play.add_argument('--rate', type=_within(*RATES), default=1.0,
                       help=f'playback speed: 2 plays twice as fast (default 1; {RATES[0]:g} to {RATES[1]:g})')
@@ -186,6 +194,9 @@ def _add_play(commands: argparse._SubParsersAction) -> None:
     play.add_argument('--topics', nargs='+', metavar='TOPIC', help='only these topics (default: all)')
     play.add_argument('--clock', type=_within(*CLOCK_HZ), default=100.0, metavar='HZ',
                       help=f'/clock publications per wall second (default 100; {CLOCK_HZ[0]:g} to {CLOCK_HZ[1]:g})')
+    play.add_argument('--wait', type=_within(*WAIT), default=DEFAULT_WAIT, metavar='S',
+                      help=f'wall seconds from the start to look for the subscribers already running before the '
+                           f'first message (default {DEFAULT_WAIT:g}; 0 plays at once, to whoever is matched)')
 
 
 def main(argv: list[str] | None = None) -> None:

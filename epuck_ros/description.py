@@ -20,7 +20,7 @@ from xml.sax.saxutils import quoteattr
 from epuck_ros.conversions import quaternion_from_yaw
 from epuck_ros.model import (BODY_CENTRE_HEIGHT, BODY_HEIGHT, CAMERA_POSE, GROUND_SENSOR_NAMES, GROUND_SENSOR_POSES,
                              IMU_POSITION, LIGHT_SENSOR_HEIGHT, LIGHT_SENSOR_NAMES, SENSOR_HEIGHT, SENSOR_NAMES,
-                             WHEEL_WIDTH, RobotModel)
+                             TOF_NAME, TOF_POSE, WHEEL_WIDTH, RobotModel)
 
 JOINT_NAMES = ['left_wheel_joint', 'right_wheel_joint']
 """The wheel joints, as in `joint_states`."""
@@ -51,7 +51,8 @@ class FixedFrame:
 
 def sensor_frames(model: RobotModel = RobotModel()) -> list[FixedFrame]:
     """ps0..ps7 (x along each ray), ls0..ls7 (same bearing), the camera (looking along x), gs0..gs2 (x along each
-    ray, straight down) and the imu (base_link's axes): every sensor a tf2 user may look up."""
+    ray, straight down), the imu (base_link's axes) and the ToF (x along its ray): every sensor a tf2 user may look
+    up."""
     frames = [FixedFrame(name, (float(x), float(y), SENSOR_HEIGHT), float(yaw))
               for name, (x, y, yaw) in zip(SENSOR_NAMES, model.sensor_poses.tolist())]
     frames += [FixedFrame(name, (float(x), float(y), LIGHT_SENSOR_HEIGHT), float(yaw))
@@ -60,6 +61,7 @@ def sensor_frames(model: RobotModel = RobotModel()) -> list[FixedFrame]:
     frames += [FixedFrame(name, tuple(xyz), pitch=math.pi / 2.0)
                for name, xyz in zip(GROUND_SENSOR_NAMES, GROUND_SENSOR_POSES.tolist())]
     frames.append(FixedFrame(IMU_FRAME, tuple(float(v) for v in IMU_POSITION)))
+    frames.append(FixedFrame(TOF_NAME, TOF_POSE[:3], TOF_POSE[3]))
     return frames
 
 

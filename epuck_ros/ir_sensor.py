@@ -36,8 +36,10 @@ def distance_from_raw(raw: ArrayLike, table: np.ndarray) -> np.ndarray:
 
 
 def _inverse(table: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The table's rows by increasing raw value: (raw values, distances, slope of each segment)."""
-    raws, distances = table[::-1, 1], table[::-1, 0]
+    """The table's rows by increasing raw value: (raw values, distances, slope of each segment). The IR table's
+    values fall with distance, the ToF's (sensors/tof.py) rise: both are read through this inverse."""
+    order = np.argsort(table[:, 1], kind='stable')
+    raws, distances = table[order, 1], table[order, 0]
     return raws, distances, (distances[1:] - distances[:-1]) / (raws[1:] - raws[:-1])
 
 

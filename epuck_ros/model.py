@@ -6,8 +6,9 @@ wheel radius 0.02 m and axle 0.052 m (§1), maxVelocity 6.28 rad/s, encoder reso
 2π/1000 rad, body collision cylinder radius 0.037 m, sensor poses (§1.1, yaw computed from
 the PROTO rotations), the camera's translation, and the IR lookup table (distance m, raw value, relative noise).
 The other senses (§6 of the same file, read from E-puck.proto R2022b and E-puckGroundSensors.proto R2020a):
-camera, ground sensors, light sensors, accelerometer, gyro and LEDs, their poses on the body (x forward, y left,
-z up from the floor) and lookup tables, kept here as the one place a URDF or TF publisher reads them from.
+camera, ground sensors, light sensors, accelerometer, gyro, LEDs and the e-puck2's time-of-flight sensor, their
+poses on the body (x forward, y left, z up from the floor) and lookup tables, kept here as the one place a URDF or TF
+publisher reads them from.
 """
 from __future__ import annotations
 
@@ -92,6 +93,30 @@ GYRO_LOOKUP_TABLE = np.array([[-13.315805, -100000.0, 0.003], [13.315805, 100000
 IMU_POSITION = (0.0, 0.0, 0.0)
 """x, y, z (m) of the accelerometer and gyro (frame `imu`, axes those of base_link): E-puck.proto gives them no
 translation, so they sit at the robot's origin, base_link's (on the floor midway between the wheels)."""
+
+TURRET_SLOT = (-0.0095, 0.0, 0.0486)
+"""x, y, z (m) in base_link of the turret slot, where a world's GPS, Compass or InertialUnit sits with the robot's axes:
+E-puck.proto's `TURRET_SLOT` Transform (translation -0.0095 0 0.0486, no rotation)."""
+
+TOF_NAME = 'tof'
+"""The e-puck2's time-of-flight sensor (a VL53L0X): Webots' DistanceSensor "tof", E-puck.proto when version is "2"."""
+TOF_POSE = (0.034, -0.0018, 0.033, -0.0008)
+"""x, y, z (m) and yaw (rad) of the ToF's ray in base_link: E-puck.proto's translation 0.034 -0.0018 0.033 and rotation
+1 -0.000402 -0.000398 1.570807, which turns the ray (the sensor's local +x) 0.0008 rad to the right and 4e-6 rad up
+(computed; the ray is simulated level)."""
+TOF_APERTURE = 0.44
+"""rad; the proto's `aperture` (type "generic", one ray: the aperture spreads several rays only; the Range's fov)."""
+TOF_LOOKUP_TABLE = np.array([
+    [0.00, 19.8, 0.126],
+    [0.05, 58.5, 0.032],
+    [0.10, 111.0, 0.019],
+    [0.20, 218.9, 0.009],
+    [0.50, 531.9, 0.007],
+    [1.00, 1052.0, 0.010],
+    [1.70, 1780.5, 0.013],
+    [2.00, 2000.0, 0.000],
+])
+"""distance (m), value, relative noise: E-puck.proto's (version "2"); the ray is as long as the last row, 2 m."""
 
 LED_NAMES: tuple[str, ...] = tuple(f'led{i}' for i in range(10))
 LED_POSITIONS = np.array([[0.0337, 0.0, 0.041], [0.022, -0.025, 0.041], [0.0, -0.0337, 0.041],

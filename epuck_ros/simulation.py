@@ -73,7 +73,7 @@ class Simulation:
             OneRobotStepper(world, model, self.time_step, self._ir) if n == 1
             else SwarmStepper(world, model, self.time_step, self._ir, self._start, isolated))
         self.senses = Senses(world, self._state, self.time_step, seed, noise, isolated=isolated)
-        """Camera, ground, light sensors and IMU: read after each step for the robots that want them (`want`)."""
+        """Camera, ground, light sensors, IMU and ToF: read after each step for the robots that want them (`want`)."""
         self._steps = 0
         self._last_command_time = np.zeros(n)
         self._commanded = np.zeros(n, dtype=bool)

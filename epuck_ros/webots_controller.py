@@ -6,6 +6,7 @@ in `webots` may import `experiments`.
 """
 from __future__ import annotations
 
+import os
 import sys
 
 from epuck_ros.experiments import headless_cli
@@ -25,6 +26,8 @@ def main(argv: list[str] | None = None) -> None:
         headless_cli.main([arg for arg in args if arg != HEADLESS])
     except SystemExit as end:
         code = end.code if isinstance(end.code, int) else 1
+    except BrokenPipeError:   # `... | head -1`: the reader has all it wants (it ended in a traceback)
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())   # what is still buffered goes nowhere
     end_process(code)   # not SystemExit: a thread the script left running would keep the process alive
 
 

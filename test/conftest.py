@@ -13,11 +13,11 @@ import time
 from collections.abc import Callable, Iterator
 from pathlib import Path
 
-import domain_coordinator
 import pytest
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 
 from epuck_ros.bringup.processes import interrupt
+from epuck_ros.testing.simulator import NoFreeDomain, claim_domain
 
 os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
 if signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
@@ -36,14 +36,13 @@ ground_truth had 245 of the first 988 steps, in holes; in a repeat, a KEEP_ALL r
 def _claim_domain_id() -> tuple[int, str]:
     """The ROS_DOMAIN_ID of this test run and how it was chosen, claimed with `domain_coordinator` (as ROS 2's own
     tests claim theirs) for as long as this process lives: the user's own if set and no other test run holds it,
-    else one between 1 and 100 that no other test run on this machine holds."""
+    else one of EPUCK_ROS_DOMAIN_RANGE (default 1-100) that no other test run on this machine holds."""
     wanted = os.environ.get('ROS_DOMAIN_ID', '')
-    first = os.getpid() % 100   # test runs started together try different domains first
-    candidates = [int(wanted)] if wanted.isdigit() else []
-    candidates += [1 + (first + offset) % 100 for offset in range(100)]
-    claim = domain_coordinator.domain_id(iter(candidates).__next__)
-    domain = claim.__enter__()   # released when this process exits
-    _claim_domain_id.claim = claim  # type: ignore[attr-defined]  # keep the claim alive
+    try:
+        domain, claim = claim_domain(preferred=[int(wanted)] if wanted.isdigit() else [])
+    except (NoFreeDomain, ValueError) as error:
+        pytest.exit(f'cannot claim a ROS domain for this test run: {error}', returncode=pytest.ExitCode.USAGE_ERROR)
+    _claim_domain_id.claim = claim  # type: ignore[attr-defined]  # keep the claim alive (released at exit)
     if wanted.isdigit() and domain == int(wanted):
         return domain, 'set by you'
     how = f'your ROS_DOMAIN_ID={wanted} is in use by another test run' if wanted else 'ROS_DOMAIN_ID unset'

@@ -405,13 +405,14 @@ def test_the_tally_fed_live_agrees_with_the_bag_summary(tmp_path):
         runs = load_runs(bag)
         summary = summarise_runs(runs)
     live = RunTally(list(SWARM_STARTS), runs[0].world, MODEL.body_radius)
-    samples = [(int(stamp), run.name, float(x), float(y)) for run in runs
-               for stamp, x, y in zip(run.truth.stamps_ns, run.truth.x, run.truth.y)]
+    samples = [(int(stamp), run.name, float(x), float(y), float(yaw)) for run in runs
+               for stamp, x, y, yaw in zip(run.truth.stamps_ns, run.truth.x, run.truth.y, run.truth.yaw)]
     lost = samples.pop(40)  # a sample lost on the way: that stamp is skipped for robot-robot contacts
-    for stamp, name, x, y in sorted(samples, key=lambda s: s[0]):
-        live.add(name, stamp, x, y)
+    for stamp, name, x, y, yaw in sorted(samples, key=lambda s: s[0]):
+        live.add(name, stamp, x, y, yaw)
     for figures, robot in zip(live.figures, summary.robots):
         assert figures.world_contacts == robot.collisions and figures.robot_contacts == robot.robot_collisions
+        assert figures.final_pose == robot.final_pose
         if figures.name != lost[1]:
             assert figures.distance == robot.distance
     assert live.robot_robot_contacts == 2

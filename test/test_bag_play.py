@@ -64,7 +64,8 @@ def test_replay_qos_follows_what_the_publishers_offered():
 def test_bad_arguments_are_one_line_and_exit_2(tmp_path):
     for args, message in ((['--rate', '0'], 'must be from 0.001 to 1000'), (['--rate', 'fast'], 'expected a number'),
                           (['--rate', '1e308'], 'must be from 0.001 to 1000'), (['--rate', 'nan'], 'must be from'),
-                          (['--clock', '1e-300'], 'must be from 0.1 to 10000')):
+                          (['--clock', '1e-300'], 'must be from 0.1 to 10000'), (['--wait', '-1'], 'must be from 0'),
+                          (['--wait', 'nan'], 'must be from 0')):
         result = subprocess.run([BAG, 'play', str(SAMPLE), *args], capture_output=True, text=True, timeout=60)
         assert result.returncode == 2 and message in result.stderr and 'Traceback' not in result.stderr, args
     result = subprocess.run([BAG, 'play', str(tmp_path / 'none')], capture_output=True, text=True, timeout=60)
@@ -110,6 +111,9 @@ def test_a_played_bag_re_recorded_gives_the_same_messages(launch, test_node, tmp
     assert wait_for_exit(player) == 0, player.output()
     wall = time.monotonic() - started
     assert recorder.stop() == 0, recorder.output()
+    # Issue 33 item 14: the player's /clock ticks were at wall instants, their stamps irregular: 'lost' to the recorder
+    said = recorder.log_path.read_text()
+    assert not [line for line in said.splitlines() if 'lost' in line and '/clock' in line], said
     again = read_back(tmp_path / 'again')
     for topic in played:
         assert [data for data, _ in again.get(topic, [])] == [data for data, _ in source[topic]], topic
@@ -120,6 +124,8 @@ def test_a_played_bag_re_recorded_gives_the_same_messages(launch, test_node, tmp
     truth = [m.header.stamp.sec * 10**9 + m.header.stamp.nanosec for _, m in source['/ground_truth']]
     step = truth[1] - truth[0]  # the recorder logs a step's data at the clock of the step before
     assert clock == sorted(clock) and truth[0] - step <= clock[0] and clock[-1] <= truth[-1]
+    # Its stamps are on a grid of bag time, rate / (100 ticks a second) apart: no gap for a recorder to report.
+    assert all((later - earlier) % 40_000_000 == 0 for earlier, later in zip(clock, clock[1:])), clock
     bag_seconds = 3.968
     print(f'\nbag play --rate 4 of a {bag_seconds} s bag: {wall:.2f} s of wall time from resume to exit '
           f'(ratio {bag_seconds / wall:.2f}; 4 expected plus start-up and matching)')
@@ -163,3 +169,23 @@ def test_loop_replays_latched_topics_for_late_subscribers_and_ctrl_c_stops_clean
     code = player.stop()
     log = player.log_path.read_text()
     assert code == 0 and 'Traceback' not in log, f'exit {code}:\n{log}'
+
+
+def test_the_wait_before_the_first_message_is_said_and_chosen_with_wait(launch):
+    """Issue 33 item 12: `bag play` waited 3.5 s for subscribers silently (a 3.97 s bag at 4x took 4.48 s). It says
+    that it waits, for what and how long, then how long it waited; `--wait S` chooses (0: no wait)."""
+    from epuck_ros.bag_cli import DEFAULT_WAIT
+    from epuck_ros.nodes.matching import FOREIGN_DISCOVERY_WINDOW
+    assert DEFAULT_WAIT == FOREIGN_DISCOVERY_WINDOW
+    for wait, said in ((None, 'waiting 3.'), ('1.5', 'waiting 1.')):
+        player = launch('bag', 'play', str(SAMPLE), '--rate', '100', '--topics', '/odom',
+                        *(['--wait', wait] if wait else []))
+        assert wait_for_exit(player) == 0, player.output()
+        output = player.output()
+        assert f'{said}' in output and 's for subscribers already running to show in the graph (--wait to change)' \
+            in output, output
+        assert 'subscriptions matched on the played topics; playing' in output, output
+        assert output.index('playing') < output.index('played 125 messages in'), output
+    at_once = launch('bag', 'play', str(SAMPLE), '--rate', '100', '--topics', '/odom', '--wait', '0')
+    assert wait_for_exit(at_once) == 0, at_once.output()
+    assert 'waiting' not in at_once.output() and 'played 125 messages in' in at_once.output(), at_once.output()

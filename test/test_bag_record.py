@@ -199,6 +199,11 @@ def test_spinning_the_recorder_keeps_no_object_per_message(test_node, tmp_path):
 
 def test_no_topic_warns_with_the_domain(launch, tmp_path):
     domain = os.environ['ROS_DOMAIN_ID']
+    alone = start_recorder(launch, tmp_path / 'alone')
+    alone.wait_for_output(f'no topics seen on ROS_DOMAIN_ID={domain} after 5 s; is the simulator on this domain?',
+                          timeout=60)   # issue 33 item 14: it said 'no message on /parameter_events'
+    assert 'no message on' not in alone.output()
+    assert alone.stop() == 0
     recorder = start_recorder(launch, tmp_path / 'bag', '/nothing_publishes_this')
     recorder.wait_for_output(f'none of /nothing_publishes_this seen on ROS_DOMAIN_ID={domain} after 5 s; '
                              'is the simulator on this domain?', timeout=60)

@@ -21,7 +21,7 @@ from conftest import BIN_DIR, processes_in_this_domain, set_sim_parameter
 from epuck_ros.bringup.cli import parse_args
 
 SIMULATED = re.compile(r'\[bringup\] simulated ([\d.]+) s in [\d.]+ s wall \(([\d.]+)x real time\)')
-ROBOT = re.compile(r'\[bringup\] (?:(\w+): )?([\d.]+) m in [\d.]+ s, (\d+) contacts with walls/obstacles')
+ROBOT = re.compile(r'\[bringup\] (?:(\w+): )?([\d.]+) m in [\d.]+ s, (\d+) contacts? with walls/obstacles')
 
 
 def summary_of(output: str) -> tuple[float, float, int]:

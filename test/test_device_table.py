@@ -62,6 +62,11 @@ FIGURES = {
         'both wheels at 6.28 rad/s for 32 steps (1.024 s) from rest', '6.43072', '6.42770', '-0.00302 (-0.05 %)',
         "E-puck.proto's PositionSensor resolution 0.00628 (the proto's comment says 2 pi / 1000; we quantise "
         "to 2 pi / 1000)"),
+    'ToF tof': Figure(
+        'a wall 0.3 m ahead along its ray (e-puck2), noise off: getValue() / the `tof` Range', '323.23 / 0.3',
+        '323.23 / 0.3', '0 / 0',
+        'E-puck.proto version "2": DistanceSensor "tof", type "generic" (no reflection factor), one ray 2 m long, '
+        'table (0.2 m: 218.9, 0.5 m: 531.9); webots_ros2 Ros2DistanceSensor.cpp and Math.cpp (the inverse table)'),
     'LEDs': Figure(
         'set(1) on led0, led8, led9: get() and the colour lit', '1: red, green, orange (1, 0.3, 0)',
         '1: red, green, orange (1, 0.3, 0)', '0',
@@ -151,6 +156,19 @@ def test_encoders_after_one_second_at_full_speed():
     assert webots == pytest.approx(numbers(FIGURES['encoders'].webots)[0], abs=1e-12)
     agrees('encoders', sim.wheel_angles[0].tolist()[:1])
     assert sim.wheel_angles[0, 1] == sim.wheel_angles[0, 0]
+
+
+def test_tof_wall_thirty_centimetres_ahead():
+    from epuck_ros.model import TOF_POSE, TOF_LOOKUP_TABLE
+    from epuck_ros.sensors.tof import range_from_value
+    x, _, _, yaw = TOF_POSE
+    world = World(arena_size=(2.0, 2.0), boxes=[Box(x + 0.3 * math.cos(yaw) + 0.05, 0.0, 0.1, 0.4)],
+                  robots=[RobotStart('epuck', 0.0, 0.0, 0.0)])
+    sim = Simulation(world, noise=False)
+    sim.senses.want('tof', [0])
+    webots = float(np.interp(0.3, TOF_LOOKUP_TABLE[:, 0], TOF_LOOKUP_TABLE[:, 1]))   # 218.9 + 313 / 3
+    assert numbers(FIGURES['ToF tof'].webots) == pytest.approx([webots, 0.3], abs=0.006)
+    agrees('ToF tof', [float(sim.senses.tof[0]), float(range_from_value(sim.senses.tof[0]))])
 
 
 def test_leds_hold_their_value_and_light_in_their_colour():

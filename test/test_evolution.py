@@ -99,8 +99,8 @@ def test_the_evolved_controller_runs_unchanged_through_webots_controller_headles
     assert result.returncode == 0, result.stderr
     simulated = re.search(r'^\[webots_controller\] simulated ([\d.]+) s in .* headless$', result.stdout, re.M)
     assert simulated and float(simulated[1]) == pytest.approx(3.0, abs=0.032), result.stdout
-    summary = re.search(r'^\[webots_controller\] ([\d.]+) m in ([\d.]+) s, (\d+) contacts? with walls/obstacles$',
-                        result.stdout, re.M)
+    summary = re.search(r'^\[webots_controller\] ([\d.]+) m in ([\d.]+) s, (\d+) contacts? with walls/obstacles; '
+                        r'final pose .+$', result.stdout, re.M)
     assert summary and float(summary[1]) > 0.05, result.stdout   # evolved to drive: it went somewhere
 
 

@@ -92,7 +92,7 @@ def test_a_headless_script_is_the_lockstep_bringup_run_and_records_the_same_bag(
     assert headless.returncode == 0, headless.stderr
     assert over_ros.proc.wait(timeout=180) == 0, over_ros.output()
     figures = [line.split('] ', 1)[1] for line in headless.stdout.splitlines()[1:] if 'recorded to' not in line]
-    assert 'contacts with walls/obstacles' in figures[0]
+    assert ' with walls/obstacles; final pose x ' in figures[0]
     assert all(f'[bringup] {line}' in over_ros.output() for line in figures), (figures, over_ros.output())
     ros, mine = messages_by_topic(ros_bag), messages_by_topic(headless_bag)
     assert len(mine['/ground_truth']) == round(15.008 / 0.032)

@@ -15,7 +15,7 @@ import pytest
 from conftest import BIN_DIR
 from manual_pages import blocks
 
-from epuck_ros.testing.simulator import claim_free_domain
+from epuck_ros.testing.simulator import DOMAIN_RANGE_VARIABLE, NoFreeDomain, claim_free_domain
 
 FAILING = '''
 from pathlib import Path
@@ -59,7 +59,11 @@ def test_a_users_project_passes_and_fails_with_nothing_left_running(tmp_path):
     name, value = marker.split('=')
     installed = any(ep.name == 'epuck_ros' for ep in entry_points(group='pytest11'))
     plugin = [] if installed else ['-p', 'epuck_ros.testing.plugin']   # until the entry point is installed
-    env = dict(os.environ, PATH=f'{BIN_DIR}{os.pathsep}{os.environ["PATH"]}', **{name: value})
+    # The venv not activated (`.venv/bin/python -m pytest`): its scripts are not on PATH, and the example runs
+    # `forward` (issue 33 item 15: FileNotFoundError: 'forward'); sim.env puts this Python's scripts first.
+    path = os.pathsep.join(folder for folder in os.environ['PATH'].split(os.pathsep)
+                           if folder and Path(folder).resolve() != BIN_DIR.resolve())
+    env = dict(os.environ, PATH=path, **{name: value})
     run = subprocess.run([sys.executable, '-m', 'pytest', *plugin, '-p', 'no:cacheprovider', '-q', '-rA'],
                          cwd=project, env=env, capture_output=True, text=True, timeout=300)
     output = run.stdout + run.stderr
@@ -82,3 +86,26 @@ def test_a_simulators_domain_is_claimed_as_the_test_runs_claim_theirs():
         claim.__exit__(None, None, None)
     with domain_coordinator.domain_id(lambda: domain) as again:
         assert again == domain, 'freed at the end of the claim'
+
+
+def test_the_domains_claimed_are_confined_to_a_range(monkeypatch):
+    """Issue 33 item 15: the fixture picked domains 1-100 with no way to confine it. EPUCK_ROS_DOMAIN_RANGE=FIRST-LAST
+    does (test/conftest.py reads it too); every domain of it held is a NoFreeDomain naming the range; a malformed
+    range is a ValueError naming the variable."""
+    monkeypatch.setenv(DOMAIN_RANGE_VARIABLE, '150-151')
+    domain, claim = claim_free_domain()
+    try:
+        assert domain in (150, 151)
+        other, other_claim = claim_free_domain()
+        try:
+            assert {domain, other} == {150, 151}
+            with pytest.raises(NoFreeDomain, match=f'no free ROS domain in {DOMAIN_RANGE_VARIABLE}=150-151'):
+                claim_free_domain()
+        finally:
+            other_claim.__exit__(None, None, None)
+    finally:
+        claim.__exit__(None, None, None)
+    for bad in ('150', '151-150', 'a-b', '0-233', '٣-5'):
+        monkeypatch.setenv(DOMAIN_RANGE_VARIABLE, bad)
+        with pytest.raises(ValueError, match=DOMAIN_RANGE_VARIABLE):
+            claim_free_domain()

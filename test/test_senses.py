@@ -243,7 +243,8 @@ def test_simulation_reads_a_sense_only_while_wanted_and_ir_stays_the_same() -> N
         return sim, ir
     plain, plain_ir = run(())
     assert not plain.senses.active and np.isnan(plain.senses.ground_raw).all() and plain.senses.images is None
-    every, every_ir = run(('camera', 'ground', 'light', 'imu'))
+    assert np.isnan(plain.senses.tof).all()
+    every, every_ir = run(('camera', 'ground', 'light', 'imu', 'tof'))
     assert all((a == b).all() for a, b in zip(plain_ir, every_ir))
     assert (plain.true_pose == every.true_pose).all()
     ground_only, _ = run(('ground',))
@@ -251,7 +252,8 @@ def test_simulation_reads_a_sense_only_while_wanted_and_ir_stays_the_same() -> N
     assert every.senses.images[0].any() and np.isfinite(every.senses.light_raw).all()
     assert every.senses.accelerometer[0, 2] == pytest.approx(9.81, rel=0.02)
     readings = every.senses.readings_of(0)   # what a headless Webots controller's step is handed
-    assert sorted(readings) == ['camera', 'ground', 'imu', 'light'] and readings['camera'].shape == (39, 52, 3)
+    assert sorted(readings) == ['camera', 'ground', 'imu', 'light', 'tof'] and readings['camera'].shape == (39, 52, 3)
+    assert readings['tof'] == pytest.approx(float(every.senses.tof[0]), rel=1e-6)
     assert readings['imu'][1] == tuple(every.senses.gyro[0].tolist()) and ground_only.senses.readings_of(0).keys() \
         == {'ground'}
 

@@ -213,7 +213,7 @@ def test_senses_parameter_and_camera_size(launch: object, test_node: object) -> 
     wrong = launch('sim', *ros_args({'senses': 'camera,smell'}))
     assert wrong.proc.wait(timeout=30) == 2
     assert wrong.output().strip().splitlines()[-1] == \
-        "sim: cannot start: senses: unknown sense 'smell' (senses: camera, ground, light, imu)"
+        "sim: cannot start: senses: unknown sense 'smell' (senses: camera, ground, light, imu, tof)"
 
 
 CAMERA_SIZE_SCRIPT = """

@@ -373,6 +373,8 @@ def test_a_second_simulator_on_the_domain_is_refused(launch, test_node):
     assert second.proc.wait(timeout=30) == 2
     assert 'another simulator runs on ROS domain' in second.output() and 'use another ROS_DOMAIN_ID' in \
         second.output()
+    assert 'sim ready' not in second.output()   # issue 33 item 14: it said ready, then refused
+    assert 'sim ready' in first.output()
     count = len(clocks)
     test_node.spin_until(lambda: len(clocks) > count + 5, what='the first simulator to go on')
     assert first.proc.poll() is None

@@ -1,10 +1,10 @@
 """What a course user (or teacher) wants to know about a recorded e-puck run, for one robot or many.
 
 Duration, distance travelled, mean speed, the closest approach the IR sensors saw, contacts with walls
-and obstacles and with other robots, and what kind of run it was with that shape's figures only. The parts:
-`runs` (reading a bag), `tally` (distance and contacts, shared with `bringup`), `shapes` (what the run was)
-and `summary_text` (the text, above this module: it formats these summaries); the names of all but the text stay
-importable from here.
+and obstacles and with other robots, where each robot ended (its final pose), and what kind of run it was with
+that shape's figures only. The parts: `runs` (reading a bag), `tally` (distance, contacts and final pose, shared
+with `bringup`), `shapes` (what the run was) and `summary_text` (the text, above this module: it formats these
+summaries); the names of all but the text stay importable from here.
 """
 from __future__ import annotations
 
@@ -52,6 +52,8 @@ class RunSummary:
     circle: CircleFit | None
     corners: Corners | None
     closed_properly: bool
+    final_pose: tuple[float, float, float] | None
+    """(x, y, yaw in [-pi, pi]) of the last ground-truth sample (None without ground truth)."""
     notes: list[str] = field(default_factory=list)
 
     def to_dict(self) -> dict:
@@ -112,7 +114,8 @@ def summarise_runs(runs: Sequence[RunData], model: RobotModel = RobotModel()) ->
             closest_approach=closest, closest_sensor=sensor, closest_time=when,
             collisions=collisions, collisions_from=source, robot_collisions=robot_collisions,
             straight=motion.straight, spin=motion.spin, circle=motion.circle, corners=motion.corners,
-            closed_properly=run.closed_properly, notes=notes))
+            closed_properly=run.closed_properly,
+            final_pose=figures[run.name].final_pose if run.truth is not None else None, notes=notes))
     return BagSummary(runs[0].bag_path if runs else '', summaries,
                       tally.robot_robot_contacts if several else None, tally.contacts)
 

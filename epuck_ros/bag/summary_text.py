@@ -9,15 +9,28 @@ from epuck_ros.bag.shapes import Motion
 from epuck_ros.bag.tally import RobotFigures
 
 
+def contacts(count: int) -> str:
+    """'1 contact', '2 contacts'."""
+    return f'{count} contact' if count == 1 else f'{count} contacts'
+
+
+def pose_text(pose: tuple[float, float, float] | None, digits: int = 3) -> str:
+    """A final pose (x, y, yaw in radians) as the summaries print it."""
+    if pose is None:
+        return 'unknown (no ground truth)'
+    x, y, yaw = pose
+    return f'x {x:.{digits}f} m, y {y:.{digits}f} m, yaw {yaw:.{digits}f} rad ({math.degrees(yaw):.1f}°)'
+
+
 def format_figures(figures: Sequence[RobotFigures], with_robots: bool | None = None) -> str:
-    """One line per robot, as `bringup` prints its end-of-run summary."""
+    """One line per robot, as `bringup` prints its end-of-run summary: distance, contacts, where it ended."""
     with_robots = len(figures) > 1 if with_robots is None else with_robots
     lines = []
     for f in figures:
         robots = f', {f.robot_contacts} with robots' if with_robots else ''
         label = f'{f.name}: ' if f.name else ''
         lines.append(f'{label}{f.distance:.3f} m in {f.duration:.2f} s, '
-                     f'{f.world_contacts} contacts with walls/obstacles{robots}')
+                     f'{contacts(f.world_contacts)} with walls/obstacles{robots}; final pose {pose_text(f.final_pose)}')
     return '\n'.join(lines)
 
 
@@ -67,6 +80,7 @@ def format_summary(summary: RunSummary) -> str:
         lines.append(('Closest approach', f'{summary.closest_approach:.4f} m '
                                           f'({summary.closest_sensor} at t={summary.closest_time:.2f} s)'))
     lines.append(('Collisions', _collisions_text(summary)))
+    lines.append(('Final pose', pose_text(summary.final_pose, 4)))
     lines += shape_lines(summary)
     lines += [('Note', note) for note in summary.notes]
     return _aligned(lines)
@@ -89,12 +103,16 @@ def format_bag_summary(summary: BagSummary) -> str:
                            f'{summary.robot_robot_contacts} between robots (from ground_truth poses)')]
     notes = sorted({note for r in robots for note in r.notes})
     head += [('Note', note) for note in notes]
-    header = ('robot', 'distance m', 'speed m/s', 'walls/obst.', 'robots', 'closest m', 'motion')
+    header = ('robot', 'distance m', 'speed m/s', 'walls/obst.', 'robots', 'closest m', 'final x m', 'final y m',
+              'final yaw rad', 'motion')
     rows = [(r.namespace, f'{r.distance:.4f}', f'{r.mean_speed:.4f}',
              '?' if r.collisions is None else str(r.collisions),
              '?' if r.robot_collisions is None else str(r.robot_collisions),
-             '-' if r.closest_approach is None else f'{r.closest_approach:.4f}', r.motion) for r in robots]
+             '-' if r.closest_approach is None else f'{r.closest_approach:.4f}',
+             *(('?',) * 3 if r.final_pose is None else (f'{value:.4f}' for value in r.final_pose)), r.motion)
+            for r in robots]
+    motion = len(header) - 1
     widths = [max(len(row[i]) for row in [header, *rows]) for i in range(len(header))]
-    table = ['  '.join(cell.ljust(w) if i in (0, 6) else cell.rjust(w)
+    table = ['  '.join(cell.ljust(w) if i in (0, motion) else cell.rjust(w)
                        for i, (cell, w) in enumerate(zip(row, widths))).rstrip() for row in [header, *rows]]
     return _aligned(head) + '\n\n' + '\n'.join(table)

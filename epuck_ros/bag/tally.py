@@ -1,4 +1,5 @@
-"""Distance travelled and contacts: the one place they are computed, for `bag summary` and `bringup` alike.
+"""Distance travelled, contacts and where each robot ended: the one place they are computed, for `bag summary` and
+`bringup` alike.
 
 `bag summary` feeds `RunTally` the ground truth read from a bag (`tally_runs`), `bringup` the ground truth it
 receives during a run, so the two always agree.
@@ -47,14 +48,25 @@ class RobotFigures:
     last_ns: int | None = None
     world_contacts: int = 0
     robot_contacts: int = 0
+    last_pose: tuple[float, float, float] | None = None
+    """(x, y, yaw) of the last sample, its yaw as fed (a bag's is unwrapped)."""
 
     @property
     def duration(self) -> float:
         return 0.0 if self.first_ns is None else (self.last_ns - self.first_ns) * 1e-9
 
+    @property
+    def final_pose(self) -> tuple[float, float, float] | None:
+        """Where the robot ended: (x, y, yaw) of its last sample, the yaw in [-pi, pi] (as a sweep's CSV has it)."""
+        if self.last_pose is None:
+            return None
+        x, y, yaw = self.last_pose
+        return x, y, math.remainder(yaw, math.tau)
+
 
 class RunTally:
-    """Distance travelled and contacts of each robot, from ground-truth samples (stamp, x, y) fed in time order.
+    """Distance travelled, contacts and final pose of each robot, from ground-truth samples (stamp, x, y, yaw) fed in
+    time order.
 
     A contact with a wall or obstacle begins when the body comes within CONTACT_MARGIN of it; one between
     two robots when their centres come within two body radii + CONTACT_MARGIN, judged on samples of the
@@ -77,13 +89,14 @@ class RunTally:
         self._pairs: set[tuple[int, int]] = set()
         """Robot pairs in contact at the last complete stamp."""
 
-    def add(self, name: str, stamp_ns: int, x: float, y: float) -> None:
+    def add(self, name: str, stamp_ns: int, x: float, y: float, yaw: float) -> None:
         """One ground-truth sample of robot `name`."""
         i = self._index[name]
         figures, last = self.figures[i], self._last[i]
         if last is not None:
             figures.distance += math.hypot(x - last[0], y - last[1])
         self._last[i] = (x, y)
+        figures.last_pose = (x, y, yaw)
         figures.samples += 1
         figures.first_ns = stamp_ns if figures.first_ns is None else figures.first_ns
         figures.last_ns = stamp_ns
@@ -96,10 +109,11 @@ class RunTally:
         if len(self.figures) > 1:
             self._pend(i, stamp_ns, x, y)
 
-    def add_trajectory(self, name: str, stamps_ns: np.ndarray, x: np.ndarray, y: np.ndarray) -> None:
+    def add_trajectory(self, name: str, stamps_ns: np.ndarray, x: np.ndarray, y: np.ndarray, yaw: np.ndarray
+                       ) -> None:
         """A run of samples of one robot (for several robots, interleave them by stamp with `add`)."""
-        for stamp, px, py in zip(stamps_ns.tolist(), x.tolist(), y.tolist()):
-            self.add(name, stamp, px, py)
+        for stamp, px, py, pyaw in zip(stamps_ns.tolist(), x.tolist(), y.tolist(), yaw.tolist()):
+            self.add(name, stamp, px, py, pyaw)
 
     def _pend(self, i: int, stamp_ns: int, x: float, y: float) -> None:
         poses = self._pending.setdefault(stamp_ns, {})
@@ -160,14 +174,15 @@ def tally_runs(runs: Sequence[RunData], model: RobotModel = RobotModel()) -> Run
     tally = RunTally([run.name for run in with_truth], world, model.body_radius)
     if len(with_truth) == 1:
         truth = with_truth[0].truth
-        tally.add_trajectory(with_truth[0].name, truth.stamps_ns, truth.x, truth.y)
+        tally.add_trajectory(with_truth[0].name, truth.stamps_ns, truth.x, truth.y, truth.yaw)
     elif with_truth:
         names = np.concatenate([np.full(len(r.truth.t), i) for i, r in enumerate(with_truth)])
         stamps = np.concatenate([r.truth.stamps_ns for r in with_truth])
         xs = np.concatenate([r.truth.x for r in with_truth])
         ys = np.concatenate([r.truth.y for r in with_truth])
+        yaws = np.concatenate([r.truth.yaw for r in with_truth])
         labels = [run.name for run in with_truth]
         add = tally.add
         for i in np.argsort(stamps, kind='stable').tolist():
-            add(labels[names[i]], int(stamps[i]), float(xs[i]), float(ys[i]))
+            add(labels[names[i]], int(stamps[i]), float(xs[i]), float(ys[i]), float(yaws[i]))
     return tally

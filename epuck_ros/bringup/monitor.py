@@ -7,7 +7,9 @@ children's log lines, so rewording a log line cannot break `bringup`.
 from __future__ import annotations
 
 import math
+import os
 import time
+from pathlib import Path
 
 import rclpy
 import yaml
@@ -18,7 +20,6 @@ from rclpy.experimental import EventsExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.parameter_client import AsyncParameterClient
-from rclpy.qos import QoSProfile, ReliabilityPolicy
 from rclpy.task import Future
 from rosgraph_msgs.msg import Clock
 from std_msgs.msg import String
@@ -29,7 +30,7 @@ from epuck_ros.conversions import nanoseconds_from_seconds, seconds_from_stamp
 from epuck_ros.integrity import STATUS_TOPIC, Integrity, integrity_from
 from epuck_ros.nodes.announcements import ANNOUNCEMENT_QOS, SIMULATORS_TOPIC, Announcement, parse_announcement
 from epuck_ros.nodes.dds_profile import use_package_profile, warn_if_not_fast_dds
-from epuck_ros.nodes.qos import CLOCK_KEPT, LATCHED
+from epuck_ros.nodes.qos import CLOCK_KEPT, EVERY_STEP, LATCHED
 from epuck_ros.nodes.robot_ports import topic_prefix
 from epuck_ros.nodes.sense_ports import RECORDER_NODE
 from epuck_ros.world import World, WorldError, world_from_dict
@@ -41,8 +42,6 @@ REQUEST_RETRY = 2.0
 """Wall seconds after which a parameter request to the simulator is sent again (setting `paused` twice is harmless):
 a first request to a service just discovered can go unanswered, its response's way back not yet matched (seen now
 and then by benchmarks/bench_lockstep.py, before it retried too)."""
-SAMPLE_DEPTH = 10_000
-"""Ground-truth samples DDS may hold for this node while it is busy: the summary needs every step."""
 
 
 def robot_topic(world: World, robot: str, topic: str) -> str:
@@ -64,7 +63,7 @@ class RobotTrack:
         stamp, x, y, yaw, _, _ = odometry_fields(data, 0)
         self.stamps.add(stamp)
         self.samples.append((stamp, x, y, yaw))
-        self._add(self.label, stamp, x, y)
+        self._add(self.label, stamp, x, y, yaw)
 
 
 class RunMonitor:
@@ -163,15 +162,15 @@ class RunMonitor:
             return
         if not self._follow_robots:
             return
-        qos = QoSProfile(depth=SAMPLE_DEPTH, reliability=ReliabilityPolicy.RELIABLE)
         several = len(self.world.robots) > 1
         # Labelled as a bag names its robots: by namespace, '' for a lone robot's topics.
         labels = [name if several else '' for name in self.world.names]
         self.tally = RunTally(labels, self.world)
         for name, label in zip(self.world.names, labels):
             track = self.tracks[name] = RobotTrack(self.tally, name, label)
-            self.node.create_subscription(Odometry, robot_topic(self.world, name, 'ground_truth'), track.add, qos,
-                                          raw=True)
+            # Every step, the simulator waiting for this reader (EVERY_STEP): the summary is the run's.
+            self.node.create_subscription(Odometry, robot_topic(self.world, name, 'ground_truth'), track.add,
+                                          EVERY_STEP, raw=True)
 
     def spin(self, timeout: float, until_sim_time: float = math.inf) -> None:
         """Take what arrives for `timeout` wall seconds, or until `/clock` reaches `until_sim_time`.
@@ -214,9 +213,12 @@ class RunMonitor:
         return [entry for entry in self.node.get_node_names_and_namespaces_with_enclaves() if entry[0] == SIM_NODE]
 
     def clock_sources(self) -> list[str]:
-        """The nodes publishing `/clock` on this domain (ours is one of them once it is up)."""
-        return [_full_name(info.node_namespace, info.node_name)
-                for info in self.node.get_publishers_info_by_topic('/clock')]
+        """The nodes publishing `/clock` on this domain (ours is one of them once it is up). One whose name DDS has
+        not told yet (`_NODE_NAMESPACE_UNKNOWN_/_NODE_NAME_UNKNOWN_`) is named by the simulators announced, ours
+        (a child of this process) left out, with pid and start time."""
+        named = [_full_name(info.node_namespace, info.node_name)
+                 for info in self.node.get_publishers_info_by_topic('/clock')]
+        return unknown_named_by(named, [a for a in sorted(self.announcements) if not _our_child(a)])
 
     def world_sources(self) -> int:
         """Publishers of the `world` topic (each simulator has one)."""
@@ -297,6 +299,28 @@ class RunMonitor:
 
 def _full_name(namespace: str, name: str) -> str:
     return f'{namespace.rstrip("/")}/{name}'
+
+
+UNKNOWN_NODE = '_NODE_NAME_UNKNOWN_'
+"""rmw's name for a node whose name discovery has not brought yet."""
+
+
+def unknown_named_by(names: list[str], announced: list[Announcement]) -> list[str]:
+    """`names` of nodes, those not known yet replaced by who the other simulators `announced` are (pid and start
+    time), or said to be unnamed so far: a refusal named `_NODE_NAMESPACE_UNKNOWN_/_NODE_NAME_UNKNOWN_`."""
+    known = [name for name in names if not name.endswith(UNKNOWN_NODE)]
+    if len(known) == len(names):
+        return names
+    return known + ([a.describe() for a in announced] or ['a node not yet known by name'])
+
+
+def _our_child(announced: Announcement) -> bool:
+    """The announcement is that of a process this one started (our simulator)."""
+    try:
+        parent = int(Path(f'/proc/{announced.pid}/stat').read_text().rsplit(')', 1)[1].split()[1])
+    except (OSError, IndexError, ValueError):
+        return False
+    return announced.is_process(announced.pid) and parent == os.getpid()
 
 
 def samples_missing(track: RobotTrack, time_step: float, end_time: float) -> int:

@@ -20,7 +20,7 @@ import numpy as np
 from epuck_ros.bag.shapes import Motion, classify_runs
 from epuck_ros.bringup import summary
 from epuck_ros.conversions import nanoseconds_from_stamp, stamp_from_seconds
-from epuck_ros.exit_codes import EXIT_FAILED
+from epuck_ros.exit_codes import EXIT_BAD_INPUT, EXIT_FAILED
 from epuck_ros.experiments.interruption import exit_code, terminate_as_interrupt
 from epuck_ros.experiments.record_budget import LARGE, RecordRefused, check_room, estimate
 from epuck_ros.experiments.spec import MAX_DURATION, MAX_ROBOTS
@@ -150,6 +150,8 @@ def main(argv: list[str]) -> None:
         with terminate_as_interrupt():
             sim, tally = run(trial, each_step=each_step, recorder=recorder)
     except ScriptError as error:
+        if error.code == EXIT_BAD_INPUT:   # refused, and said in one line by the script's runner (webots.runner)
+            raise SystemExit(EXIT_BAD_INPUT) from None
         print(f'{PROGRAM}: {error}', file=sys.stderr)
         raise SystemExit(EXIT_FAILED) from None
     except KeyboardInterrupt as interruption:   # Ctrl-C or SIGTERM: the run is cut short (the bag is closed)

@@ -249,8 +249,8 @@ def _published(sim: Simulation, tally: RunTally, labels: Sequence[str],
     if each_step is not None:
         each_step(sim)
     stamp = nanoseconds_from_seconds(sim.time)   # the integer of the step's stamp, without the (sec, nanosec) pair
-    for label, (x, y, _) in zip(labels, sim.true_pose.tolist()):
-        tally.add(label, stamp, x, y)
+    for label, (x, y, yaw) in zip(labels, sim.true_pose.tolist()):
+        tally.add(label, stamp, x, y, yaw)
 
 
 def _stamp_seconds(seconds: float) -> float:

@@ -6,6 +6,7 @@ No ROS and no Foxglove SDK here: `bringup` reads it while it checks its options.
 """
 from __future__ import annotations
 
+import ipaddress
 import socket
 
 NODE_NAME = 'foxglove'
@@ -34,3 +35,24 @@ def address_error(host: str, port: int) -> str | None:
         except OSError as error:
             return f'{error.strerror or error}' + (f' ({ADVICE})' if port else '')
     return None
+
+
+def websocket_url(host: str, port: int) -> str:
+    """What to type in Foxglove's "Open connection": an IPv6 address in brackets (`ws://[::]:8765`, not
+    `ws://:::8765`)."""
+    try:
+        bracketed = f'[{host}]' if ipaddress.ip_address(host).version == 6 else host
+    except ValueError:   # a name
+        bracketed = host
+    return f'ws://{bracketed}:{port}'
+
+
+def is_loopback(host: str) -> bool:
+    """Whether serving on `host` reaches this machine only: every address it resolves to, as the server resolves it,
+    is a loopback one (`127.1` is 127.0.0.1, which `ipaddress` refuses to parse; `localhost`, `::1`)."""
+    try:
+        resolved = socket.getaddrinfo(host, None, type=socket.SOCK_STREAM)
+    except (socket.gaierror, UnicodeError):
+        return False
+    return bool(resolved) and all(ipaddress.ip_address(address[0].split('%')[0]).is_loopback
+                                  for *_, address in resolved)

@@ -4,6 +4,7 @@ another one even when both are nodes called `sim` in the same namespace."""
 from __future__ import annotations
 
 import socket
+import time
 from typing import NamedTuple
 
 from rclpy.qos import DurabilityPolicy, QoSProfile
@@ -23,6 +24,11 @@ class Announcement(NamedTuple):
 
     def text(self) -> str:
         return f'{self.started_ns} pid {self.pid} on {self.host}'
+
+    def describe(self) -> str:
+        """Who it is, for a person: pid, host and local start time (a node not yet known by name has no better)."""
+        started = time.strftime('%Y-%m-%d %H:%M:%S', time.localtime(self.started_ns * 1e-9))
+        return f'the simulator pid {self.pid} on {self.host}, started {started}'
 
     def is_process(self, pid: int) -> bool:
         """This announcement is that of process `pid` on this machine."""

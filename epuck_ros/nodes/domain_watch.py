@@ -59,7 +59,8 @@ class DomainWatch:
         Another `/clock` publisher in the graph may be a simulator that started after this one (under load this
         one's window can outlast a newcomer's start-up): that one refuses by the announcements. So the graph alone
         refuses only if no newer simulator's announcement explains it within ANNOUNCEMENT_WAIT. `keep_looking()`
-        False ends the look (the node is stopping)."""
+        False ends the look (the node is stopping): False if that is because it refused (the refusal, set by the
+        announcements on the executor thread, stops the node; a second sim said "sim ready", then refused)."""
         seen_at = None
         while keep_looking():
             if self.refusal:
@@ -75,7 +76,7 @@ class DomainWatch:
                 self._watching = True
                 return True
             time.sleep(DISCOVERY_POLL)
-        return True
+        return not self.refusal
 
     def _another_simulator(self) -> str:
         """What shows another simulator (another `/clock` publisher: a sim, a bag being played; or a node with this

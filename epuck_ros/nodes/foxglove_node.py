@@ -44,12 +44,11 @@ from rosgraph_msgs.msg import Clock as ClockMessage
 from epuck_ros.bag.msgdefs import message_definition
 from epuck_ros.conversions import nanoseconds_from_stamp
 from epuck_ros.exit_codes import refuse
+from epuck_ros.foxglove.address import DEFAULT_HOST, DEFAULT_PORT, NODE_NAME, address_error, is_loopback, websocket_url
 from epuck_ros.nodes.dds_profile import use_package_profile, warn_if_not_fast_dds
-from epuck_ros.foxglove.address import DEFAULT_HOST, DEFAULT_PORT, NODE_NAME, address_error
 from epuck_ros.nodes.record_node import message_class
 from epuck_ros.nodes.sense_ports import SENSE_TOPICS
 from epuck_ros.nodes.spinning import spin_until_shutdown
-from epuck_ros.view.server import is_loopback
 
 try:
     import foxglove
@@ -288,7 +287,7 @@ def main(args: list[str] | None = None) -> None:
         if not is_loopback(options.host):
             print(f'foxglove: warning: serving on {options.host}: any machine that reaches this one can watch the '
                   'run', file=sys.stderr, flush=True)
-        print(f'foxglove: ws://{options.host}:{server.port} on ROS_DOMAIN_ID={node.context.get_domain_id()} '
+        print(f'foxglove: {websocket_url(options.host, server.port)} on ROS_DOMAIN_ID={node.context.get_domain_id()} '
               '(in Foxglove: Open connection, Foxglove WebSocket)', flush=True)
         spin_until_shutdown(node, executor_type=EventsExecutor)
     finally:

@@ -2,8 +2,9 @@
 
 Messages go out as their recorded CDR bytes (rclpy publishes bytes raw), each when the playback clock
 reaches its log time (`epuck_ros.bag.play.PlaybackClock`), with the QoS its publishers offered (latched
-topics transient local). /clock is published from the same clock at a steady wall rate, never ahead of
-the next message, and the bag's own /clock is not replayed. The node is `bag_player`; pause and resume
+topics transient local). /clock is published from the same clock, `--clock` times a wall second, its stamps
+on a grid of the bag's time (`--rate` / `--clock` apart, so a recording of the playback finds no gap in them), never
+ahead of the next message; the bag's own /clock is not replayed. The node is `bag_player`; pause and resume
 with its std_srvs/Trigger services ``~/pause``, ``~/resume``, ``~/toggle_paused``, or Enter on a terminal.
 """
 from __future__ import annotations
@@ -51,9 +52,12 @@ def rclpy_qos(topic: Topic) -> QoSProfile:
 class Player(Node):
     """Publishers for the bag's topics, /clock, and the pause/resume services; `play` runs the playback."""
 
-    def __init__(self, bag: Bag, topics: list[str] | None, rate: float, clock_hz: float, paused: bool) -> None:
+    def __init__(self, bag: Bag, topics: list[str] | None, rate: float, clock_hz: float, paused: bool,
+                 wait: float = FOREIGN_DISCOVERY_WINDOW) -> None:
+        """`wait`: wall seconds from now during which subscribers already running are looked for (`--wait`)."""
         super().__init__('bag_player', enable_rosout=False)  # its log lines must not mix with a replayed /rosout
         self._created = time.monotonic()
+        self._wait = wait
         self._bag = bag
         self._outputs = {}
         wanted = {'/' + topic.lstrip('/') for topic in topics} if topics else None
@@ -72,9 +76,15 @@ class Player(Node):
         if not self._outputs:
             raise BagError(f'{bag.path}: nothing to play (no message on a topic whose type is installed)')
         self._clock_publisher = self.create_publisher(Clock, CLOCK_TOPIC, 10)
-        self._clock_period = 1.0 / clock_hz
-        self._next_tick = time.monotonic()
         self._start_ns = min(bag.topics[name].first_ns for name in self._outputs)
+        self._clock_period = 1.0 / clock_hz
+        self._tick_ns = max(1, round(rate * 1e9 / clock_hz))
+        """Bag time between two /clock ticks: their stamps are on this grid, so a recorder of the playback finds no
+        gap in them (ticks at wall instants had irregular stamps, reported as lost /clock messages)."""
+        self._next_tick_ns = self._start_ns
+        self._last_tick_ns = self._start_ns
+        self._next_repeat = time.monotonic()
+        """While paused: when the last tick is published again (a node on sim time still gets time)."""
         self.clock = PlaybackClock(self._start_ns, rate, time.monotonic(), paused)
         self._lock = threading.Lock()
         self._wake = threading.Event()
@@ -98,25 +108,45 @@ class Player(Node):
 
     def wait_for_subscribers(self, timeout: float = MATCH_TIMEOUT) -> None:
         """Until every running subscriber of a played topic is matched and none came for `SETTLE` s, or `timeout`
-        (then a warning naming the unmatched topics); at least FOREIGN_DISCOVERY_WINDOW from the start, since the
-        subscribers are often a user's nodes, not the package's."""
+        (then a warning naming the unmatched topics); at least the `wait` given from the start (by default
+        FOREIGN_DISCOVERY_WINDOW: the subscribers are often a user's nodes, not the package's). Said before and
+        after: a silent wait of seconds looked like a slow player. `wait` 0: no wait at all."""
+        if self._wait <= 0:
+            return
+        began = time.monotonic()
+        left = self._created + self._wait - began
+        if left > 0:
+            self.get_logger().info(f'waiting {left:.1f} s for subscribers already running to show in the graph '
+                                   f'(--wait to change), then until each on a played topic is matched')
         unmatched = wait_until_matched(
             self, self._outputs, self._created, timeout, SETTLE,
             lambda topics: self.get_logger().info(f'waiting for the subscribers of {", ".join(topics)} to match '
                                                   f'(at most {timeout:.0f} s)'),
-            discovery_window=FOREIGN_DISCOVERY_WINDOW)
+            discovery_window=self._wait)
         if unmatched:
             self.get_logger().warning(f'starting although {", ".join(unmatched)} still has subscribers not matched '
                                       f'after {timeout:.0f} s')
+        matched = sum(publisher.get_subscription_count() for publisher in self._outputs.values())
+        self.get_logger().info(f'waited {time.monotonic() - began:.2f} s: {matched} subscriptions matched on the '
+                               f'played topics; playing')
 
     def play(self, loop: bool) -> int:
-        """Publish the bag (again and again with `loop`); returns the number of messages published."""
+        """Publish the bag (again and again with `loop`); returns the number of messages published. Says how many
+        in how long, from the first message (the wait before it said apart)."""
         published = 0
         if not self._wait_until_due(self._start_ns):  # paused until resumed (--start-paused)
             return published
         self.wait_for_subscribers()
+        started = time.monotonic()
         with self._lock:
-            self.clock.restart(self._start_ns, time.monotonic())
+            self.clock.restart(self._start_ns, started)
+            self._next_tick_ns = self._start_ns
+        published = self._publish_all(loop)
+        self.get_logger().info(f'played {published} messages in {time.monotonic() - started:.2f} s')
+        return published
+
+    def _publish_all(self, loop: bool) -> int:
+        published = 0
         while self.context.ok():
             for topic, log_time, _, buffer, start, end in self._bag.iter_raw(self._outputs):
                 if not self._wait_until_due(log_time):
@@ -127,6 +157,7 @@ class Player(Node):
                 break
             with self._lock:
                 self.clock.restart(self._start_ns, time.monotonic())
+                self._next_tick_ns = self._start_ns
         self.wait_for_acknowledgements()
         return published
 
@@ -140,21 +171,28 @@ class Player(Node):
                                           f'within {timeout:.0f} s')
 
     def _wait_until_due(self, log_time: int) -> bool:
-        """Publish /clock ticks until the message is due; False when the node is shutting down."""
+        """Publish the /clock ticks due before the message (their grid's, never past it; while paused the last one
+        again every clock period) until the message is due; False when the node is shutting down."""
         while self.context.ok():
             now = time.monotonic()
             with self._lock:
                 due = self.clock.due(log_time)
-                if now >= self._next_tick:
-                    self._tick(min(self.clock.bag_time(now), log_time))
-                    self._next_tick = max(self._next_tick + self._clock_period, now)
+                reached = min(self.clock.bag_time(now), log_time)
+                while self._next_tick_ns <= reached:
+                    self._tick(self._next_tick_ns)
+                    self._next_tick_ns += self._tick_ns
+                if self.clock.paused and now >= self._next_repeat:
+                    self._tick(self._last_tick_ns)
+                    self._next_repeat = now + self._clock_period
+                wake = self._next_repeat if self.clock.paused else self.clock.due(self._next_tick_ns)
             if now >= due:
                 return True
-            self._wake.wait(min(due, self._next_tick, now + PAUSED_POLL) - now)
+            self._wake.wait(max(0.0, min(due, wake, now + PAUSED_POLL) - now))
             self._wake.clear()
         return False
 
     def _tick(self, bag_ns: int) -> None:
+        self._last_tick_ns = bag_ns
         msg = Clock()
         msg.clock.sec, msg.clock.nanosec = stamp_from_nanoseconds(bag_ns)
         self._clock_publisher.publish(msg)
@@ -181,7 +219,7 @@ def play(args: argparse.Namespace) -> None:
         rclpy.init(args=['bag', *args.ros_args])
         player, executor, services = None, None, None
         try:
-            player = Player(bag, args.topics, args.rate, args.clock, args.start_paused)
+            player = Player(bag, args.topics, args.rate, args.clock, args.start_paused, args.wait)
             executor = SingleThreadedExecutor()
             executor.add_node(player)
             services = threading.Thread(target=_serve, args=(executor,), name='services')
@@ -191,9 +229,7 @@ def play(args: argparse.Namespace) -> None:
                 player.get_logger().info(f'paused: {how} {player.get_fully_qualified_name()}/resume')
             if sys.stdin.isatty():
                 threading.Thread(target=_enter_toggles, args=(player,), name='keys', daemon=True).start()
-            started = time.monotonic()
-            count = player.play(args.loop)
-            player.get_logger().info(f'played {count} messages in {time.monotonic() - started:.2f} s')
+            player.play(args.loop)
         except (KeyboardInterrupt, ExternalShutdownException):
             pass
         except Exception:

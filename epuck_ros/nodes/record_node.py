@@ -67,6 +67,8 @@ BACKLOG_PER_CALLBACK = 256
 a turn, and a topic that arrives faster than it is written cannot hold the executor (the stop flag, the others)."""
 NOTHING_RECORDED_WARNING = 5.0
 """s of wall time without a single message before `record` says it may be on the wrong domain."""
+EVERY_NODES_TOPICS = frozenset({'/parameter_events', '/rosout'})
+"""Topics every node has (the recorder's own too): seen, they say nothing of a simulator on the domain."""
 SENSE_ASKER_NODE = 'recorder_senses'
 """The recorder's node for the sense topics it asks for (`--senses`, a named sense topic): any node but RECORDER_NODE
 makes the simulator compute a sense it reads."""
@@ -213,7 +215,7 @@ class Recorder(Node):
         if self._warned_idle or self.received or time.monotonic() - self._started < NOTHING_RECORDED_WARNING:
             return
         self._warned_idle = True
-        if self._recording:
+        if self._recording - EVERY_NODES_TOPICS:
             self.get_logger().warning(
                 f'no message on {", ".join(sorted(self._recording))} after {NOTHING_RECORDED_WARNING:.0f} s '
                 f'on ROS_DOMAIN_ID={self.domain_id}; is the simulator running?')

@@ -1,5 +1,6 @@
 """One robot's sense topics on the simulator node: camera/image_raw and camera/camera_info, ground_raw, light_raw,
-imu (design.md, "Senses"); each sense is computed only while it is wanted.
+imu (design.md, "Senses") and tof (the e-puck2's time-of-flight sensor as the e-puck's ROS interface has it: a
+sensor_msgs/Range, `sensors.tof`); each sense is computed only while it is wanted.
 
 Wanted means a subscriber on its topic that asks for it (so an echo, RViz or a controller just works), or the `senses`
 parameter. A recorder's subscriber does not ask (`RECORDER_NODE`): it records a sense while something else asks for
@@ -22,16 +23,17 @@ from collections.abc import Callable, Iterable, Mapping
 from rclpy.node import Node
 from rclpy.publisher import Publisher
 from rclpy.qos import QoSProfile
-from sensor_msgs.msg import CameraInfo, Image, Imu
+from sensor_msgs.msg import CameraInfo, Image, Imu, Range
 from std_msgs.msg import Float64MultiArray
 
 from epuck_ros.description import IMU_FRAME
-from epuck_ros.model import CAMERA_FOV
+from epuck_ros.model import CAMERA_FOV, TOF_APERTURE, TOF_NAME
 from epuck_ros.nodes.robot_ports import STAMP_FIELDS, frame_prefix, quiet_publisher, topic_prefix
 from epuck_ros.conversions import stamp_from_seconds
 from epuck_ros.nodes.serialized import Patch, array_bytes, exact_cdr
 from epuck_ros.sensors.camera import camera_matrix
 from epuck_ros.sensors.imu import rates_from_gyro_values
+from epuck_ros.sensors.tof import RANGE_LIMITS, range_from_value
 from epuck_ros.simulation import Simulation
 
 
@@ -41,7 +43,8 @@ class SenseError(ValueError):
 
 SENSE_POLL = 0.5
 """Wall seconds between two looks at which sense topics have subscribers."""
-SENSE_TOPICS = {'camera': 'camera/image_raw', 'ground': 'ground_raw', 'light': 'light_raw', 'imu': 'imu'}
+SENSE_TOPICS = {'camera': 'camera/image_raw', 'ground': 'ground_raw', 'light': 'light_raw', 'imu': 'imu',
+                'tof': TOF_NAME}
 """Each sense and the topic whose subscribers want it."""
 SENSE_TOPICS_ON_DEMAND_FROM = 200
 """Robots from which the simulator makes a sense topic's publisher only once the topic has a reader
@@ -50,13 +53,22 @@ _CAMERA_INFO = 'camera_info'
 ON_DEMAND_TOPICS = {**SENSE_TOPICS, _CAMERA_INFO: 'camera/camera_info'}
 """Every sense topic of a robot by kind (the camera has two); `_TYPES`: their message types."""
 _TYPES = {'camera': Image, _CAMERA_INFO: CameraInfo, 'ground': Float64MultiArray, 'light': Float64MultiArray,
-          'imu': Imu}
+          'imu': Imu, 'tof': Range}
 RECORDER_NODE = 'recorder'
 """The node name of `record` (nodes/record_node.py): its subscribers record a sense topic without asking for it."""
 _UNKNOWN_NODE = '_NODE_NAME_UNKNOWN_'
 """The node name the graph gives an endpoint whose node it has not heard of yet."""
 IMU_FIELDS = STAMP_FIELDS + [(f'{vector}.{axis}', 'd') for vector in ('angular_velocity', 'linear_acceleration')
                              for axis in 'xyz']
+
+
+def tof_range(frames: str) -> Range:
+    """The `tof` topic's Range as webots_ros2's DistanceSensor plugin fills it (Ros2DistanceSensor.cpp): radiation type
+    INFRARED (its type for every distance sensor), the aperture as field of view, the table's limits; frame `tof`."""
+    msg = Range(radiation_type=Range.INFRARED, field_of_view=TOF_APERTURE, min_range=RANGE_LIMITS[0],
+                max_range=RANGE_LIMITS[1])
+    msg.header.frame_id = frames + TOF_NAME
+    return msg
 
 
 class ImagePatch:
@@ -140,6 +152,7 @@ class SensePorts:
         imu.header.frame_id = frames + IMU_FRAME
         imu.orientation_covariance[0] = -1.0   # REP 145: no orientation estimate
         self._imu = Patch(imu, IMU_FIELDS)
+        self._tof = Patch(tof_range(frames), STAMP_FIELDS + [('range', 'f')])
         self._made = True
 
     def update_wants(self, want: Callable[[str, int, bool], None], forced: frozenset[str]) -> list[str]:
@@ -207,6 +220,8 @@ class SensePorts:
             elif kind == 'imu':
                 rates = rates_from_gyro_values(senses.gyro[robot]).tolist()
                 publishers['imu'].publish(self._imu.bytes((*stamp, *rates, *senses.accelerometer[robot].tolist())))
+            elif kind == 'tof':
+                publishers['tof'].publish(self._tof.bytes((*stamp, float(range_from_value(senses.tof[robot])))))
         if self._info_subscribed and 'camera' in kinds:
             publishers[_CAMERA_INFO].publish(self._info.bytes(stamp))
 

@@ -93,8 +93,8 @@ SIM_PARAMETERS = [
     ParamSpec('frame_prefix', '', 'prefix of every frame_id (e.g. "sim1/"); with several robots each robot\'s '
                                   'frames are <prefix><name>/odom, ...', read_only=True),
     ParamSpec('senses', '', 'comma-separated senses every robot computes whether or not their topics have '
-                            'subscribers: camera, ground, light, imu (a sense is computed anyway while its topic has '
-                            'a subscriber)', read_only=True),
+                            'subscribers: camera, ground, light, imu, tof (a sense is computed anyway while its topic '
+                            'has a subscriber)', read_only=True),
     ParamSpec('camera_width', 52, 'camera image width in pixels (the field of view stays 0.84 rad)', (1, 1024),
               read_only=True),
     ParamSpec('camera_height', 39, 'camera image height in pixels', (1, 1024), read_only=True),
@@ -105,7 +105,7 @@ USAGE = Usage(
     'sim',
     'The e-puck simulator: steps the robots of a world and publishes, per robot, odom, ground_truth, proximity '
     '(8 Range), ir_raw (the 8 raw IR values), joint_states and collisions, the latched robot_description, and '
-    'while they have subscribers camera/image_raw, camera/camera_info, ground_raw, light_raw and imu, plus the '
+    'while they have subscribers camera/image_raw, camera/camera_info, ground_raw, light_raw, imu and tof, plus the '
     'latched world, world_markers and /tf_static, and /tf and /clock; takes cmd_vel (Twist) or wheel_cmd '
     '([left, right] rad/s) per robot; services '
     'reset (Empty) and step (Trigger, one step while paused). With several robots, robot NAME\'s topics are '
@@ -169,7 +169,8 @@ class SimNode(Node):
                                   on_free=report.free, on_timeout=report.timeout)
         self._lockstep.require_controllers(values['lockstep_controllers'])
         warn_if_not_fast_dds(self.get_logger())
-        self._say_ready(world, values)
+        self._ready = self._ready_line(world, values)
+        """Said once no other simulator was found before the first step (a second sim said it, then refused)."""
 
     @property
     def refusal(self) -> str:
@@ -194,10 +195,11 @@ class SimNode(Node):
                                     values['frame_prefix'], values['cmd_vel_stamped'], patches=patches))
         return ports
 
-    def _say_ready(self, world: World, values: dict) -> None:
+    @staticmethod
+    def _ready_line(world: World, values: dict) -> str:
         shown = ', '.join(world.names[:5]) + (', ...' if len(world.names) > 5 else '')
         robots = f'{len(world.names)} robots ({shown})' if len(world.names) > 1 else 'one robot'
-        self.get_logger().info(
+        return (
             f'sim ready: world {values["world"] or "default arena"}, {robots}, time step {values["time_step"]} s, '
             f'real-time factor {values["real_time_factor"] or "max"}, seed {values["seed"]}, '
             f'noise {"on" if values["noise"] else "off"}'
@@ -316,8 +318,9 @@ class SimNode(Node):
 
     def _loop(self) -> None:
         """Step and publish until stopped, paced by the real-time factor; idle while paused."""
-        if not self._domain.alone(self._running.is_set):
+        if not self._domain.alone(self._running.is_set) or not self._running.is_set():
             return
+        self.get_logger().info(self._ready)
         self._lockstep.claim()   # from now on this thread steps (and lends the claim, see `_lend_on_answers`)
         pacer = Pacer()
         resend = False

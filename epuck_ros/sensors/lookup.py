@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 
-STREAMS = {'ground': 1, 'light': 2, 'accelerometer': 3, 'gyro': 4}
+STREAMS = {'ground': 1, 'light': 2, 'accelerometer': 3, 'gyro': 4, 'tof': 5}
 """Each sensor kind's noise stream: numpy's default_rng([seed, stream]); the IR sensors keep default_rng(seed)."""
 
 

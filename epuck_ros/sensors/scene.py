@@ -72,14 +72,16 @@ class Scene:
         return np.concatenate([segments, circles])
 
     def robot_hits(self, ox: np.ndarray, oy: np.ndarray, dx: np.ndarray, dy: np.ndarray,
-                   robots_xy: np.ndarray, own: np.ndarray, view: tuple[np.ndarray, float] | None = None) -> np.ndarray:
+                   robots_xy: np.ndarray, own: np.ndarray, view: tuple[np.ndarray, float] | None = None,
+                   reach: float = ROBOT_VIEW_RANGE) -> np.ndarray:
         """Distance (R, K) along each viewer's rays (origins (R, 1) or (R, K), directions (R, K)) to the nearest
-        other robot body within ROBOT_VIEW_RANGE; `own` (R,) is each viewer's own row in `robots_xy` (N, 2).
+        other robot body whose centre is within `reach` of the viewer's; `own` (R,) is each viewer's own row in
+        `robots_xy` (N, 2).
         `view` (a camera's headings and half field of view, origins (R, 1)) leaves out the bodies it cannot see."""
         nearest = np.full(dx.shape, np.inf)
         if len(robots_xy) < 2:
             return nearest
-        first, second = close_pairs(robots_xy, ROBOT_VIEW_RANGE)
+        first, second = close_pairs(robots_xy, reach)
         viewer_of = np.full(len(robots_xy), -1)
         viewer_of[own] = np.arange(len(own))
         viewers = np.concatenate([viewer_of[first], viewer_of[second]])

@@ -20,15 +20,17 @@ from epuck_ros.sensors.ground import GroundSensors
 from epuck_ros.sensors.light import LightSensors
 from epuck_ros.sensors.lookup import STREAMS
 from epuck_ros.sensors.scene import Scene
+from epuck_ros.sensors.tof import TofSensor, carried
 from epuck_ros.stepping.state import RobotArrays
 from epuck_ros.stepping.step_noise import StepNoise
 from epuck_ros.world import World
 
-KINDS = ('camera', 'ground', 'light', 'imu')
+KINDS = ('camera', 'ground', 'light', 'imu', 'tof')
 
 
 class Senses:
-    """Camera images, ground and light raw values, accelerometer and gyro values of the robots that want them.
+    """Camera images, ground and light raw values, accelerometer and gyro values, ToF values of the robots that want
+    them.
 
     Readings are (N, ...) arrays, NaN (zero for images) in the rows of robots that do not want the sense.
     """
@@ -47,6 +49,7 @@ class Senses:
         self._camera: Camera | None = None
         self._ground: GroundSensors | None = None
         self._light: LightSensors | None = None
+        self._tof: TofSensor | None = None
         self.step = 0
         """The number of steps the state read has been through (the simulation sets it): the noise's coordinate."""
         self.wanted: dict[str, np.ndarray] = {kind: np.zeros(count, dtype=bool) for kind in KINDS}
@@ -59,6 +62,8 @@ class Senses:
         self.light_raw = np.full((count, len(LIGHT_SENSOR_NAMES)), np.nan)
         self.accelerometer = np.full((count, 3), np.nan)
         self.gyro = np.full((count, 3), np.nan)
+        self.tof = np.full(count, np.nan)
+        """(N,) the ToF's values, as Webots' getValue() returns them (sensors/tof.py)."""
         self._previous_twist: np.ndarray | None = None
 
     @property
@@ -102,7 +107,8 @@ class Senses:
 
     def readings_of(self, robot: int) -> dict[str, Any]:
         """The wanted senses of one robot as a Webots controller's step takes them (`webots.link.StepData.senses`):
-        'camera' (H, W, 3) uint8, 'ground' (3 values), 'light' (8), 'imu' (accelerometer (3), gyro values (3))."""
+        'camera' (H, W, 3) uint8, 'ground' (3 values), 'light' (8), 'imu' (accelerometer (3), gyro values (3)),
+        'tof' (the value as the `tof` topic carries it: `tof.carried`)."""
         readings: dict[str, Any] = {}
         if self.wanted['camera'][robot]:
             readings['camera'] = self.images[robot].copy()
@@ -112,6 +118,8 @@ class Senses:
             readings['light'] = tuple(self.light_raw[robot].tolist())
         if self.wanted['imu'][robot]:
             readings['imu'] = (tuple(self.accelerometer[robot].tolist()), tuple(self.gyro[robot].tolist()))
+        if self.wanted['tof'][robot]:
+            readings['tof'] = carried(float(self.tof[robot]))
         return readings
 
     def _noise(self, kind: str, rows: np.ndarray) -> StepNoise | None:
@@ -150,5 +158,10 @@ class Senses:
                 imu.acceleration(twist[rows], previous[rows], self.time_step), self._noise('accelerometer', rows))
             self.gyro[rows] = imu.gyro_values(imu.angular_velocity(twist[rows]), self._noise('gyro', rows))
             self._previous_twist = twist.copy()
+        elif kind == 'tof':
+            if self._tof is None:
+                self._tof = TofSensor(self.world)
+            scene = self.scene if others is not None else None
+            self.tof[rows] = self._tof.read(true[rows], self._noise('tof', rows), scene, others, rows)
         else:
             self.images[rows] = self.camera.render(true[rows], others, rows)

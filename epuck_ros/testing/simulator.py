@@ -6,9 +6,9 @@ rclpy context, spun in a background thread, so the test's code stays plain and b
 """
 from __future__ import annotations
 
-import itertools
 import math
 import os
+import re
 import subprocess
 import sys
 import tempfile
@@ -16,7 +16,7 @@ import threading
 import time
 from contextlib import AbstractContextManager
 from pathlib import Path
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from typing import IO, Any
 
 from epuck_ros.conversions import seconds_from_stamp, yaw_from_quaternion
@@ -55,10 +55,14 @@ class SimulatorUnderTest:
         use_package_profile()   # this process's participant (made below) announces itself every 0.5 s, not 3 s
         self.domain, self._domain_claim = claim_free_domain()
         self.env = {**os.environ, 'ROS_DOMAIN_ID': str(self.domain), 'ROS_AUTOMATIC_DISCOVERY_RANGE': 'LOCALHOST',
-                    PROFILES_VARIABLE: os.environ.get(PROFILES_VARIABLE, str(PROFILES_FILE)), **(env or {})}
+                    PROFILES_VARIABLE: os.environ.get(PROFILES_VARIABLE, str(PROFILES_FILE)),
+                    'PATH': os.pathsep.join([str(Path(sys.executable).parent), os.environ.get('PATH', os.defpath)]),
+                    **(env or {})}
         """The environment for the test's own processes: the simulator's domain, discovery on this machine, the
         package's DDS profile (a node that misses the simulator's first announcement hears the next 0.5 s later,
-        not 3 s: most of the time a test took to see its node connected)."""
+        not 3 s: most of the time a test took to see its node connected), and this interpreter's scripts first on
+        PATH: `forward` is the package's next to this Python, also under `.venv/bin/python -m pytest` with the venv
+        not activated (it was `FileNotFoundError: 'forward'`)."""
         self._lock = threading.Lock()
         self._clock = 0.0
         self._truth: dict[str, tuple[float, float, float, float]] = {}
@@ -292,17 +296,64 @@ class SimulatorUnderTest:
         return future.result()
 
 
-def claim_free_domain() -> tuple[int, AbstractContextManager[int]]:
-    """A ROS domain between 1 and 100 that no other claimant on this machine holds, and its claim (exit it to free
-    the domain). Claimed with `domain_coordinator`, as this package's own test runs and ROS 2's tests claim theirs,
-    so that a simulator here and any of them never share a domain; never this process's own ROS_DOMAIN_ID, which
-    its own nodes (or a user's robot) may be using unclaimed."""
+DOMAIN_RANGE_VARIABLE = 'EPUCK_ROS_DOMAIN_RANGE'
+"""`FIRST-LAST` (inclusive): the ROS domains the fixture's simulators and this package's own test runs claim (a CI
+that shares a machine gives each job a range of its own). Unset: 1-100, `domain_coordinator`'s range."""
+DEFAULT_DOMAINS = range(1, 101)
+MAX_DOMAIN = 232
+"""The highest ROS_DOMAIN_ID (ROS 2's limit on Linux: its ports must stay below 65536)."""
+
+
+class NoFreeDomain(RuntimeError):
+    """Every domain of the range is claimed by another test run or simulator on this machine."""
+
+
+def domain_range() -> range:
+    """The domains to claim from: EPUCK_ROS_DOMAIN_RANGE, or DEFAULT_DOMAINS. A malformed value is a ValueError
+    naming the variable."""
+    text = os.environ.get(DOMAIN_RANGE_VARIABLE, '').strip()
+    if not text:
+        return DEFAULT_DOMAINS
+    match = re.fullmatch(r'([0-9]{1,3})\s*-\s*([0-9]{1,3})', text)
+    if match is None or not int(match[1]) <= int(match[2]) <= MAX_DOMAIN:
+        raise ValueError(f'{DOMAIN_RANGE_VARIABLE}={text!r}: expected FIRST-LAST, ROS domain IDs from 0 to '
+                         f'{MAX_DOMAIN} with FIRST <= LAST (e.g. 20-39)')
+    return range(int(match[1]), int(match[2]) + 1)
+
+
+def claim_domain(preferred: Sequence[int] = (), avoid: str = '') -> tuple[int, AbstractContextManager[int]]:
+    """A ROS domain no other claimant on this machine holds: one of `preferred`, else one of `domain_range()` (never
+    `avoid`), and its claim (exit it to free the domain). Claimed with `domain_coordinator`, as ROS 2's own tests
+    claim theirs. NoFreeDomain, naming the range, when every one is held."""
     import domain_coordinator   # only when a test asks for a simulator: the plugin's import stays free
-    own = os.environ.get('ROS_DOMAIN_ID', '')
-    first = os.getpid() % 100   # processes started together try different domains first
-    candidates = [domain for domain in (1 + (first + offset) % 100 for offset in range(100)) if str(domain) != own]
-    claim = domain_coordinator.domain_id(itertools.cycle(candidates).__next__)
-    return claim.__enter__(), claim
+    domains = [domain for domain in domain_range() if str(domain) != avoid]
+    first = os.getpid() % len(domains) if domains else 0   # processes started together try different ones first
+    candidates = iter([*preferred, *domains[first:], *domains[:first]])
+    where = (f'{DOMAIN_RANGE_VARIABLE}={os.environ[DOMAIN_RANGE_VARIABLE].strip()}'
+             if os.environ.get(DOMAIN_RANGE_VARIABLE, '').strip() else
+             f'{DEFAULT_DOMAINS[0]}-{DEFAULT_DOMAINS[-1]} (set {DOMAIN_RANGE_VARIABLE}=FIRST-LAST for another range)')
+    exhausted = NoFreeDomain(f'no free ROS domain in {where}{f" other than {avoid}" if avoid else ""}: each is '
+                             'claimed by another test run or simulator on this machine; widen the range or wait')
+
+    def pick() -> int:
+        try:
+            return next(candidates)
+        except StopIteration:
+            raise exhausted from None
+
+    claim = domain_coordinator.domain_id(pick)
+    try:
+        return claim.__enter__(), claim
+    except NoFreeDomain:
+        raise
+    except RuntimeError:   # domain_coordinator gives up after 100 attempts
+        raise exhausted from None
+
+
+def claim_free_domain() -> tuple[int, AbstractContextManager[int]]:
+    """The simulator's domain (`claim_domain`): never this process's own ROS_DOMAIN_ID, which its own nodes (or a
+    user's robot) may be using unclaimed."""
+    return claim_domain(avoid=os.environ.get('ROS_DOMAIN_ID', ''))
 
 
 def _text(value: object) -> str:

@@ -1,8 +1,9 @@
 """The e-puck's Webots devices as plain objects, with the semantics of Webots' reference manual; no ROS here.
 
 What each call does, and every message text, follows the Webots controller library (`src/controller/c/motor.c`,
-`distance_sensor.c`, `position_sensor.c`) and the reference pages `motor.md`, `distancesensor.md`,
-`positionsensor.md`, `led.md`, `camera.md`, `lightsensor.md`, `accelerometer.md`, `gyro.md` (cyberbotics/webots).
+`distance_sensor.c`, `position_sensor.c`, `gps.c`, `compass.c`, `inertial_unit.c`) and the reference pages `motor.md`,
+`distancesensor.md`, `positionsensor.md`, `led.md`, `camera.md`, `lightsensor.md`, `accelerometer.md`, `gyro.md`,
+`gps.md`, `compass.md`, `inertialunit.md` (cyberbotics/webots).
 Nothing here knows where the readings come from (the simulator over ROS, or the core in this process).
 The robot (`epuck_ros.webots.robot`) hands each sensor the
 readings of every simulator step (`sample`) and asks each motor for the wheel speed of the next step (`command`).
@@ -19,6 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
+from epuck_ros.sensors import turret
 from epuck_ros.sensors.png import png_bytes
 
 NANOSECONDS_PER_MS = 1_000_000
@@ -209,8 +211,8 @@ class SampledSensor(Device):
 
 
 class DistanceSensor(SampledSensor):
-    """An infra-red DistanceSensor: psN (the ring) or gsN (the ground sensors); getValue() is the raw lookup-table
-    value, with the simulator's noise."""
+    """A DistanceSensor: psN (the ring) or gsN (the ground sensors), infra-red, or the e-puck2's tof, generic;
+    getValue() is the raw lookup-table value, with the simulator's noise."""
 
     API_PREFIX = 'wb_distance_sensor'
 
@@ -423,3 +425,76 @@ class Camera(SampledSensor):
         except OSError:
             return -1
         return 0
+
+
+class TurretSensor(SampledSensor):
+    """A device of the turret slot (a world gives it: `turret` in the world file), read from the robot's true state
+    (`sensors.turret.Truth`); its values are NaN until the first sampling period has elapsed."""
+
+    def __init__(self, name: str, now_ns: Callable[[], int]) -> None:
+        super().__init__(name, now_ns)
+        self._value = None
+
+    def _keep(self, value: object) -> turret.Truth:
+        return turret.Truth(*value)   # type: ignore[misc]
+
+    def _read(self, function: Callable[[turret.Truth], list[float]], api: str, count: int = 3) -> list[float]:
+        if self._period_ms <= 0:
+            report(f'Error: {self.API_PREFIX}_{api}() called for a disabled device! Please use: '
+                   f'{self.API_PREFIX}_enable().')
+        return [math.nan] * count if self._value is None else function(self._value)
+
+    def getValue(self) -> float:
+        raise unsupported(type(self).__name__, 'getValue', public_methods(type(self)))
+
+
+class GPS(TurretSensor):
+    """Webots' GPS with WorldInfo's defaults (local coordinates, reference 0 0 0, no noise): its position in the world
+    (x, y as the world file's, z 0.0486 above the floor), its velocity and speed."""
+
+    API_PREFIX = 'wb_gps'
+    LOCAL, WGS84 = 0, 1
+
+    def getValues(self) -> list[float]:
+        return self._read(turret.gps_values, 'get_values')
+
+    def getSpeedVector(self) -> list[float]:
+        return self._read(turret.gps_speed_vector, 'get_speed_vector')
+
+    def getSpeed(self) -> float:
+        return math.hypot(*self.getSpeedVector())
+
+    def getCoordinateSystem(self) -> int:
+        return self.LOCAL
+
+
+class Compass(TurretSensor):
+    """Webots' Compass in an ENU world: the north, +y, in the robot's frame (1, 0, 0 when facing +y)."""
+
+    API_PREFIX = 'wb_compass'
+
+    def getValues(self) -> list[float]:
+        return self._read(turret.compass_values, 'get_values')
+
+    def getLookupTable(self) -> list[float]:
+        return []
+
+
+class InertialUnit(TurretSensor):
+    """Webots' InertialUnit in an ENU world: roll, pitch, yaw (yaw 0 facing +x, counter-clockwise positive) and the
+    quaternion [x, y, z, w] of the robot's rotation."""
+
+    API_PREFIX = 'wb_inertial_unit'
+
+    def getRollPitchYaw(self) -> list[float]:
+        return self._read(turret.roll_pitch_yaw, 'get_roll_pitch_yaw')
+
+    def getQuaternion(self) -> list[float]:
+        return self._read(turret.quaternion, 'get_quaternion', 4)
+
+    def getNoise(self) -> float:
+        return 0.0
+
+
+TURRET_DEVICES: dict[str, type[TurretSensor]] = {'GPS': GPS, 'Compass': Compass, 'InertialUnit': InertialUnit}
+"""The device class of each turret type a world can give (`world.TURRET_KINDS`)."""

@@ -21,10 +21,12 @@ from typing import Protocol
 from epuck_ros.behaviours import Observation, WheelCommand
 from epuck_ros.conversions import nanoseconds_from_stamp, stamp_from_seconds
 from epuck_ros.lockstep import Lockstep, StepFunction
+from epuck_ros.sensors.turret import Truth
 from epuck_ros.simulation import Simulation
-from epuck_ros.webots.link import StepData
+from epuck_ros.webots.link import TRUTH, StepData
 from epuck_ros.webots.robot import KILL_DELAY, SINGLE_ROBOT_NAME, bind_thread
 from epuck_ros.webots.runner import run_script
+from epuck_ros.world import TurretDevice
 
 
 class ScriptRecorder(Protocol):
@@ -40,6 +42,11 @@ class ScriptRecorder(Protocol):
 
 class ScriptError(RuntimeError):
     """The script ended with an error (raised, or exited with a non-zero code); the message says which."""
+
+    def __init__(self, message: str, code: int = 1) -> None:
+        super().__init__(message)
+        self.code = code
+        """The script's exit code: 2 when the runner refused it in one line (a device its world does not give)."""
 
 
 class ScriptStage:
@@ -157,6 +164,11 @@ class CoreLink:
         width, height = self._stage.sim.senses.camera_size
         return width, height
 
+    @property
+    def turret(self) -> tuple[TurretDevice, ...]:
+        """The devices the world puts in this robot's turret slot (SimLink.turret over ROS)."""
+        return self._stage.sim.world.robots[self._robot].turret
+
     def first_step(self) -> StepData | None:
         return self._step_after(-1)
 
@@ -179,15 +191,19 @@ class CoreLink:
         self._seen = stage.steps
         sim, robot = stage.sim, self._robot
         senses = sim.senses
+        readings = senses.readings_of(robot) if senses.active else {}
+        if TRUTH in self._wanted:   # as the ground_truth topic carries it over ROS
+            readings[TRUTH] = Truth.of(sim.true_pose[robot].tolist(), sim.true_twist[robot].tolist())
         return StepData(nanoseconds_from_stamp(*stamp_from_seconds(sim.time)), tuple(sim.wheel_angles[robot].tolist()),
-                        tuple(sim.wheel_speeds[robot].tolist()), tuple(sim.ir_raw[robot].tolist()),
-                        senses.readings_of(robot) if senses.active else {})
+                        tuple(sim.wheel_speeds[robot].tolist()), tuple(sim.ir_raw[robot].tolist()), readings)
 
     def want(self, kind: str) -> None:
         """A device of sense `kind` was enabled: the core reads that sense for this robot from now on (called inside
-        step(), while the simulation waits for this robot's answer)."""
+        step(), while the simulation waits for this robot's answer); TRUTH (a turret device) is the state itself."""
         if kind not in self._wanted:
             self._wanted.add(kind)
+            if kind == TRUTH:
+                return
             self._stage.sim.senses.want(kind, [self._robot])
             recorder = self._stage.recorder()
             if recorder is not None:   # the simulator publishes the step in hand at once (its reader waits for it)
@@ -254,4 +270,4 @@ class ScriptSeat:
     def check(self) -> None:
         """Raise ScriptError if the script has ended with an error."""
         if self.exit_code:
-            raise ScriptError(f'{self.script.name}: {self.failure or f"exit code {self.exit_code}"}')
+            raise ScriptError(f'{self.script.name}: {self.failure or f"exit code {self.exit_code}"}', self.exit_code)

@@ -6,7 +6,9 @@ step the controller has seen (`stamp=SEC.NANOSEC` in its layout), then wait unti
 complete here: every topic the script reads — `joint_states` (stamped), `ir_raw` (its label names the step) and
 each enabled sense — has its message of one step, newer than the last (`_complete`). Messages are paired by the
 step they name, never by arrival order or counts; a step sent again is seen once.
-The other senses (camera, ground and light sensors, IMU) are subscribed when the script enables one (`want`). The
+The other senses (camera, ground and light sensors, IMU, ToF) are subscribed when the script enables one (`want`);
+a turret device (GPS, Compass, InertialUnit: what the world gives the robot, read from the latched `world`) reads
+`ground_truth`, stamped with its step as the senses are (TRUTH). The
 simulator computes a sense while its topic has a subscriber, and publishes the current step's reading as soon as it
 sees a new one: the answer to the current step waits for that message, so the sense is sure to be read on the next
 step, as in Webots (a device enabled before `step()` has its value after it), whenever discovery comes.
@@ -21,6 +23,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
+from nav_msgs.msg import Odometry
 from rcl_interfaces.msg import ParameterType, ParameterValue
 from rclpy.duration import Duration
 from rclpy.executors import SingleThreadedExecutor
@@ -28,17 +31,20 @@ from rclpy.node import Node
 from rclpy.parameter_client import AsyncParameterClient
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 import numpy as np
-from sensor_msgs.msg import Image, Imu, JointState
-from std_msgs.msg import Float64MultiArray, Int32MultiArray
+from sensor_msgs.msg import Image, Imu, JointState, Range
+from std_msgs.msg import Float64MultiArray, Int32MultiArray, String
 
 from epuck_ros.conversions import nanoseconds_from_stamp, stamp_from_nanoseconds
 from epuck_ros.model import CAMERA_HEIGHT, CAMERA_WIDTH
 from epuck_ros.nodes.ack_window import command_qos
-from epuck_ros.nodes.qos import LED_QOS
+from epuck_ros.nodes.qos import LATCHED, LED_QOS
 from epuck_ros.nodes.robot_ports import JOINT_NAMES
 from epuck_ros.nodes.sense_ports import SENSE_TOPICS
 from epuck_ros.nodes.serialized import array_bytes, array_values
 from epuck_ros.sensors.imu import gyro_values
+from epuck_ros.sensors.tof import value_from_range
+from epuck_ros.sensors.turret import Truth
+from epuck_ros.world import TurretDevice, WorldError, world_from_yaml
 
 QOS = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
 COMMAND_TOPIC = 'wheel_cmd'
@@ -54,6 +60,8 @@ DELIVERY_WAIT = 0.9
 controller is given to end (robot.KILL_DELAY)."""
 ROBOT_CHOICE_GRACE = 3.0
 """Wall seconds the simulator's other robots may be in the graph without ours before `--robot` is refused."""
+TRUTH = 'truth'
+"""The turret devices' sense: the robot's true state (`sensors.turret.Truth`), the `ground_truth` topic over ROS."""
 
 
 def _camera_size(values: list[ParameterValue]) -> tuple[int, int]:
@@ -77,7 +85,8 @@ class StepData:
     ir_raw: tuple[float, ...]
     senses: dict[str, Any] = field(default_factory=dict)
     """The enabled senses' readings of this step: 'camera' (H, W, 3) uint8, 'ground' (3 values), 'light' (8),
-    'imu' ((ax, ay, az) m/s^2, gyro values (3)); a sense whose first message has not come yet is absent."""
+    'imu' ((ax, ay, az) m/s^2, gyro values (3)), 'tof' (its value), TRUTH (a `Truth`, for the turret devices); a sense
+    whose first message has not come yet is absent."""
 
 
 class _Stream:
@@ -116,6 +125,12 @@ class _SenseFeed(_Stream):
         stamp = nanoseconds_from_stamp(msg.header.stamp.sec, msg.header.stamp.nanosec)
         if self.kind == 'camera':
             self._add(stamp, np.frombuffer(bytes(msg.data), dtype=np.uint8).reshape(msg.height, msg.width, 3))
+        elif self.kind == 'tof':   # the value back from the Range's range (sensors/tof.py: `carried`)
+            self._add(stamp, float(value_from_range(msg.range)))
+        elif self.kind == TRUTH:
+            pose, twist = msg.pose.pose, msg.twist.twist
+            self._add(stamp, Truth(pose.position.x, pose.position.y, pose.orientation.z, pose.orientation.w,
+                                   twist.linear.x, twist.angular.z))
         else:
             rates = (msg.angular_velocity.x, msg.angular_velocity.y, msg.angular_velocity.z)
             self._add(stamp, ((msg.linear_acceleration.x, msg.linear_acceleration.y, msg.linear_acceleration.z),
@@ -149,6 +164,10 @@ class SimLink:
         self._feeds: dict[str, _SenseFeed] = {}
         self._subscriptions_of_senses: list = []
         self._led_publisher = None
+        self._world: list[str] = []
+        self._world_subscription = self.node.create_subscription(String, 'world', self._on_world, LATCHED)
+        self.turret: tuple[TurretDevice, ...] = ()
+        """The devices the simulator's world puts in this robot's turret slot, known once `connect` has returned."""
         self.camera_size = (CAMERA_WIDTH, CAMERA_HEIGHT)
         """(width, height) of the simulator's camera images, known once `connect` has returned: a Camera built
         with it answers getWidth/getHeight right before its first image too (it takes the size of each image)."""
@@ -162,6 +181,9 @@ class SimLink:
             return
         self._joints.add(nanoseconds_from_stamp(msg.header.stamp.sec, msg.header.stamp.nanosec),
                          ((msg.position[left], msg.position[right]), (msg.velocity[left], msg.velocity[right])))
+
+    def _on_world(self, msg: String) -> None:
+        self._world[:] = [msg.data]
 
     def _on_ir_raw(self, data: bytes) -> None:
         read = array_values(data)   # the label names the step (`serialized`)
@@ -178,7 +200,21 @@ class SimLink:
             return None
         if not self._wait(self._matched, f'the simulator\'s {self._prefix}ir_raw and {self._prefix}joint_states'):
             return None
+        if not self._wait(lambda: bool(self._world), 'the simulator\'s world (its latched `world` topic)'):
+            return None
+        self.turret = self._turret_of(self._world[0])
+        self.node.destroy_subscription(self._world_subscription)
         return self._time_step()
+
+    def _turret_of(self, text: str) -> tuple[TurretDevice, ...]:
+        """This robot's turret devices in the world the simulator publishes (checked as a world file is)."""
+        try:
+            world = world_from_yaml(text, 'the simulator\'s world topic')
+        except WorldError as error:
+            raise LinkError(str(error)) from None
+        robots = {robot.name: robot for robot in world.robots}
+        robot = robots.get(self._robot) if self._robot else world.robots[0]
+        return robot.turret if robot is not None else ()
 
     def _sim_in_graph(self) -> bool:
         return self.node.count_publishers('/clock') > 0
@@ -282,13 +318,14 @@ class SimLink:
         return self._next_step()
 
     def want(self, kind: str) -> None:
-        """From now on gather sense `kind` ('camera', 'ground', 'light', 'imu') with every step."""
+        """From now on gather sense `kind` ('camera', 'ground', 'light', 'imu', 'tof', TRUTH) with every step."""
         if kind in self._feeds:
             return
         feed = self._feeds[kind] = _SenseFeed(kind)
-        message = {'camera': Image, 'imu': Imu}.get(kind, Float64MultiArray)
+        message = {'camera': Image, 'imu': Imu, 'tof': Range, TRUTH: Odometry}.get(kind, Float64MultiArray)
+        topic = 'ground_truth' if kind == TRUTH else SENSE_TOPICS[kind]
         self._subscriptions_of_senses.append(self.node.create_subscription(
-            message, self._prefix + SENSE_TOPICS[kind], feed.on_message, QOS, raw=message is Float64MultiArray))
+            message, self._prefix + topic, feed.on_message, QOS, raw=message is Float64MultiArray))
 
     def publish_leds(self, values: list[int]) -> None:
         """The ten LED values the script set (latched: a view started later still draws them)."""

@@ -31,13 +31,15 @@ from rclpy.signals import SignalHandlerOptions
 
 from epuck_ros.model import (
     ACCELEROMETER_LOOKUP_TABLE, CAMERA_FOV, CAMERA_NEAR, GROUND_LOOKUP_TABLE,
-    GROUND_SENSOR_NAMES, GYRO_LOOKUP_TABLE, LIGHT_LOOKUP_TABLE, LIGHT_SENSOR_NAMES, SENSOR_NAMES, RobotModel)
+    GROUND_SENSOR_NAMES, GYRO_LOOKUP_TABLE, LIGHT_LOOKUP_TABLE, LIGHT_SENSOR_NAMES, SENSOR_NAMES, TOF_APERTURE,
+    TOF_LOOKUP_TABLE, TOF_NAME, RobotModel)
 from epuck_ros.nodes.dds_profile import use_package_profile
 from epuck_ros.nodes.spinning import end_process
 from epuck_ros.webots.devices import (
-    LED, NANOSECONDS_PER_MS, Accelerometer, Camera, Device, DistanceSensor, Gyro, LightSensor, Motor, PositionSensor,
-    SampledSensor, public_methods, report, unsupported)
-from epuck_ros.webots.link import SimLink, StepData
+    LED, NANOSECONDS_PER_MS, TURRET_DEVICES, Accelerometer, Camera, Device, DistanceSensor, Gyro, LightSensor, Motor,
+    PositionSensor, SampledSensor, TurretSensor, public_methods, report, unsupported)
+from epuck_ros.webots.link import TRUTH, LinkError, SimLink, StepData
+from epuck_ros.world import TURRET_KINDS
 
 _THREAD = threading.local()
 """A headless run's link (`link`) and its Robot (`robot`), per thread: each robot's script runs in its own."""
@@ -45,7 +47,7 @@ _THREAD = threading.local()
 MOTOR_NAMES = ('left wheel motor', 'right wheel motor')
 ENCODER_NAMES = ('left wheel sensor', 'right wheel sensor')
 LED_NAMES = tuple(f'led{i}' for i in range(10))
-NOT_SIMULATED = ('speaker', 'emitter', 'receiver', 'tof')
+NOT_SIMULATED = ('speaker', 'emitter', 'receiver')
 """Devices of Webots' e-puck that this simulator does not model."""
 SINGLE_ROBOT_NAME = 'epuck'
 """`getName()` of the robot of a one-robot world (its topics carry no name)."""
@@ -111,7 +113,7 @@ def _first_robot() -> Robot | None:
 
 class Robot:
     """The e-puck: motors, wheel encoders, ps0..ps7, led0..led9, camera, gs0..gs2, ls0..ls7, accelerometer, gyro,
-    simulated time."""
+    the e-puck2's tof, the GPS, Compass and InertialUnit its world puts in its turret slot, simulated time."""
 
     created: Robot | None = None
 
@@ -161,9 +163,12 @@ class Robot:
         self._light_sensors = [LightSensor(name, now, LIGHT_LOOKUP_TABLE) for name in LIGHT_SENSOR_NAMES]
         self._accelerometer = Accelerometer('accelerometer', now, ACCELEROMETER_LOOKUP_TABLE)
         self._gyro = Gyro('gyro', now, GYRO_LOOKUP_TABLE)
+        self._tof = DistanceSensor(TOF_NAME, now, TOF_LOOKUP_TABLE, TOF_APERTURE)
+        self._turret: list[TurretSensor] = [TURRET_DEVICES[device.kind](device.name, now)
+                                            for device in self._link.turret]
         self._senses: dict[str, list[SampledSensor]] = {
             'camera': [self._camera], 'ground': self._ground_sensors, 'light': self._light_sensors,
-            'imu': [self._accelerometer, self._gyro]}
+            'imu': [self._accelerometer, self._gyro], 'tof': [self._tof], TRUTH: list(self._turret)}
         """The devices of each sense the simulator computes on demand: enabling one asks for the sense."""
         self._to_ask = self._to_send = False
         """A device was enabled, an LED changed, since the last step: the next one asks for senses, sends LEDs."""
@@ -174,7 +179,13 @@ class Robot:
         self._devices: dict[str, Device] = {
             device.getName(): device
             for device in (*self._motors, *self._encoders, *self._distance_sensors, *self._ground_sensors,
-                           *self._light_sensors, self._camera, self._accelerometer, self._gyro, *self._leds)}
+                           *self._light_sensors, self._camera, self._accelerometer, self._gyro, self._tof,
+                           *self._leds)}
+        for device in self._turret:
+            if device.getName() in self._devices:
+                raise LinkError(f'the world gives robot "{self._name}" a turret device named "{device.getName()}", the '
+                                f'name of one of the e-puck\'s own devices: give it another name in the world file')
+            self._devices[device.getName()] = device
 
     # --- time ---------------------------------------------------------------------------------------------------
 
@@ -272,6 +283,11 @@ class Robot:
             if 'imu' in senses:
                 self._accelerometer.sample(time_ns, senses['imu'][0])
                 self._gyro.sample(time_ns, senses['imu'][1])
+            if 'tof' in senses:
+                self._tof.sample(time_ns, senses['tof'])
+            if TRUTH in senses:
+                for device in self._turret:
+                    device.sample(time_ns, senses[TRUTH])
 
     # --- devices ------------------------------------------------------------------------------------------------
 
@@ -281,6 +297,9 @@ class Robot:
     def getDevice(self, name: str) -> Device | None:
         device = self._devices.get(name)
         if device is None:
+            kind = next((kind for kind, default in TURRET_KINDS.items() if default == name), None)
+            if kind is not None:
+                self._refuse_missing(kind, name)
             if name in NOT_SIMULATED:
                 report(f'Device "{name}" exists on Webots\' e-puck but is not simulated by epuck_ros '
                        f'(devices: {", ".join(self._devices)})')
@@ -289,6 +308,31 @@ class Robot:
                 hint = f' (did you mean "{close[0]}"?)' if close else ''
                 report(f'Device "{name}" was not found on robot "{self._name}"{hint}')
         return device
+
+    def _refuse_missing(self, kind: str, name: str) -> None:
+        """A turret device the world does not give: the script ends with one line that says how to add it (Webots
+        would return None, and the script fail later on a NoneType)."""
+        example = kind if name == TURRET_KINDS[kind] else f'{{type: {kind}, name: {name}}}'
+        raise LinkError(f'robot "{self._name}" has no {kind} named "{name}": its world gives it none. Add one to the '
+                        f'robot\'s turret slot in the world file, e.g. robot: {{start: [0, 0, 0], turret: '
+                        f'[{example}]}} (or turret: [{example}] in its entry of robots:)')
+
+    def _typed(self, getter: str, kind: str, name: str) -> Device | None:
+        """getGPS, getCompass, getInertialUnit: deprecated forwarders to getDevice that know the type they want."""
+        report(f'DEPRECATION: Robot.{getter} is deprecated, please use Robot.getDevice instead.')
+        device = self._devices.get(name)
+        if not isinstance(device, TURRET_DEVICES[kind]):
+            self._refuse_missing(kind, name)
+        return device
+
+    def getGPS(self, name: str) -> Device | None:
+        return self._typed('getGPS', 'GPS', name)
+
+    def getCompass(self, name: str) -> Device | None:
+        return self._typed('getCompass', 'Compass', name)
+
+    def getInertialUnit(self, name: str) -> Device | None:
+        return self._typed('getInertialUnit', 'InertialUnit', name)
 
     def getNumberOfDevices(self) -> int:
         return len(self._devices)

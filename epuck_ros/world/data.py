@@ -33,14 +33,32 @@ simulator's namespace) must stay within rmw's 247 characters for a full topic na
 creating them (a valid 240-character name did)."""
 
 
+TURRET_KINDS = {'GPS': 'gps', 'Compass': 'compass', 'InertialUnit': 'inertial unit'}
+"""The devices a world can put in a robot's turret slot (Webots' E-puck.proto `turretSlot`): each Webots node type and
+the name Webots gives it by default (its `name` field's default, the name `robot.getDevice` takes)."""
+
+
+@dataclass(frozen=True)
+class TurretDevice:
+    """A device in a robot's turret slot: its Webots node type (a key of TURRET_KINDS) and its device name."""
+
+    kind: str
+    name: str
+
+    def to_item(self) -> str | dict[str, str]:
+        """As a world file gives it: the type alone when the name is Webots' default."""
+        return self.kind if self.name == TURRET_KINDS[self.kind] else {'type': self.kind, 'name': self.name}
+
+
 @dataclass(frozen=True)
 class RobotStart:
-    """Where a robot starts and the name its ROS ports live under."""
+    """Where a robot starts, the name its ROS ports live under, and the devices in its turret slot."""
 
     name: str
     x: float
     y: float
     yaw: float = 0.0
+    turret: tuple[TurretDevice, ...] = ()
 
     @property
     def pose(self) -> tuple[float, float, float]:
@@ -76,7 +94,7 @@ class World:
         object.__setattr__(self, 'arena_size', tuple(float(v) for v in arena_size))
         object.__setattr__(self, 'boxes', tuple(boxes))
         object.__setattr__(self, 'cylinders', tuple(cylinders))
-        robots = tuple(RobotStart(str(r.name), float(r.x), float(r.y), float(r.yaw)) for r in robots)
+        robots = tuple(RobotStart(str(r.name), float(r.x), float(r.y), float(r.yaw), tuple(r.turret)) for r in robots)
         object.__setattr__(self, 'robots', robots)
         object.__setattr__(self, 'appearance', appearance)
         problem = name_problem(robots)
@@ -159,10 +177,14 @@ class World:
         return appearance_dict(self.appearance, data)
 
     def _robots_dict(self) -> dict[str, Any]:
-        """`robot:` for the single default-named robot (what one-robot readers expect), else the `robots:` list."""
+        """`robot:` for the single default-named robot (what one-robot readers expect), else the `robots:` list; a
+        turret only where a robot has one (old readers see the worlds they know)."""
+        def turret(robot: RobotStart) -> dict[str, Any]:
+            return {'turret': [device.to_item() for device in robot.turret]} if robot.turret else {}
+
         if self.robots[:1] == self.robots and self.robots[0].name == ONE_ROBOT[0].name:
-            return {'robot': {'start': list(self.start_pose)}}
-        return {'robots': [{'name': r.name, 'start': list(r.pose)} for r in self.robots]}
+            return {'robot': {'start': list(self.start_pose), **turret(self.robots[0])}}
+        return {'robots': [{'name': r.name, 'start': list(r.pose), **turret(r)} for r in self.robots]}
 
 
 def name_problem(robots: tuple[RobotStart, ...]) -> str | None:

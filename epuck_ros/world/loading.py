@@ -9,6 +9,10 @@ facing +x); a box needs position and size (yaw defaults to 0), a cylinder positi
     robots: [{name: epuck0, start: [x, y, yaw]}, {name: epuck1, start: [x, y, yaw]}]
     robot: {start: [x, y, yaw]}      # the one-robot form (named `epuck`); not together with `robots`
 
+A robot may carry devices in its turret slot, as Webots' e-puck does (`turretSlot`): `turret: [GPS, Compass,
+InertialUnit]`, each a Webots node type (any case; `inertial_unit` too) taking Webots' default name (`gps`, `compass`,
+`inertial unit`), or `{type: GPS, name: my gps}` with a name of its own, unique on the robot.
+
 Colours, heights, floor paint and lights are optional too (`appearance`'s docstring has their keys).
 
 The file is untrusted input: it is read only if it is a regular file under MAX_FILE_BYTES, YAML aliases and deep
@@ -29,8 +33,8 @@ from epuck_ros import untrusted_yaml
 from epuck_ros.model import RobotModel
 from epuck_ros.spatial import close_pairs
 from epuck_ros.untrusted_file import FileProblem, read_bounded
-from epuck_ros.world.data import (ONE_ROBOT, ROBOT_NAME, ROBOT_NAME_MAX, Box, Cylinder, RobotStart, World, WorldError,
-                                  name_problem)
+from epuck_ros.world.data import (ONE_ROBOT, ROBOT_NAME, ROBOT_NAME_MAX, TURRET_KINDS, Box, Cylinder, RobotStart,
+                                  TurretDevice, World, WorldError, name_problem)
 from epuck_ros.world import appearance
 from epuck_ros.world.geometry import CONTACT_TOLERANCE
 
@@ -40,6 +44,10 @@ MAX_NESTING = 16
 """Deepest YAML nesting accepted (the format needs 4); deeper input is refused before it is built."""
 MAX_MAGNITUDE = 1e4
 """Largest absolute value (m or rad) of any number in a world: far beyond any arena, far below overflow."""
+TURRET_NAME_MAX = 100
+"""Characters in a turret device's name at most."""
+_TURRET_SPELLINGS = {kind.lower(): kind for kind in TURRET_KINDS}
+"""A turret type as a world file may write it, lower case without spaces or underscores: Webots' node type."""
 
 
 def load_world(path: str | Path, robot_radius: float = RobotModel().body_radius) -> World:
@@ -78,12 +86,13 @@ def world_from_dict(data: Any, source: str = '<dict>', robot_radius: float = Rob
     if top.get('robot') is not None and top.get('robots') is not None:
         raise fields.fail('robots', 'give either `robots` (a list) or `robot` (one robot), not both')
     if top.get('robots') is not None:
-        robots = tuple(fields.each(top, 'robots', ('name', 'start'), _read_robot))
+        robots = tuple(fields.each(top, 'robots', ('name', 'start', 'turret'), _read_robot))
         if not robots:
             raise fields.fail('robots', 'the list is empty (leave it out for one robot at the origin)')
     else:
-        robot = fields.section(top, 'robot', ('start',))
-        robots = (RobotStart(ONE_ROBOT[0].name, *fields.vector(robot.get('start', [0.0, 0.0, 0.0]), 'robot.start', 3)),)
+        robot = fields.section(top, 'robot', ('start', 'turret'))
+        robots = (RobotStart(ONE_ROBOT[0].name, *fields.vector(robot.get('start', [0.0, 0.0, 0.0]), 'robot.start', 3),
+                             _read_turret(fields, robot.get('turret'), 'robot.turret')),)
     problem = name_problem(robots)
     if problem:
         raise fields.fail('robots', problem)
@@ -122,7 +131,43 @@ def _read_robot(fields: _FieldReader, item: Mapping[str, Any], path: str) -> Rob
     if len(name) > ROBOT_NAME_MAX:
         raise fields.fail(f'{path}.name', f'at most {ROBOT_NAME_MAX} characters (its topics must fit in a ROS '
                                           f'topic name), got {len(name)}')
-    return RobotStart(name, *fields.vector(fields.required(item, 'start', path), f'{path}.start', 3))
+    return RobotStart(name, *fields.vector(fields.required(item, 'start', path), f'{path}.start', 3),
+                      _read_turret(fields, item.get('turret'), f'{path}.turret'))
+
+
+def _read_turret(fields: _FieldReader, value: Any, path: str) -> tuple[TurretDevice, ...]:
+    """The devices of a robot's turret slot (absent: none), each a type or {type, name}; names unique."""
+    if value is None:
+        return ()
+    if not isinstance(value, list):
+        raise fields.fail(path, f'expected a list of devices ({", ".join(TURRET_KINDS)}), got {describe(value)}')
+    devices: list[TurretDevice] = []
+    for index, item in enumerate(value):
+        where = f'{path}[{index}]'
+        if isinstance(item, Mapping):
+            item = fields.mapping(item, where, ('type', 'name'))
+            kind = _turret_kind(fields, fields.required(item, 'type', where), f'{where}.type')
+            name = item.get('name', TURRET_KINDS[kind])
+            if not isinstance(name, str) or not name.strip() or not name.isprintable() or len(name) > TURRET_NAME_MAX:
+                raise fields.fail(f'{where}.name', f'expected a device name (printable text of 1 to {TURRET_NAME_MAX} '
+                                                   f'characters), got {describe(name)}')
+        else:
+            kind = _turret_kind(fields, item, where)
+            name = TURRET_KINDS[kind]
+        clash = next((i for i, device in enumerate(devices) if device.name == name), None)
+        if clash is not None:
+            raise fields.fail(where, f'a second device named {name!r} ({path}[{clash}] has that name): give one of '
+                                     f'them a name of its own, e.g. {{type: {kind}, name: {name}2}}')
+        devices.append(TurretDevice(kind, name))
+    return tuple(devices)
+
+
+def _turret_kind(fields: _FieldReader, value: Any, path: str) -> str:
+    """Webots' node type of a turret device from its spelling in the file (GPS, gps, InertialUnit, inertial_unit)."""
+    kind = _TURRET_SPELLINGS.get(value.lower().replace('_', '').replace(' ', '')) if isinstance(value, str) else None
+    if kind is None:
+        raise fields.fail(path, f'expected a turret device, one of {", ".join(TURRET_KINDS)}, got {describe(value)}')
+    return kind
 
 
 def _read_box(fields: _FieldReader, item: Mapping[str, Any], path: str) -> Box:

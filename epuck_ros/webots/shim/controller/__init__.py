@@ -5,11 +5,12 @@ would hide a real Webots installation, and the name is someone else's on PyPI). 
 this shim does not provide are refused with a message saying so.
 """
 from epuck_ros.webots.devices import (
-    LED, Accelerometer, Camera, Device, DistanceSensor, Gyro, LightSensor, Motor, PositionSensor)
+    GPS, LED, Accelerometer, Camera, Compass, Device, DistanceSensor, Gyro, InertialUnit, LightSensor, Motor,
+    PositionSensor)
 from epuck_ros.webots.robot import Robot
 
 __all__ = ['Robot', 'Device', 'Motor', 'DistanceSensor', 'PositionSensor', 'LED', 'Camera', 'LightSensor',
-           'Accelerometer', 'Gyro']
+           'Accelerometer', 'Gyro', 'GPS', 'Compass', 'InertialUnit']
 
 
 def __getattr__(name: str) -> object:
