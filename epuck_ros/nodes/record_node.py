@@ -38,7 +38,7 @@ from rclpy.event_handler import QoSMessageLostInfo, SubscriptionEventCallbacks, 
 from rclpy.node import Node
 from rclpy.signals import SignalHandlerOptions
 from rclpy.subscription import Subscription
-from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.qos import QoSProfile
 from rclpy.topic_or_service_is_hidden import topic_or_service_is_hidden
 from rclpy.utilities import remove_ros_args
 from rclpy.validate_topic_name import validate_topic_name
@@ -49,6 +49,7 @@ from epuck_ros.bag.reader import Bag, BagError
 from epuck_ros.bag.writer import COMPRESSIONS, BackgroundWriter, BagExistsError, BagWriteError, BagWriter
 from epuck_ros.exit_codes import EXIT_FAILED, refuse
 from epuck_ros.nodes.dds_profile import use_package_profile, warn_if_not_fast_dds
+from epuck_ros.nodes.qos import matching
 from epuck_ros.nodes.sense_ports import ON_DEMAND_TOPICS, RECORDER_NODE, SENSE_TOPICS
 
 DISCOVERY_PERIOD = 0.2
@@ -97,12 +98,7 @@ def subscription_qos(offered: list[QoSProfile]) -> QoSProfile:
     a publisher that waits for acknowledgements (the simulator, see `epuck_ros.nodes.ack_window`) waits for the
     recorder instead of the recorder's queue overwriting what it has not written yet (KEEP_LAST lost much of
     `proximity` at `real_time_factor` 0)."""
-    reliable = all(q.reliability == ReliabilityPolicy.RELIABLE for q in offered)
-    latched = all(q.durability == DurabilityPolicy.TRANSIENT_LOCAL for q in offered)
-    return QoSProfile(
-        history=HistoryPolicy.KEEP_ALL if reliable else HistoryPolicy.KEEP_LAST, depth=SUBSCRIPTION_DEPTH,
-        reliability=ReliabilityPolicy.RELIABLE if reliable else ReliabilityPolicy.BEST_EFFORT,
-        durability=DurabilityPolicy.TRANSIENT_LOCAL if latched else DurabilityPolicy.VOLATILE)
+    return matching(offered, SUBSCRIPTION_DEPTH, keep_all=True)
 
 
 def sense_of(topic: str) -> str | None:

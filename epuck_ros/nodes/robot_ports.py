@@ -23,6 +23,7 @@ from std_msgs.msg import Float64MultiArray, UInt32
 from epuck_ros.conversions import nanoseconds_from_stamp, quaternion_from_yaw
 from epuck_ros.description import JOINT_NAMES
 from epuck_ros.model import SENSOR_NAMES, RobotModel
+from epuck_ros.nodes.qos import deeper
 from epuck_ros.nodes.serialized import PatchCache, array_bytes, array_values
 from epuck_ros.simulation import Simulation
 
@@ -78,7 +79,7 @@ class RobotPorts:
 
         self._odom_pub = quiet_publisher(node, Odometry, topics + 'odom', stream_qos)
         self._truth_pub = quiet_publisher(node, Odometry, topics + 'ground_truth', stream_qos)
-        self._range_pub = quiet_publisher(node, Range, topics + 'proximity', _deeper(stream_qos, len(SENSOR_NAMES)))
+        self._range_pub = quiet_publisher(node, Range, topics + 'proximity', deeper(stream_qos, len(SENSOR_NAMES)))
         self._joints_pub = quiet_publisher(node, JointState, topics + 'joint_states', stream_qos)
         self._raw_pub = quiet_publisher(node, Float64MultiArray, topics + 'ir_raw', stream_qos)
         self._collisions_pub = quiet_publisher(node, UInt32, topics + 'collisions', latched_qos)
@@ -178,12 +179,6 @@ def quiet_publisher(node: Node, msg_type: type, topic: str, qos: QoSProfile) -> 
     warns on the subscription's side."""
     return node.create_publisher(msg_type, topic, qos,
                                  event_callbacks=PublisherEventCallbacks(use_default_callbacks=False))
-
-
-def _deeper(qos: QoSProfile, factor: int) -> QoSProfile:
-    """The same profile with `factor` times the history: proximity sends eight messages per step."""
-    return QoSProfile(history=qos.history, depth=qos.depth * factor, reliability=qos.reliability,
-                      durability=qos.durability)
 
 
 def _diagonal(values: list[float]) -> list[float]:

@@ -23,7 +23,7 @@ from rclpy.exceptions import ParameterException
 from rclpy.experimental import EventsExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
-from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.qos import HistoryPolicy, QoSProfile
 from rclpy.signals import SignalHandlerOptions
 from rosgraph_msgs.msg import Clock
 from std_msgs.msg import String
@@ -42,7 +42,7 @@ from epuck_ros.nodes.domain_watch import DISCOVERY_WINDOW, DomainWatch
 from epuck_ros.nodes.lockstep_report import LockstepReport
 from epuck_ros.nodes.pacing import Controls, Pacer, Settings
 from epuck_ros.nodes.params import ParamSpec, Usage, command_line_value, declare_parameters, prepare_arguments
-from epuck_ros.nodes.qos import LATCHED, clock_kept
+from epuck_ros.nodes.qos import LATCHED, clock_kept, step_stream
 from epuck_ros.nodes.repeated import RepeatedCondition
 from epuck_ros.nodes.robot_ports import JOINT_NAMES, WARN_PERIOD, WORLD_FRAME, RobotPorts, quiet_publisher
 from epuck_ros.nodes.sense_ports import SENSE_POLL, SENSE_TOPICS, SenseError, SenseFeeds
@@ -147,7 +147,7 @@ class SimNode(Node):
         self.add_on_set_parameters_callback(self._check_parameters)
         self.add_post_set_parameters_callback(self._apply_parameters)
         history = history_steps(len(world.robots))
-        stream = QoSProfile(depth=history, reliability=ReliabilityPolicy.RELIABLE)
+        stream = step_stream(history)
         self.ports = self._make_ports(values, stream)
         self._senses = SenseFeeds(self, self._sim, stream, values['frame_prefix'], self._forced_senses, _stop_if_asked)
         self.create_timer(SENSE_POLL, self._update_sense_wants)
