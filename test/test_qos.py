@@ -55,7 +55,7 @@ def test_the_recorder_and_the_bridge_read_by_the_same_rule():
 
 
 def test_profiles_are_built_only_in_nodes_qos():
-    """QoS profiles were built in 14 modules. Besides nodes/qos.py only `ack_window.command_qos` builds one: its
+    """Profiles were built in 14 modules. Besides nodes/qos.py only `ack_window.command_qos` builds one: its
     depth is the acknowledgement window's history (`history_steps`)."""
     builders = []
     for path in sorted(PACKAGE.rglob('*.py')):
