@@ -91,4 +91,4 @@ a volatile reader (rclpy's clock, the controllers) gets only what comes after it
 EVERY_STEP = QoSProfile(history=HistoryPolicy.KEEP_ALL, reliability=ReliabilityPolicy.RELIABLE)
 """How a reader that needs every step's message reads a per-step topic (`bringup`'s ground truth): the simulator
 waits for a reader that keeps all (nodes/ack_window.py), however far behind it falls. A KEEP_LAST reader of any
-depth is not waited for and skips steps under load (`bringup`'s summary: 0.376 m against the bag's 0.374 m)."""
+depth is not waited for and skips steps under load (`bringup`'s summary then disagreed with the bag's)."""
