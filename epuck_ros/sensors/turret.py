@@ -52,7 +52,7 @@ def gps_values(truth: Truth) -> list[float]:
 
 
 def gps_speed_vector(truth: Truth) -> list[float]:
-    """v along the heading plus w x r, r the slot's offset turned with the robot."""
+    """The slot's velocity: v along the heading plus w x r, r the slot's offset turned with the robot."""
     cos, sin = truth.heading()
     sx, sy, _ = TURRET_SLOT
     rx, ry = cos * sx - sin * sy, sin * sx + cos * sy
