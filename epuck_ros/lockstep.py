@@ -103,6 +103,8 @@ class Lockstep:
         self._answered = [False] * robots
         """An answer to the current step arrived."""
         self._answered_once = [False] * robots
+        self._declared = [False] * robots
+        """The robot's controller declared it answers each step by name (`declare`): never free for silence."""
         self._free = [False] * robots
         """The controller does not answer each step (see the module): waited for at most OWN_RATE_WAIT."""
         self._first_awaited: dict[int, float] = {}
@@ -190,6 +192,14 @@ class Lockstep:
 
     # --- the answers' side ------------------------------------------------------------------------------
 
+    def declare(self, robots: Sequence[int]) -> None:
+        """These robots' controller declared, before any answer, that it answers each of their steps by name (a swarm
+        controller's declaration, nodes/swarm_ports.py): however long its first answer takes, it is waited for, never
+        taken for free after FIRST_ANSWER_WAIT (whether a controller is in lockstep never depends on a wall clock)."""
+        with self._changed:
+            for robot in robots:
+                self._declared[robot] = True
+
     def classify(self, robot: int, named: int | None, current: int) -> Answer:
         """What an answer of `robot` naming step `named` (ns; None: it names none) is while step `current` (ns) is
         out. A repeat (a step sent again, answered twice) and a step not reached yet are the caller's to drop; the
@@ -245,7 +255,8 @@ class Lockstep:
                 return True
             unanswered = [robot for robot in self._awaited if not self._answered_once[robot]] if self._over_dds else []
             for robot in unanswered:
-                if now - self._first_awaited.setdefault(robot, now) >= FIRST_ANSWER_WAIT:
+                waited = now - self._first_awaited.setdefault(robot, now)
+                if waited >= FIRST_ANSWER_WAIT and not self._declared[robot]:
                     self._make_free(robot, Answer.SILENT)
             if unanswered and not self._awaited:
                 continue

@@ -56,8 +56,8 @@ def plain(value: Any) -> Any:
 
 def step_of(msg: Any) -> tuple[int, int] | None:
     """The step a labelled array names (None: it names none)."""
-    dims = msg.layout.dim
-    return stamp_from_label(dims[0].label) if len(dims) == 1 else None
+    dims = msg.layout.dim   # a robot's array: one dimension; a swarm's: the stamp's first (nodes/swarm_messages.py)
+    return stamp_from_label(dims[0].label) if dims else None
 
 
 FIRST_STEP = (0, 32_000_000)
@@ -101,11 +101,12 @@ def compare(ros: dict[str, dict[str, Any]], headless: dict[str, dict[str, Any]],
         expected = [plain(msg) for msg in mine['messages']]
         ros_messages = without_first_step_again(theirs['messages'])
         found = [plain(msg) for msg in ros_messages]
-        if topic.endswith(('/wheel_cmd', '/leds')) and len(found) == len(expected) + 1:
+        if topic.endswith(('/wheel_cmd', '/leds', '/swarm/command')) and len(found) == len(expected) + 1:
             extra = next((index for index in reversed(range(len(found)))
                           if found[:index] + found[index + 1:] == expected), None)
             assert extra is not None and extra >= len(found) - 2, (topic, extra)   # last, or before a behaviour's stop
-            assert not topic.endswith('/wheel_cmd') or step_of(ros_messages[extra]) in (None, last_step)
+            assert not topic.endswith(('/wheel_cmd', '/swarm/command')) or \
+                step_of(ros_messages[extra]) in (None, last_step)
             del found[extra]
         assert found == expected, (topic, len(found), len(expected),
                                    next((i for i, (a, b) in enumerate(zip(found, expected)) if a != b), None))
@@ -152,12 +153,14 @@ LAST_STEP = (6, 16_000_000)
 
 
 def test_a_sweeps_bag_is_the_bringup_bag_of_the_same_run(avoid_bags):
-    """Three robots' topics under their names, TF, robot descriptions, commands naming their steps and contacts, as
-    over ROS."""
+    """Three robots' topics under their names, TF, robot descriptions, contacts, and the swarm topics of the one
+    `avoid --robots all` that drives them (its declaration, then a command naming each step), as over ROS."""
     ros, headless = avoid_bags
-    assert {'/tf', '/tf_static', '/epuck2/robot_description', '/epuck2/wheel_cmd', '/epuck0/ir_raw',
-            '/lockstep_status'} <= set(headless)
-    assert step_of(headless['/epuck1/wheel_cmd']['messages'][0]) == (0, 32_000_000)
+    assert {'/tf', '/tf_static', '/epuck2/robot_description', '/swarm/command', '/swarm/observation',
+            '/epuck0/ir_raw', '/lockstep_status'} <= set(headless)
+    declaration, first = headless['/swarm/command']['messages'][:2]
+    assert (step_of(declaration), list(declaration.data)) == (None, [])
+    assert step_of(first) == (0, 32_000_000)
     compare(ros, headless, LAST_STEP)
 
 

@@ -121,6 +121,7 @@ def test_a_swarm_split_over_two_hosts_runs_in_lockstep(two_hosts, tmp_path):
         assert (x, y) == tuple(expected[:2]), 'the same run as in lockstep on one machine, to the bit'
         assert yaw == pytest.approx(expected[2], abs=1e-12)
     steps = round(DURATION / 0.032)
-    # every step and robot: ir_raw, odometry, /clock out to its controller, a wheel command back, as UDP over the
-    # veth (about 600 bytes measured; shared memory would leave only acknowledgements on the link)
+    # every step: the swarm observation (20 numbers a robot) and /clock out to the controller, the swarm command
+    # back, as UDP over the veth (at least 160 bytes a robot of numbers alone; shared memory would leave only
+    # acknowledgements on the link)
     assert crossed > steps * ROBOTS * 200, f'only {crossed} bytes crossed the link during the run'

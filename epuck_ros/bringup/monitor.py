@@ -26,6 +26,7 @@ from std_msgs.msg import String
 
 from epuck_ros.bag.cdr import odometry_fields
 from epuck_ros.bag.tally import RunTally
+from epuck_ros.bringup.swarm_follow import SwarmFollower
 from epuck_ros.conversions import nanoseconds_from_seconds, seconds_from_stamp
 from epuck_ros.integrity import STATUS_TOPIC, Integrity, integrity_from
 from epuck_ros.nodes.announcements import SIMULATORS_TOPIC, Announcement, parse_announcement
@@ -33,6 +34,7 @@ from epuck_ros.nodes.dds_profile import use_package_profile, warn_if_not_fast_dd
 from epuck_ros.nodes.qos import ANNOUNCEMENT_QOS, CLOCK_KEPT, EVERY_STEP, LATCHED
 from epuck_ros.nodes.robot_ports import topic_prefix
 from epuck_ros.nodes.sense_ports import RECORDER_NODE
+from epuck_ros.nodes.swarm_messages import COMMAND_TOPIC as SWARM_COMMAND_TOPIC
 from epuck_ros.world import World, WorldError, world_from_dict
 
 SIM_NODE = 'sim'
@@ -61,6 +63,9 @@ class RobotTrack:
 
     def add(self, data: bytes) -> None:
         stamp, x, y, yaw, _, _ = odometry_fields(data, 0)
+        self.add_sample(stamp, x, y, yaw)
+
+    def add_sample(self, stamp: int, x: float, y: float, yaw: float) -> None:
         self.stamps.add(stamp)
         self.samples.append((stamp, x, y, yaw))
         self._add(self.label, stamp, x, y, yaw)
@@ -115,6 +120,11 @@ class RunMonitor:
         self._recorded: set[str] = set()
         """The topics the recorder was seen subscribed to (asked again only about the others, as above)."""
         self._parameters = AsyncParameterClient(self.node, SIM_NODE)
+        self._subscribe()
+        self._swarm = SwarmFollower(self.node)
+
+    def _subscribe(self) -> None:
+        """What every run is followed by: /clock, the simulator's world and lockstep status, the announcements."""
         self.node.create_subscription(Clock, '/clock', self._on_clock, CLOCK_KEPT)
         self.node.create_subscription(String, 'world', self._on_world, LATCHED)
         self.node.create_subscription(DiagnosticStatus, STATUS_TOPIC, self._on_status, LATCHED)
@@ -169,8 +179,11 @@ class RunMonitor:
         for name, label in zip(self.world.names, labels):
             track = self.tracks[name] = RobotTrack(self.tally, name, label)
             # Every step, the simulator waiting for this reader (EVERY_STEP): the summary is the run's.
-            self.node.create_subscription(Odometry, robot_topic(self.world, name, 'ground_truth'), track.add,
-                                          EVERY_STEP, raw=True)
+            if not several:   # several: all in one message per step
+                self.node.create_subscription(Odometry, robot_topic(self.world, name, 'ground_truth'), track.add,
+                                              EVERY_STEP, raw=True)
+        if several:
+            self._swarm.follow({name: track.add_sample for name, track in self.tracks.items()}, EVERY_STEP)
 
     def spin(self, timeout: float, until_sim_time: float = math.inf) -> None:
         """Take what arrives for `timeout` wall seconds, or until `/clock` reaches `until_sim_time`.
@@ -243,6 +256,7 @@ class RunMonitor:
             return False
         commands = [] if self.world is None else [node.resolve_topic_name(robot_topic(self.world, robot, topic))
                                                   for robot in self.world.names for topic in COMMAND_TOPICS]
+        commands.append(node.resolve_topic_name(SWARM_COMMAND_TOPIC))
         needed = [(topic, True) for topic, _ in published if topic != '/rosout']
         for topic, always in needed + [(topic, False) for topic in commands]:
             if topic in self._recorded:
@@ -259,7 +273,10 @@ class RunMonitor:
         assert self.world is not None
         if robot in self._controllers:
             return self._controllers[robot]
-        found = []
+        found = self._swarm.controllers(robot)   # a swarm controller names its robots: no look per robot
+        if found:
+            self._controllers[robot] = found
+            return found
         for topic in COMMAND_TOPICS:
             for info in self.node.get_publishers_info_by_topic(robot_topic(self.world, robot, topic)):
                 try:

@@ -22,6 +22,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 from rclpy.qos import QoSProfile
 from rosgraph_msgs.msg import Clock
 from std_msgs.msg import Float64MultiArray, Int32MultiArray
@@ -37,6 +38,9 @@ from epuck_ros.nodes.qos import LATCHED, LED_QOS, clock_kept, step_stream
 from epuck_ros.nodes.robot_ports import WORLD_FRAME, RobotPorts, topic_prefix
 from epuck_ros.nodes.sense_ports import ON_DEMAND_TOPICS, SensePorts
 from epuck_ros.nodes.serialized import Patch, array_bytes, exact_cdr
+from epuck_ros.nodes.swarm_messages import (COMMAND_FIELDS, OBSERVATION_FIELDS, OBSERVATION_TOPIC, SwarmLayout,
+                                            observation_values)
+from epuck_ros.nodes.swarm_messages import COMMAND_TOPIC as SWARM_COMMAND_TOPIC
 from epuck_ros.nodes.sim_node import publish_world
 from epuck_ros.nodes.tf_ports import TfPorts
 from epuck_ros.simulation import Simulation
@@ -122,9 +126,12 @@ class TrialRecorder:
 
     def __init__(self, path: Path, world: World, controller_robots: int, model: RobotModel = RobotModel()) -> None:
         """`controller_robots`: how many robots each controller drives from one process over ROS (a script: 1, one
-        `webots_controller` per robot; a behaviour: every robot, `--robots all`), for the QoS its `wheel_cmd` has."""
+        `webots_controller` per robot; a behaviour: every robot, `--robots all`), for the QoS its `wheel_cmd` has;
+        several: one swarm controller, which answers on `swarm/command` (and reads `swarm/observation`)."""
         self._bag = BagWriter(path)
         self._command_qos = command_qos(controller_robots)
+        self._swarm: _SwarmRecord | None = None
+        self._one_swarm_controller = controller_robots > 1
         self._node = BagNode(self._bag)
         self._world, self._model = world, model
         self._lock = threading.Lock()
@@ -151,12 +158,16 @@ class TrialRecorder:
                               node.create_publisher(Int32MultiArray, topic_prefix(name, several) + 'leds', LED_QOS))
                              for name in sim.names]
         self._collisions = [0] * len(sim.names)
+        if self._one_swarm_controller:
+            self._swarm = _SwarmRecord(node, sim.names, stream, self._command_qos)
 
     def step(self, sim: Simulation) -> None:
         """The step just taken, published as the sim node publishes it; /clock last."""
         with self._lock:
             if not self._ports:
                 self._start(sim)
+            if self._swarm is not None:
+                self._swarm.answers_of(self._stamp)   # the last step's, before this one's messages
             self._stamp = stamp = stamp_from_seconds(sim.time)
             self._node.step(stamp)
             for ports, senses in zip(self._ports, self._senses):
@@ -164,6 +175,8 @@ class TrialRecorder:
                 _follow(senses, sim)
                 if senses.publishing:
                     senses.publish(sim, stamp)
+            if self._swarm is not None:
+                self._swarm.observation(sim, stamp)
             self._tf.publish(sim, stamp)
             for robot, count in enumerate(sim.collisions.tolist()):
                 if count != self._collisions[robot]:
@@ -181,7 +194,10 @@ class TrialRecorder:
     def answered(self, robot: int, left: float, right: float) -> None:
         """Robot `robot`'s controller answered the current step with these wheel speeds (rad/s), naming it."""
         with self._lock:
-            self._controllers[robot][0].publish(array_bytes((float(left), float(right)), self._stamp))
+            if self._swarm is not None:
+                self._swarm.answered(robot, left, right)
+            else:
+                self._controllers[robot][0].publish(array_bytes((float(left), float(right)), self._stamp))
 
     def leds(self, robot: int, values: Sequence[int]) -> None:
         """A script set its LEDs (the ten values, as the Webots shim publishes them)."""
@@ -191,11 +207,45 @@ class TrialRecorder:
     def stop(self) -> None:
         """The behaviours' nodes end: each commands a zero wheel speed (unnamed: it answers no step)."""
         with self._lock:
+            if self._swarm is not None:
+                self._swarm.stop()
+                return
             for command, _ in self._controllers:
                 command.publish(array_bytes((0.0, 0.0)))
 
     def close(self) -> None:
         self._bag.close()
+
+
+class _SwarmRecord:
+    """The swarm topics of a run whose robots one swarm controller drives (`behaviour_nodes.SwarmController`), as
+    the recorder gets them over ROS: the controller's declaration, then each step's `swarm/observation` and its one
+    `swarm/command` with every robot's answer, and at the end its unnamed stop."""
+
+    def __init__(self, node: BagNode, names: Sequence[str], stream: QoSProfile, commands_qos: QoSProfile) -> None:
+        self._observations = node.create_publisher(Float64MultiArray, OBSERVATION_TOPIC, stream)
+        self._layout = SwarmLayout(names, OBSERVATION_FIELDS)
+        self._commands = node.create_publisher(Float64MultiArray, SWARM_COMMAND_TOPIC, commands_qos)
+        self._command_layout = SwarmLayout(names, COMMAND_FIELDS)
+        self._speeds = np.zeros((len(names), len(COMMAND_FIELDS)))
+        self._answered = False
+        self._commands.publish(SwarmLayout(names, ()).to_bytes(np.zeros((len(names), 0)), None))
+
+    def observation(self, sim: Simulation, stamp: tuple[int, int]) -> None:
+        self._observations.publish(self._layout.to_bytes(observation_values(sim), stamp))
+
+    def answered(self, robot: int, left: float, right: float) -> None:
+        self._speeds[robot] = left, right
+        self._answered = True
+
+    def answers_of(self, stamp: tuple[int, int]) -> None:
+        """The answers given since the last step, in one command naming it (`stamp`)."""
+        if self._answered:
+            self._commands.publish(self._command_layout.to_bytes(self._speeds, stamp))
+            self._answered = False
+
+    def stop(self) -> None:
+        self._commands.publish(self._command_layout.to_bytes(np.zeros_like(self._speeds), None))
 
 
 def _follow(senses: SensePorts, sim: Simulation) -> None:

@@ -6,10 +6,13 @@ with the behaviour's wheel speeds on `wheel_cmd`, the course's `setVelocity` pai
 the step it answers (`BehaviourNode`). When it ends (Ctrl-C, SIGTERM) it commands a stop first.
 
 One robot: the node's namespace is the robot's (`avoid --ros-args -r __ns:=/epuck3`). Several robots in one
-process: `avoid --robots epuck0 epuck1` (or `--robots all`, every robot of the simulator's world) makes one
-node per robot, named like the executable, in the namespace `<namespace>/<robot>`, all on one executor;
-`-p` parameters apply to every one of them. Beyond FULL_NODES_UP_TO robots (a swarm) the nodes have only their
-behaviour's topics, and the process ends without destroying them one by one (`SWARM_NODE_OPTIONS`).
+process: `avoid --robots all` (every robot of the simulator's world) with use_sim_time is one node, a
+`SwarmController`, that takes every robot's step in one `swarm/observation` message and answers in one
+`swarm/command` (nodes/swarm_messages.py), as fast as the simulator publishes. `avoid --robots epuck0 epuck1`
+(names that may be real robots', or without use_sim_time) makes one node per robot, named like the executable, in
+the namespace `<namespace>/<robot>`, all on one executor; `-p` parameters apply to every one of them. Beyond
+FULL_NODES_UP_TO robots the nodes have only their behaviour's topics, and the process ends without destroying them
+one by one (`SWARM_NODE_OPTIONS`).
 
 Logging: each node says its settings at start (the first node only, when one process drives several robots: they
 share them), and at INFO what leaves the robot standing (waiting for an input, the goal reached); the behaviour's
@@ -26,11 +29,12 @@ from __future__ import annotations
 import argparse
 import math
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import replace
 from functools import partial
 from typing import Any
 
+import numpy as np
 import rclpy
 from nav_msgs.msg import Odometry
 from rosgraph_msgs.msg import Clock as RosClock
@@ -47,8 +51,9 @@ from sensor_msgs.msg import Range
 from std_msgs.msg import Float64MultiArray, String
 
 from epuck_ros.behaviours import BEHAVIOURS, BehaviourSpec, ConfigError, Observation, WheelCommand
-from epuck_ros.behaviours.base import describe, ranges_from_raw
-from epuck_ros.conversions import nanoseconds_from_stamp, stamp_from_nanoseconds, yaw_from_quaternion
+from epuck_ros.behaviours.base import Behaviour, describe, ranges_from_raw
+from epuck_ros.conversions import (nanoseconds_from_stamp, quaternion_from_yaw, stamp_from_nanoseconds,
+                                   yaw_from_quaternion)
 from epuck_ros.model import SENSOR_NAMES, TIME_STEP
 from epuck_ros.nodes.ack_window import command_qos
 from epuck_ros.nodes.dds_profile import use_no_local_profile, use_package_profile, warn_if_not_fast_dds
@@ -56,6 +61,8 @@ from epuck_ros.nodes.params import ParamSpec, Usage, declare_parameters, prepare
 from epuck_ros.nodes.qos import CONTROLLER_READS, LATCHED
 from epuck_ros.nodes.serialized import array_bytes, array_values
 from epuck_ros.nodes.spinning import end_process, handle_shutdown_signals, shutdown_requested, spin_until_shutdown
+from epuck_ros.nodes.swarm_messages import (COMMAND_FIELDS, COMMAND_TOPIC, OBSERVATION_FIELDS, OBSERVATION_TOPIC,
+                                            SwarmLayout, SwarmReader)
 from epuck_ros.world import WorldError, world_from_yaml
 
 CONTROL_PERIOD = TIME_STEP
@@ -112,6 +119,40 @@ class RangeAssembler:
         self._missing.remove(index)
         self._values[index] = value
         return None if self._missing else tuple(self._values)
+
+
+class Decisions:
+    """A behaviour's answers to one robot's steps: a new decision every control period, on that step's data, and each
+    step between answered with the last one (a per-robot node's and a swarm controller's rule). `log(line,
+    standing)` is told each change of the behaviour's status; `standing`: the robot stands (waiting for an input,
+    done)."""
+
+    def __init__(self, behaviour: Behaviour, period_ns: int, log: Callable[[str, bool], None]) -> None:
+        self.behaviour = behaviour
+        self._period_ns = period_ns
+        self._log = log
+        self._decided: int | None = None
+        """The step (ns) of the last decision, and the decision: answers until the next one (`control_period`)."""
+        self._decision: WheelCommand | None = None
+        self._logged_status = ''
+
+    def answer(self, step: int, odom: tuple[float, float, float] | None,
+               ranges: tuple[float, ...] | None) -> WheelCommand:
+        """The answer to step `step` (ns), from that step's data."""
+        if self._decision is None or step - self._decided >= self._period_ns - STEP_SLACK_NS:
+            self._decision = self.decide(step, odom, ranges)
+        return self._decision
+
+    def decide(self, now: int, odom: tuple[float, float, float] | None,
+               ranges: tuple[float, ...] | None) -> WheelCommand:
+        """The behaviour's command at time `now` (ns) from these readings."""
+        self._decided = now
+        behaviour = self.behaviour
+        command = behaviour.update(Observation(now * 1e-9, odom, ranges))
+        if behaviour.status != self._logged_status:
+            self._logged_status = behaviour.status
+            self._log(f'{self._logged_status} (t={now * 1e-9:.3f} s)', bool(behaviour.waiting_for or behaviour.done))
+        return command
 
 
 def parameter_specs(spec: BehaviourSpec) -> list[ParamSpec]:
@@ -172,17 +213,15 @@ class BehaviourNode(Node):
             self.get_logger().set_level(LoggingSeverity.DEBUG)   # `--log-level avoid:=debug`: every robot's node
         settings = declare_parameters(self, parameter_specs(spec))
         period = settings.pop('control_period')
-        self.behaviour = spec.make(replace(spec.defaults, **settings))
+        self._decisions = Decisions(spec.make(replace(spec.defaults, **settings)), round(period * 1e9),
+                                    self._log_status)
+        self.behaviour = self._decisions.behaviour
         self._odom: tuple[float, float, float] | None = None
         self._ranges: tuple[float, ...] | None = None
         self._odom_stamp: int | None = None  # nanoseconds of the data above
         self._ranges_stamp: int | None = None
         self._answered: int | None = None
         """The step (ns) last answered."""
-        self._decided: int | None = None
-        """The step (ns) of the last decision, and the decision: answers until the next one (`control_period`)."""
-        self._decision: WheelCommand | None = None
-        self._period_ns = round(period * 1e9)
         self._assembler = RangeAssembler()
         self._range_subscription = None
         self._graph_timer = None
@@ -203,7 +242,6 @@ class BehaviourNode(Node):
             self.create_subscription(RosClock, '/clock', self._on_clock, QOS)
         # Last: a lockstep simulator waits for the answers of a robot whose wheel_cmd has a publisher.
         self._publisher = self.create_publisher(Float64MultiArray, 'wheel_cmd', command_qos(process_robots))
-        self._logged_status = ''
         summary = ', '.join(f'{setting}={value}' for setting, value in settings.items())
         line = f'{spec.summary}; {summary}, control_period={period}'
         if announce:
@@ -267,7 +305,7 @@ class BehaviourNode(Node):
     def _on_tick(self) -> None:
         """On the node's own clock: a command every control_period from the newest readings, naming no step."""
         now = self.get_clock().now().nanoseconds
-        self._publish(self._decide(now), None)
+        self._publish(self._decisions.decide(now, self._odom, self._ranges), None)
 
     def _act_when_complete(self) -> None:
         """Answer the newest step once every input the behaviour needs is of that step (see the class)."""
@@ -283,22 +321,13 @@ class BehaviourNode(Node):
         if self._answered is not None and step <= self._answered:
             return   # a step sent again, or an older message come late: answered already
         self._answered = step
-        if self._decision is None or step - self._decided >= self._period_ns - STEP_SLACK_NS:
-            self._decision = self._decide(step)
-        self._publish(self._decision, step)
+        self._publish(self._decisions.answer(step, self._odom, self._ranges), step)
 
-    def _decide(self, now: int) -> WheelCommand:
-        """The behaviour's command at time `now` (ns) from the newest readings."""
-        self._decided = now
-        command = self.behaviour.update(Observation(now * 1e-9, self._odom, self._ranges))
-        if self.behaviour.status != self._logged_status:
-            self._logged_status = self.behaviour.status
-            line = f'{self._logged_status} (t={now * 1e-9:.3f} s)'
-            if self.behaviour.waiting_for or self.behaviour.done:   # the robot stands still: said at INFO
-                self.get_logger().info(line)
-            else:   # (two calls: rclpy refuses one call site logging at two severities)
-                self.get_logger().debug(line)
-        return command
+    def _log_status(self, line: str, standing: bool) -> None:
+        if standing:   # the robot stands still: said at INFO
+            self.get_logger().info(line)
+        else:   # (two calls: rclpy refuses one call site logging at two severities)
+            self.get_logger().debug(line)
 
     def _publish(self, command: WheelCommand, step: int | None) -> None:
         """`wheel_cmd`, naming `step` (ns) when it answers one."""
@@ -312,6 +341,89 @@ class BehaviourNode(Node):
 
     def stopped(self) -> bool:
         """Whether every reader acknowledged the zero command (not waiting: rclpy holds the GIL while it waits)."""
+        return self._publisher.wait_for_all_acked(Duration(seconds=0))
+
+
+_ODOM_X, _ODOM_Y, _ODOM_YAW = (OBSERVATION_FIELDS.index(field) for field in ('odom_x', 'odom_y', 'odom_yaw'))
+_IR_RAW = slice(OBSERVATION_FIELDS.index('ps0_raw'), OBSERVATION_FIELDS.index('ps7_raw') + 1)
+
+
+class SwarmController(Node):
+    """Many robots of a simulator driven from one node: each step's `swarm/observation` in, one `swarm/command` out
+    naming the step, with every robot's answer (nodes/swarm_messages.py). Each robot has its own behaviour, asked as
+    a `BehaviourNode` would ask it (the same `Decisions`, the odometry's yaw as it travels in a quaternion, the IR
+    values through `ranges_from_raw`), so the run is the one per-robot nodes drive, to the bit; one message each way
+    per step instead of one per robot (and one `/clock` reader instead of one per robot).
+
+    Before anything else it declares its robots on `swarm/command` (no fields: they are answered by name), so the
+    simulator's lockstep waits for them from the moment it matches this node, however long the first answer takes."""
+
+    def __init__(self, name: str, spec: BehaviourSpec, robots: Sequence[str]) -> None:
+        super().__init__(name)
+        settings = declare_parameters(self, parameter_specs(spec))
+        period = settings.pop('control_period')
+        config = replace(spec.defaults, **settings)
+        self._robots = tuple(robots)
+        self._decisions = [Decisions(spec.make(config), round(period * 1e9), partial(self._log_status, robot))
+                           for robot in robots]
+        self.behaviour = self._decisions[0].behaviour
+        self._reader = SwarmReader()
+        self._rows: tuple[tuple[str, ...], list[int] | None] = ((), None)
+        """The observation's robots and the row of each of ours (None: one of ours is missing)."""
+        self._answered: int | None = None
+        """The step (ns) last answered."""
+        self._commands = SwarmLayout(self._robots, COMMAND_FIELDS)
+        self._speeds = np.zeros((len(self._robots), len(COMMAND_FIELDS)))
+        self.create_subscription(Float64MultiArray, OBSERVATION_TOPIC, self._on_observation, QOS, raw=True)
+        self._publisher = self.create_publisher(Float64MultiArray, COMMAND_TOPIC, command_qos(len(self._robots)))
+        self._publisher.publish(SwarmLayout(self._robots, ()).to_bytes(np.zeros((len(self._robots), 0)), None))
+        summary = ', '.join(f'{setting}={value}' for setting, value in settings.items())
+        self.get_logger().info(f'{spec.summary}; {summary}, control_period={period}; {len(robots)} robots through '
+                               f'{self.resolve_topic_name(OBSERVATION_TOPIC)} and '
+                               f'{self.resolve_topic_name(COMMAND_TOPIC)}')
+
+    def _log_status(self, robot: str, line: str, standing: bool) -> None:
+        if standing:   # the robot stands still: said at INFO
+            self.get_logger().info(f'{robot}: {line}')
+        else:   # (two calls: rclpy refuses one call site logging at two severities)
+            self.get_logger().debug(f'{robot}: {line}')
+
+    def _rows_of(self, robots: tuple[str, ...]) -> list[int] | None:
+        if robots != self._rows[0]:
+            index = {name: row for row, name in enumerate(robots)}
+            missing = [name for name in self._robots if name not in index]
+            if missing:
+                self.get_logger().warning(f'{OBSERVATION_TOPIC} has no robot {missing[0]}: not answered', once=True)
+            self._rows = (robots, None if missing else [index[name] for name in self._robots])
+        return self._rows[1]
+
+    def _on_observation(self, data: bytes) -> None:
+        read = self._reader.read(data)
+        if read is None or read.stamp is None or read.fields != OBSERVATION_FIELDS:
+            self.get_logger().warning(f'{OBSERVATION_TOPIC}: ignoring a message that is no swarm observation of this '
+                                      'version (a step named, fields as swarm_messages.OBSERVATION_FIELDS)', once=True)
+            return
+        step = nanoseconds_from_stamp(*read.stamp)
+        rows = self._rows_of(read.robots)
+        if rows is None or (self._answered is not None and step <= self._answered):
+            return   # a step sent again, or an older message come late: answered already
+        self._answered = step
+        speeds = self._speeds
+        for robot, (decisions, values) in enumerate(zip(self._decisions, read.data[rows].tolist())):
+            behaviour = decisions.behaviour
+            odom = (values[_ODOM_X], values[_ODOM_Y],
+                    yaw_from_quaternion(0.0, 0.0, *quaternion_from_yaw(values[_ODOM_YAW]))) \
+                if behaviour.needs_odom else None
+            ranges = ranges_from_raw(values[_IR_RAW]) if behaviour.needs_proximity else None
+            command = decisions.answer(step, odom, ranges)
+            speeds[robot] = command.left, command.right
+        self._publisher.publish(self._commands.to_bytes(speeds, read.stamp))
+
+    def stop_robot(self) -> None:
+        """A zero command for every robot, naming no step (`BehaviourNode.stop_robot`)."""
+        self._publisher.publish(self._commands.to_bytes(np.zeros_like(self._speeds), None))
+
+    def stopped(self) -> bool:
         return self._publisher.wait_for_all_acked(Duration(seconds=0))
 
 
@@ -370,6 +482,16 @@ def robot_namespaces(name: str, robots: list[str] | None) -> list[str | None]:
         probe.destroy_node()
 
 
+def _follows_sim_time(name: str) -> bool:
+    """Whether the command line sets use_sim_time (the nodes answer the simulator's steps: `--robots all` on several
+    robots is then one `SwarmController`); else each robot's node commands on its own clock."""
+    probe = Node(f'{name}_clock', enable_rosout=False, start_parameter_services=False)
+    try:
+        return bool(probe.get_parameter('use_sim_time').value)
+    finally:
+        probe.destroy_node()
+
+
 def _world_robots(probe: Node) -> list[str] | None:
     """The robot names of the simulator's world, waiting for the simulator; None if asked to shut down first."""
     received: list[String] = []
@@ -400,6 +522,9 @@ def main(name: str, args: list[str] | None = None) -> None:
     """The exit code, once known (None: an unexpected error, whose traceback follows)."""
     try:
         namespaces = robot_namespaces(name, robots)
+        if robots == [ALL_ROBOTS] and len(namespaces) > 1 and _follows_sim_time(name):
+            nodes.append(SwarmController(name, spec, [namespace.rsplit('/', 1)[-1] for namespace in namespaces]))
+            namespaces = []
         swarm = len(namespaces) > FULL_NODES_UP_TO
         for namespace in namespaces:
             if shutdown_requested():  # SIGTERM while a swarm's nodes are made: no need to make the others

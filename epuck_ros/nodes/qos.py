@@ -22,6 +22,11 @@ CONTROLLER_READS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
 SCRIPT_READS = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
 """How a Webots script's link (`webots.link`) reads its robot's step and sense topics."""
 
+COMMAND_READER_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE,
+                                durability=DurabilityPolicy.TRANSIENT_LOCAL)
+"""How the simulator reads `swarm/command` (`swarm_ports`): transient local, so a controller's declaration, sent
+before the simulator may have matched it, arrives once it does."""
+
 
 def newest(depth: int) -> QoSProfile:
     """Best effort, the last `depth` samples: a reader the simulator never waits for, which sees the newest."""

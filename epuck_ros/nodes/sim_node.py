@@ -16,6 +16,7 @@ import sys
 import threading
 import time
 
+import numpy as np
 import rclpy
 import yaml
 from rcl_interfaces.msg import SetParametersResult
@@ -44,10 +45,12 @@ from epuck_ros.nodes.pacing import Controls, Pacer, Settings
 from epuck_ros.nodes.params import ParamSpec, Usage, command_line_value, declare_parameters, prepare_arguments
 from epuck_ros.nodes.qos import LATCHED, clock_kept, step_stream
 from epuck_ros.nodes.repeated import RepeatedCondition
-from epuck_ros.nodes.robot_ports import JOINT_NAMES, WARN_PERIOD, WORLD_FRAME, RobotPorts, quiet_publisher
+from epuck_ros.nodes.robot_ports import (CONTROLLERS, JOINT_NAMES, MATCH_COLUMNS, READERS, WARN_PERIOD, WORLD_FRAME,
+                                         RobotPorts, quiet_publisher)
 from epuck_ros.nodes.sense_ports import SENSE_POLL, SENSE_TOPICS, SenseError, SenseFeeds
 from epuck_ros.nodes.serialized import Patch, PatchCache
 from epuck_ros.nodes.spinning import end_process, handle_shutdown_signals, shutdown_requested, spin_until_shutdown
+from epuck_ros.nodes.swarm_ports import SwarmPorts
 from epuck_ros.nodes.tf_ports import TfPorts
 from epuck_ros.simulation import MAX_SEED, CommandError, Simulation, StepEvents
 from epuck_ros.world import World, WorldError, default_world, load_world, place_robots
@@ -149,6 +152,8 @@ class SimNode(Node):
         history = history_steps(len(world.robots))
         stream = step_stream(history)
         self.ports = self._make_ports(values, stream)
+        self._swarm = SwarmPorts(self, self._sim.names, stream, self._on_swarm_command, self._on_declare) \
+            if len(self.ports) > 1 else None
         self._senses = SenseFeeds(self, self._sim, stream, values['frame_prefix'], self._forced_senses, _stop_if_asked)
         self.create_timer(SENSE_POLL, self._update_sense_wants)
         _stop_if_asked()
@@ -189,10 +194,13 @@ class SimNode(Node):
         several = len(self._sim.names) > 1
         ports = []
         patches = PatchCache()
+        self._matches = np.zeros((len(self._sim.names), MATCH_COLUMNS), dtype=np.int64)
+        """Every robot's matched readers and controllers (`robot_ports.Matched`), read for all robots at once."""
         for index, name in enumerate(self._sim.names):
             _stop_if_asked()
             ports.append(RobotPorts(self, index, name, several, stream, LATCHED, self._on_command,
-                                    values['frame_prefix'], values['cmd_vel_stamped'], patches=patches))
+                                    values['frame_prefix'], values['cmd_vel_stamped'], patches=patches,
+                                    matches=self._matches[index]))
         return ports
 
     @staticmethod
@@ -207,7 +215,7 @@ class SimNode(Node):
 
     def _stream_publishers(self) -> list:
         return [self._clock_pub] + [pub for ports in self.ports for pub in ports.stream_publishers] + \
-            self._tf.stream_publishers
+            self._tf.stream_publishers + (self._swarm.stream_publishers if self._swarm is not None else [])
 
     def _kept_all(self, topic: str) -> bool:
         """Some reader of `topic` keeps all its samples (KEEP_ALL history: a recorder)."""
@@ -270,6 +278,35 @@ class SimNode(Node):
             # The step's last answer may take the next step here, in this thread (`_lend_on_answers`): handing the
             # step to the loop thread was one more thread wake-up per lockstep round trip.
             self._lockstep.answer(robot, verdict, named)
+
+    def _on_swarm_command(self, robots: list[int], speeds: np.ndarray, named: int | None) -> None:
+        """A swarm controller's answers (`SwarmPorts`): `_on_command`'s rule for each robot. When they answer the
+        current step for every robot (a lockstep run's every step) the speeds are set in one NumPy operation
+        (`Simulation.command_all_wheels`, the same numbers as robot by robot), then each robot's answer goes through
+        `Lockstep.answer`; anything else (some robots, a repeat, an unstamped stop, a refused number) robot by robot."""
+        if self._lockstep_on and named is not None and len(robots) == len(self.ports):
+            with self._lock:   # the step cannot change between the verdicts and the commands
+                current = nanoseconds_from_seconds(self._sim.time)
+                answered = all(self._lockstep.classify(robot, named, current) is Answer.STEP for robot in robots)
+                if answered:
+                    everyone = np.empty_like(speeds)
+                    everyone[robots] = speeds
+                    try:
+                        self._sim.command_all_wheels(everyone)
+                    except CommandError:   # each robot's own verdict below
+                        answered = False
+            if answered:
+                for robot in robots:
+                    self._lockstep.answer(robot, Answer.STEP, named)
+                return
+        topic = self._swarm.topic
+        for robot, (left, right) in zip(robots, speeds.tolist()):
+            self._on_command(robot, topic, 'wheels', left, right, named)
+
+    def _on_declare(self, robots: list[int]) -> None:
+        """A swarm controller answers these robots' steps by name (`SwarmPorts`): lockstep waits for them, however
+        long their first answer takes."""
+        self._lockstep.declare(robots)
 
     def _on_reset(self, request: Empty.Request, response: Empty.Response) -> Empty.Response:
         with self._lock:
@@ -334,6 +371,9 @@ class SimNode(Node):
                 continue
             if not self._sim.steps:
                 self._acks.await_readers(self.count_subscribers, self._stepping)
+            if resend or not self._sim.steps:   # each reader matched by now gets this step (`robot_ports.Matched`)
+                for ports in self.ports:
+                    ports.read_matches()
             self._lockstep.step(resend)
             resend = self._lockstep_on and not self._lockstep.await_answers()
             self._acks.published(self._sim.steps)
@@ -363,8 +403,10 @@ class SimNode(Node):
         """One step's messages, robot by robot; `/clock` goes last, so a node whose timer fires on that tick has
         its data."""
         stamp = stamp_from_seconds(self._sim.time)
-        for ports in self.ports:
-            ports.publish(self._sim, stamp)
+        for robot in np.flatnonzero(self._matches[:, READERS].any(axis=1)).tolist():   # robots someone reads
+            self.ports[robot].publish(self._sim, stamp)
+        if self._swarm is not None:
+            self._swarm.publish(self._sim, stamp)
         self._senses.publish(stamp)
         self._tf.publish(self._sim, stamp)
         self._clock_pub.publish(self._clock_message.bytes(stamp))
@@ -377,7 +419,7 @@ class SimNode(Node):
             self._senses.update_all()
 
     def _after_step(self, events: StepEvents, now_sim: float) -> None:
-        names = self._sim.names
+        names = self._sim.names if events.timed_out or events.new_contacts else ()   # a tuple made anew each call
         for robot in events.timed_out:
             self._timeouts.happened(names[robot], f'{names[robot]}: no command for {self._sim.cmd_timeout:g} s: '
                                                   f'wheels stopped (t={now_sim:.2f} s)')
@@ -393,8 +435,12 @@ class SimNode(Node):
     # --- lockstep's view of the node --------------------------------------------------------------------
 
     def _driven(self) -> list[int]:
-        """The robots with a controller (a matched publisher on wheel_cmd or cmd_vel): lockstep waits for them."""
-        return [ports.index for ports in self.ports if ports.has_controller()]
+        """The robots with a controller (a matched publisher on wheel_cmd or cmd_vel, or a swarm controller that
+        named them): lockstep waits for them."""
+        driven = np.flatnonzero(self._matches[:, CONTROLLERS].any(axis=1)).tolist()
+        if self._swarm is None:
+            return driven
+        return sorted(self._swarm.driven().union(driven))
 
     def _stepping(self) -> bool:
         return self._running.is_set() and not self._controls.idle()

@@ -66,6 +66,8 @@ class SimulatorUnderTest:
         self._lock = threading.Lock()
         self._clock = 0.0
         self._truth: dict[str, tuple[float, float, float, float]] = {}
+        self._swarm = None
+        """Which robots swarm controllers declared they drive (nodes/swarm_ports.DeclaredRobots), with several."""
         self._controlled: set[str] = set()
         """The robots `wait_for_controller` saw driven: the first `run_until` waits until the simulator sees them."""
         self._context = None
@@ -90,11 +92,14 @@ class SimulatorUnderTest:
             return self._clock
 
     def wait_for_controller(self, robot: str | int | None = None, timeout: float = 30.0) -> None:
-        """Return once a publisher on the robot's `wheel_cmd` or `cmd_vel` is matched (None: every robot's)."""
+        """Return once a publisher on the robot's `wheel_cmd` or `cmd_vel` is matched, or a swarm controller
+        (`swarm/command`) declared it drives the robot (None: every robot's)."""
         self._check_running()
         robots = self.names if robot is None else (self._name(robot),)
         topics = {name: [self._topic(name, 'wheel_cmd'), self._topic(name, 'cmd_vel')] for name in robots}
-        self._wait(lambda: all(any(self._node.count_publishers(t) for t in pair) for pair in topics.values()),
+        swarm = self._swarm.controllers if self._swarm is not None else lambda name: []
+        self._wait(lambda: all(any(self._node.count_publishers(t) for t in topics[name]) or swarm(name)
+                               for name in robots),
                    timeout, f'no controller publishes the commands of {", ".join(robots)}')
         self._controlled.update(robots)
 
@@ -227,6 +232,9 @@ class SimulatorUnderTest:
         for name in self.names:
             self._node.create_subscription(Odometry, self._topic(name, 'ground_truth'),
                                            lambda msg, name=name: self._on_truth(name, msg), 10)
+        if len(self.names) > 1:   # a swarm controller (`avoid --robots all`) names the robots it drives
+            from epuck_ros.nodes.swarm_ports import DeclaredRobots
+            self._swarm = DeclaredRobots(self._node)
         self._parameters = AsyncParameterClient(self._node, 'sim')
         self._thread = threading.Thread(target=self._spin, name='epuck_sim_fixture', daemon=True)
         self._thread.start()
