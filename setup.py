@@ -10,7 +10,8 @@ setup(
     version='0.1.0',
     packages=find_packages(exclude=['test']),
     package_data={
-        package_name: ['worlds/*.yaml', 'view/static/*', 'webots/examples/*.py', 'nodes/*.xml', 'urdf/*.urdf']},
+        package_name: ['worlds/*.yaml', 'view/static/*', 'webots/examples/*.py', 'examples/*.py',
+                       'examples/epuck2/*.py', 'nodes/*.xml', 'urdf/*.urdf']},
     data_files=[
         ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
         ('share/' + package_name, ['package.xml']),

@@ -10,6 +10,7 @@ import signal
 import subprocess
 import sys
 import time
+from collections import Counter
 from collections.abc import Callable, Iterator
 from pathlib import Path
 
@@ -63,6 +64,23 @@ def pytest_configure(config: pytest.Config) -> None:
 
 def pytest_report_header() -> str:
     return f'ROS_DOMAIN_ID={_DOMAIN} ({_DOMAIN_CHOICE}), ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST'
+
+
+LONGEST_FILES = ('test_bringup.py', 'test_readme.py', 'test_same_run.py', 'test_webots.py', 'test_sim_node.py',
+                 'test_sweep_hostile.py', 'test_experiments.py', 'test_bag_fuzz.py', 'test_bag_on_demand.py',
+                 'test_bag_record.py', 'test_senses_ros.py', 'test_bag_headless.py', 'test_multi_robot_nodes.py',
+                 'test_multi_controller.py', 'test_bag_readers.py', 'test_behaviour_nodes.py', 'test_bag_shapes.py',
+                 'test_view_node.py', 'test_bag_cli.py', 'test_lint.py', 'test_evolution.py')
+"""The test files that take longest (`pytest --durations=0`, summed per file), longest first."""
+
+
+def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
+    """The longest files first, then the others by their number of tests (pytest-xdist's own order), each file's
+    tests in their own order: scripts/test.sh's two processes take files in this order (`--dist loadfile
+    --no-loadscope-reorder`), and a long file taken last would keep one of them busy alone at the end."""
+    rank = {name: index for index, name in enumerate(LONGEST_FILES)}
+    counts = Counter(item.path.name for item in items)
+    items.sort(key=lambda item: (rank.get(item.path.name, len(rank)), -counts[item.path.name], item.path.name))
 
 
 def _ctrl_c_disposition() -> tuple[bool, bool]:

@@ -438,7 +438,7 @@ def test_wall_clock_stamps_never_make_simulated_topics_miss_the_epoch(tmp_path):
         checked, gaps = bag_gaps(bag)
         info = format_info(bag)
     assert checked == ['/odom', '/wall_odom'] and gaps == [], info
-    assert 'Stamp gaps:        none in the 2 periodic stamped topics' in info, info
+    assert 'Stamp gaps:        none in the 2 periodic stamped and answer topics' in info, info
 
 
 def sample_messages_by_topic() -> dict[str, list]:

@@ -2,10 +2,10 @@
 registers: the README's fixture example passes there, with pytest, the user's own test runner, beside it.
 
 Cost: a couple of minutes of one core (a venv of about a hundred packages, ROS 2 Jazzy's wheels among them), plus
-the download on the first run on a machine. It runs in the suite (marked `slow`: `-m "not slow"` leaves it out).
-The wheels are kept in a wheelhouse (WHEELHOUSE) that later runs install from without the index (pip's own HTTP
-cache keeps nothing here); what the wheelhouse lacks is fetched once with `pip download`, which resolves the same
-requirements `pip install .` does.
+the download on the first run on a machine. Marked `slow`: `scripts/test.sh --slow` and .ci/run run it, plain
+`scripts/test.sh` does not. The wheels are kept in a wheelhouse (WHEELHOUSE) that later runs install from without
+the index (pip's own HTTP cache keeps nothing here); what the wheelhouse lacks is fetched once with `pip download`,
+which resolves the same requirements `pip install .` does.
 """
 from __future__ import annotations
 

@@ -3,8 +3,10 @@
 step, to the bit, and `bringup` says the run was reproducible. Scripts that read senses (the light seeker, the line
 follower, the red-box finder) included: their first readings no longer depend on when discovery delivers a topic.
 
-One pass here, on 1 and 3 robots; `python benchmarks/same_run_loops.py` repeats it many times with busy loops on
-every core beside it (its figures are in the README)."""
+One pass here: every script on 1 robot, and on 3 robots those that read a sense of each kind (light, ground,
+camera, proximity); the other scripts on 3 robots and the run beside busy loops are the slow tier (marker `slow`:
+`scripts/test.sh --slow`, .ci/run). `python benchmarks/same_run_loops.py` repeats it all many times with busy loops
+on every core beside it (its figures are in the README)."""
 from __future__ import annotations
 
 import subprocess
@@ -15,10 +17,15 @@ from conftest import processes_in_this_domain
 
 from same_run import Case, bringup_truth, difference, example_cases, headless_truth
 
+SENSES_OF_EACH_KIND = ('light_seeker.py', 'line_follower.py', 'find_red_box.py', 'obstacle_avoidance.py')
+"""The scripts whose 3-robot runs stay in the quick tier: light, ground, camera and proximity, read from the first
+step by each robot's own webots_controller; 3 robots of the other scripts (plain drives) add little but time."""
 CASES = [*example_cases(robots=0, duration=3.0), *example_cases(robots=3, duration=2.0)]
+PARAMS = [pytest.param(case, id=case.label, marks=() if case.robots == 0 or case.label.split()[0] in SENSES_OF_EACH_KIND
+                       else pytest.mark.slow) for case in CASES]
 
 
-@pytest.mark.parametrize('case', CASES, ids=[case.label for case in CASES])
+@pytest.mark.parametrize('case', PARAMS)
 def test_a_script_through_bringup_is_its_headless_trial_to_the_bit(case: Case, tmp_path) -> None:
     expected = headless_truth(case)
     got, output = bringup_truth(case, tmp_path / 'bag')
@@ -27,6 +34,7 @@ def test_a_script_through_bringup_is_its_headless_trial_to_the_bit(case: Case, t
     assert processes_in_this_domain() == []
 
 
+@pytest.mark.slow   # takes both cores from the rest of the suite for the whole run
 def test_the_same_run_beside_busy_loops_on_every_core(tmp_path) -> None:
     """The light seeker (camera-free, light sensors from its first step) with `while True: pass` on both cores."""
     case = Case(str(next(c.controller for c in CASES if c.controller.endswith('light_seeker.py'))), duration=3.0)

@@ -164,7 +164,8 @@ def headless(script: Path, world: Path, duration: float, capsys: pytest.CaptureF
 
 def test_turret_devices_headless_read_the_true_state_of_their_step(tmp_path: Path, capsys: pytest.CaptureFixture,
                                                                    clean_imports: None) -> None:  # noqa: F811
-    """NaN before the first sampling period, then every step each device's value for that step's true state."""
+    """Each device reads NaN before the first sampling period, then every step each device's value for that step's
+    true state."""
     script = tmp_path / 'probe.py'
     script.write_text(textwrap.dedent(PROBE))
     world = turret_world(tmp_path, ['GPS', 'Compass', {'type': 'InertialUnit', 'name': 'imu'}])

@@ -20,13 +20,15 @@ missing billions of messages.
 """
 from __future__ import annotations
 
-import re
 from dataclasses import dataclass, replace
 
 import numpy as np
 
 from epuck_ros.bag.cdr import CDR_BE, CDR_LE, ENCAPSULATION
+from epuck_ros.bag.lockstep_status import recorded_integrity
 from epuck_ros.bag.reader import Bag, Topic
+from epuck_ros.bag.steps import (ANSWER_TOPICS, SENSES_ON_TOPIC, first_field_is_stamp, senses_on_from_text,
+                                 step_reader)
 from epuck_ros.conversions import NS_PER_SECOND
 
 GAP_FACTOR = 1.5
@@ -42,9 +44,6 @@ COVERAGE = 0.1
 event topics whose stamps fall on the step grid (a log line now and then) do not."""
 WALL_CLOCK_FROM = 10**18
 """Stamps from this many ns (2001-09-09 on the wall clock; 31.7 years of simulated time) are wall-clock stamps."""
-_STAMP_TYPES = ('Header', 'std_msgs/Header', 'std_msgs/msg/Header',
-                'builtin_interfaces/Time', 'builtin_interfaces/msg/Time')
-_FIRST_FIELD = re.compile(r'^\s*([A-Za-z0-9_/]+)\s+\w+\s*(?:#.*)?$', re.MULTILINE)
 
 
 @dataclass(frozen=True)
@@ -95,10 +94,7 @@ class TopicGaps:
 
 def is_stamped(topic: Topic) -> bool:
     """Whether the topic's first field is a header or a time (its stamp sits right after the encapsulation)."""
-    if topic.schema_encoding != 'ros2msg':
-        return False
-    match = _FIRST_FIELD.search(topic.schema_text.split('\n===', 1)[0])
-    return match is not None and match.group(1) in _STAMP_TYPES
+    return topic.schema_encoding == 'ros2msg' and first_field_is_stamp(topic.schema_text)
 
 
 def find_gaps(topic: str, stamps: np.ndarray) -> TopicGaps | None:
@@ -140,16 +136,116 @@ def stamps_from_heads(heads: np.ndarray) -> np.ndarray:
     return stamps[little | big]
 
 
-def bag_gaps(bag: Bag) -> tuple[list[str], list[TopicGaps]]:
-    """(periodic topics judged, those with messages missing) of a bag, from the stamp bytes of each message."""
+@dataclass(frozen=True)
+class AnswerGaps:
+    """The steps of a bag's /clock that a robot's controller answered by name and those it did not."""
+
+    topic: str
+    steps: int
+    """The steps it should have answered: from its first answer to the step before the last /clock."""
+    missing: int
+    first_missing_ns: int
+
+    @property
+    def missing_messages(self) -> int:
+        return self.missing
+
+    def describe(self) -> str:
+        return (f'{self.topic}: {self.missing} of {self.steps} steps have no answer naming them (first at '
+                f't={self.first_missing_ns / NS_PER_SECOND:.3f} s)')
+
+
+def answer_gaps(bag: Bag) -> tuple[list[str], list[AnswerGaps]]:
+    """Per answer topic whose messages name steps (a lockstep controller's `wheel_cmd` or stamped `cmd_vel`), the
+    steps of the bag's `/clock` without an answer naming them, from its first answer to the step before the last
+    (the answer to the last step drives nothing: a recorder leaves it out). Only while the run was lockstep, as its
+    `lockstep_status` says (a controller at its own rate, or with `--no-lockstep`, skips steps without anything being
+    lost): a bag without one is not checked. Returns (topics checked, those with steps unanswered)."""
+    integrity = recorded_integrity(bag) if '/clock' in bag.topics else None
+    if integrity is None or (not integrity.reproducible and integrity.since is None):
+        return [], []
+    held_until = None if integrity.reproducible else round(integrity.since * NS_PER_SECOND)
+    clock = np.unique(stamps_from_heads(next(iter(bag.message_heads(['/clock'], ENCAPSULATION + 8).values()),
+                                             np.zeros((0, ENCAPSULATION + 8), np.uint8))))
+    checked, found = [], []
+    for name, topic in sorted(bag.topics.items()):
+        reader = step_reader(topic.type_name, topic.schema_text)
+        if name.rsplit('/', 1)[-1] not in ANSWER_TOPICS or reader is None or len(clock) < 2:
+            continue
+        named = {step for step in (reader(message.data) for message in bag.messages([name])) if step is not None}
+        if not named:
+            continue   # a controller at its own rate: its commands name no step
+        checked.append(name)
+        due = clock[(clock >= min(named)) & (clock < clock[-1])]
+        due = due if held_until is None else due[due < held_until]
+        missing = due[~np.isin(due, np.fromiter(named, np.int64, len(named)))]
+        if len(missing):
+            found.append(AnswerGaps(name, int(len(due)), int(len(missing)), int(missing[0])))
+    return checked, found
+
+
+def bag_gaps(bag: Bag) -> tuple[list[str], list[TopicGaps | AnswerGaps]]:
+    """(topics judged, those with messages missing) of a bag: the periodic stamped topics, from the stamp bytes of
+    each message, and the answer topics against the steps (`answer_gaps`)."""
     stamped = sorted(name for name, topic in bag.topics.items()
                      if topic.message_count > MIN_STEPS and topic.message_encoding == 'cdr' and is_stamped(topic))
     heads = bag.message_heads(stamped, ENCAPSULATION + 8)
-    judged = [gaps for gaps in (find_gaps(name, stamps_from_heads(rows)) for name, rows in sorted(heads.items()))
-              if gaps is not None]
+    stamps = {name: stamps_from_heads(rows) for name, rows in heads.items()}
+    judged = [gaps for gaps in (find_gaps(name, stamps[name]) for name in sorted(stamps)) if gaps is not None]
     judged = [_bounded(_with_end(gaps, [other for other in judged if other.wall_clock == gaps.wall_clock]))
               for gaps in judged]
-    return [gaps.topic for gaps in judged], [gaps for gaps in judged if gaps.missing_messages]
+    senses = senses_on(bag)
+    judged = [_sense_steps(gaps, stamps[gaps.topic], senses[gaps.topic], judged) if gaps.topic in senses else gaps
+              for gaps in judged]
+    answered, answers = answer_gaps(bag)
+    return ([gaps.topic for gaps in judged] + answered,
+            [gaps for gaps in judged if gaps.missing_messages] + answers)
+
+
+def senses_on(bag: Bag) -> dict[str, list[tuple[int, bool]]]:
+    """Per sense topic of a robot with a `senses_on` topic in the bag, its changes: (after ns, published from the
+    step after on), in order (`bag.steps.senses_on_text`)."""
+    changes: dict[str, list[tuple[int, bool]]] = {}
+    for name in sorted(bag.topics):
+        if name.rsplit('/', 1)[-1] != SENSES_ON_TOPIC or bag.topics[name].type_name != 'std_msgs/msg/String':
+            continue
+        prefix = name[:-len(SENSES_ON_TOPIC)]
+        said = [read for read in (senses_on_from_text(_string(message.data)) for message in bag.messages([name]))
+                if read is not None]
+        for relative in {topic for _, topics in said for topic in topics}:
+            changes[prefix + relative] = [(after, relative in topics) for after, topics in sorted(said)]
+    return changes
+
+
+def _string(data: bytes) -> str:
+    """A little-endian CDR std_msgs/String's text ('' for anything else)."""
+    if len(data) < ENCAPSULATION + 4 or data[1] != CDR_LE:
+        return ''
+    length = int(np.frombuffer(data, '<u4', 1, ENCAPSULATION)[0])
+    return data[ENCAPSULATION + 4:ENCAPSULATION + 4 + length].rstrip(b'\0').decode('utf-8', errors='replace')
+
+
+def _sense_steps(gaps: TopicGaps, stamps: np.ndarray, changes: list[tuple[int, bool]],
+                 judged: list[TopicGaps]) -> TopicGaps:
+    """`gaps` of a sense topic counted only over the steps its sense was on (`senses_on`): from the bag's first
+    step of its clock to the last, the steps without a message are missing only while it was published."""
+    period = gaps.period_ns
+    same_clock = [other for other in judged if other.wall_clock == gaps.wall_clock]
+    first = round(min(other.first_ns for other in same_clock) / period)
+    last = round(max(other.last_ns for other in same_clock) / period)
+    steps = np.arange(first, last + 1)
+    on = np.zeros(len(steps), bool)
+    for after, published in changes:
+        on[steps > round(after / period)] = published
+    present = np.isin(steps, np.rint(stamps / period).astype(np.int64))
+    missing = on & ~present
+    runs = np.flatnonzero(np.diff(np.concatenate(([0], missing.astype(np.int8), [0]))))
+    starts, ends = runs[::2], runs[1::2]
+    at_end = int(ends[-1] - starts[-1]) if len(starts) and ends[-1] == len(steps) else 0
+    inner = len(starts) - (1 if at_end else 0)
+    lengths = (ends - starts)[:inner]
+    return replace(gaps, gaps=int(inner), missing_steps=int(lengths.sum()),
+                   longest_gap_ns=int((lengths.max() + 1) * period) if inner else 0, missing_at_end=at_end, limit=None)
 
 
 def _with_end(gaps: TopicGaps, same_clock: list[TopicGaps]) -> TopicGaps:

@@ -3,7 +3,8 @@
 The counts and times come from the MCAP summary; a bag that was not closed properly is said to
 be so, and its complete chunks are counted. Each channel's serialization format is the one the
 file gives it (``cdr``, ``json``...). ``Stamp gaps`` reads the stamp of every message of the
-stamped topics (`epuck_ros.bag.gaps`) and lists the topics where messages seem to be missing.
+stamped topics, and the step every lockstep answer (`wheel_cmd`, stamped `cmd_vel`) names against the bag's `/clock`
+(`epuck_ros.bag.gaps`), and lists the topics where messages seem to be missing.
 An empty bag has no start or end, so none is printed (rosbag2 prints INT64_MAX, Apr 2262).
 """
 from __future__ import annotations
@@ -76,7 +77,8 @@ def format_info(bag: Bag) -> str:
     lines += _lines('Topic information', topic_lines)
     checked, gaps = bag_gaps(bag)
     lines += _lines('Stamp gaps', [g.describe() for g in gaps] or
-                    [f'none in the {len(checked)} periodic stamped topics' if checked else 'no periodic stamped topic'])
+                    [f'none in the {len(checked)} periodic stamped and answer topics' if checked else
+                     'no periodic stamped or answer topic'])
     lines += _lines('Service', ['0'])
     lines.append('Service information: ')
     return '\n'.join(lines)

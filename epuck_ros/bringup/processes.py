@@ -24,11 +24,13 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TextIO
 
-STOP_SIGNAL = signal.SIGTERM
-"""How `bringup` asks a child to end: rclpy shuts down on it as on Ctrl-C once initialised, and before that the
-default action ends the process without the KeyboardInterrupt traceback a SIGINT would print."""
-STOP_TIMEOUT = 10.0
-"""Wall seconds a child has to end after STOP_SIGNAL before it is killed."""
+STOP_SIGNALS = ((signal.SIGINT, 10.0), (signal.SIGTERM, 5.0))
+"""How `bringup` asks a child to end, as `ros2 launch` does: Ctrl-C (SIGINT) first, which an rclpy node's usual
+`except KeyboardInterrupt` handles (SIGTERM ends its spin with ExternalShutdownException: a user's node written
+with only that `except` ended every run with a traceback and exit 1); SIGTERM if it is still running after the
+first grace (wall seconds), SIGKILL after the second."""
+STOP_TIMEOUT = sum(grace for _, grace in STOP_SIGNALS)
+"""Wall seconds a child has to end once asked before it is killed."""
 MAX_LINE = 64 * 1024
 """Bytes of one line of a child's output forwarded at most; the rest of a longer line is dropped."""
 READ_CHUNK = 64 * 1024
@@ -205,10 +207,15 @@ class Children:
         problems, notes = [], []
         for child in sorted(self.started, key=lambda c: order.index(c.role)):
             running = child.process.poll() is None
-            if not interrupt(child.process, STOP_TIMEOUT, STOP_SIGNAL):
+            ended_by = escalate(child.process, STOP_SIGNALS)
+            if ended_by is None:
                 problems.append(f'{child.name} did not stop within {STOP_TIMEOUT:.0f} s of '
-                                f'{STOP_SIGNAL.name} and was killed')
-            elif child is not reported and child.process.returncode not in CLEAN_EXIT_CODES:
+                                f'{" then ".join(signum.name for signum, _ in STOP_SIGNALS)} and was killed')
+                continue
+            if ended_by != STOP_SIGNALS[0][0]:
+                notes.append(f'{child.name} ignored {STOP_SIGNALS[0][0].name} for {STOP_SIGNALS[0][1]:.0f} s and '
+                             f'ended on {ended_by.name}')
+            if child is not reported and child.process.returncode not in CLEAN_EXIT_CODES:
                 message = f'{child.name} exited with code {child.process.returncode}'
                 if child is lenient and running:
                     notes.append(f'{message} when asked to stop (see its output above)')
@@ -218,14 +225,24 @@ class Children:
         return problems, notes
 
 
-def interrupt(process: subprocess.Popen, timeout: float, signum: int = signal.SIGINT) -> bool:
-    """`signum` (Ctrl-C by default), then SIGKILL after `timeout` seconds; False if it had to be killed."""
-    if process.poll() is None:
+def escalate(process: subprocess.Popen, steps: tuple[tuple[signal.Signals, float], ...]
+             ) -> signal.Signals | None:
+    """Send each signal of `steps` in turn, waiting its grace (wall seconds) for the process to end; SIGKILL after
+    the last. Returns the signal it ended on (the first if it had already ended), None if it had to be killed."""
+    for signum, grace in steps:
+        if process.poll() is not None:
+            return signum
         process.send_signal(signum)
         try:
-            process.wait(timeout)
+            process.wait(grace)
+            return signum
         except subprocess.TimeoutExpired:
-            process.kill()
-            process.wait()
-            return False
-    return True
+            pass
+    process.kill()
+    process.wait()
+    return None
+
+
+def interrupt(process: subprocess.Popen, timeout: float, signum: int = signal.SIGINT) -> bool:
+    """`signum` (Ctrl-C by default), then SIGKILL after `timeout` seconds; False if it had to be killed."""
+    return escalate(process, ((signal.Signals(signum), timeout),)) is not None

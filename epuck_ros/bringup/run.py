@@ -11,7 +11,8 @@ import threading
 import time
 from collections.abc import Callable
 
-from epuck_ros.bag.reader import BagError
+from epuck_ros.bag.gaps import bag_gaps
+from epuck_ros.bag.reader import Bag, BagError
 from epuck_ros.bringup import summary, tables
 from epuck_ros.bringup.cli import FOXGLOVE_HOST, Plan, parse_args, ros_domain
 from epuck_ros.bringup.monitor import RunMonitor, samples_missing
@@ -315,6 +316,7 @@ def report(supervisor: Supervisor, sim_time: float, wall_time: float) -> list[st
         except (BagError, OSError) as error:
             return head + [f'[bringup] cannot summarise the bag: {error}']
         notes.append(f'[bringup] recorded to {plan.record_dir} (bag summary {plan.record_dir} says more)')
+        notes += [f'[bringup] note: the recording lost {line}' for line in recording_losses(plan.record_dir)]
     elif monitor.tally is not None:
         figures = monitor.tally.figures
         motions = summary.motions_of({track.label: track.samples for track in monitor.tracks.values()}, monitor.world)
@@ -326,6 +328,16 @@ def report(supervisor: Supervisor, sim_time: float, wall_time: float) -> list[st
     else:
         return head
     return head + [f'[bringup] {line}' for line in summary.lines(figures, motions)] + notes
+
+
+def recording_losses(bag_dir: os.PathLike | str) -> list[str]:
+    """What the bag is missing, by the recorder's own check (`bag_gaps`, what `record` logs at its end and `bag info`
+    lists): stamp gaps of the periodic topics, steps without an answer."""
+    try:
+        with Bag(bag_dir) as bag:
+            return [gaps.describe() for gaps in bag_gaps(bag)[1]]
+    except BagError as error:
+        return [f'(the bag cannot be checked: {error})']
 
 
 def _time_step(plan: Plan) -> float:

@@ -5,7 +5,9 @@ The simulator's side is made by the simulator's own code: its robots' ports (`Ro
 bag instead of sending over DDS. So a headless bag has the topics, types, bytes and frames of a recorded run by
 construction: robot_description, /tf_static and /tf, odom, ground_truth, proximity, joint_states, ir_raw and
 collisions per robot, the senses a controller read while it read them (as the simulator publishes them: from the step
-after it asked), world, world_markers and /clock; each topic offered with the QoS a recorder reads from the graph.
+after it asked) and the e-puck interface's topics of those senses (`InterfacePorts`: ls0..ls7 with the light,
+image_raw and camera_info with the camera), world, world_markers and /clock; each topic offered with the QoS a
+recorder reads from the graph.
 A sense is published from the step its controller asked for it on, as the simulator publishes a newly wanted sense's
 current step at once, and `lockstep_status` says the run held (a headless trial is lockstep, always).
 The controllers' side as their nodes publish it: each robot's `wheel_cmd`, one answer per step before the last (the
@@ -33,6 +35,7 @@ from epuck_ros.conversions import nanoseconds_from_stamp, stamp_from_seconds
 from epuck_ros.integrity import HELD
 from epuck_ros.model import RobotModel
 from epuck_ros.nodes.ack_window import command_qos, history_steps
+from epuck_ros.nodes.interface_ports import INTERFACE_TOPICS, InterfacePorts
 from epuck_ros.nodes.lockstep_report import LockstepReport
 from epuck_ros.nodes.qos import LATCHED, LED_QOS, clock_kept, step_stream
 from epuck_ros.nodes.robot_ports import WORLD_FRAME, RobotPorts, topic_prefix
@@ -49,6 +52,8 @@ from epuck_ros.world import World
 
 READ = dict.fromkeys(ON_DEMAND_TOPICS, True)
 """Every sense topic has a reader (the recorder): the senses the simulation computes are published."""
+INTERFACE_READ = dict.fromkeys(INTERFACE_TOPICS, True)
+"""The same for the e-puck interface's topics (nodes/interface_ports.py)."""
 
 
 def offered(qos: QoSProfile) -> QosProfile:
@@ -148,6 +153,8 @@ class TrialRecorder:
         self._ports = [RobotPorts(node, index, name, several, stream, LATCHED, lambda *_: None, model=self._model)
                        for index, name in enumerate(sim.names)]
         self._senses = [SensePorts(node, index, name, several, stream, sim) for index, name in enumerate(sim.names)]
+        self._interface = [InterfacePorts(node, index, name, several, stream, sim, model=self._model)
+                           for index, name in enumerate(sim.names)]
         self._tf = TfPorts(node, self._ports, sim, several, stream, LATCHED, WORLD_FRAME, self._model)
         publish_world(node, self._world, '')
         LockstepReport(node, sim.names, HELD, 0.0, lambda: sim.time)
@@ -168,13 +175,19 @@ class TrialRecorder:
                 self._start(sim)
             if self._swarm is not None:
                 self._swarm.answers_of(self._stamp)   # the last step's, before this one's messages
-            self._stamp = stamp = stamp_from_seconds(sim.time)
+            last, self._stamp = self._stamp, stamp_from_seconds(sim.time)
+            stamp = self._stamp
             self._node.step(stamp)
-            for ports, senses in zip(self._ports, self._senses):
+            for ports, senses, interface in zip(self._ports, self._senses, self._interface):
                 ports.publish(sim, stamp)
                 _follow(senses, sim)
+                _follow_interface(interface, sim)
+                # what changed since the last step, said with this one (as the sim node)
+                senses.announce(last, interface.published_topics)
                 if senses.publishing:
                     senses.publish(sim, stamp)
+                if interface.publishing:
+                    interface.publish(sim, stamp)
             if self._swarm is not None:
                 self._swarm.observation(sim, stamp)
             self._tf.publish(sim, stamp)
@@ -190,6 +203,8 @@ class TrialRecorder:
             senses = self._senses[robot]
             _follow(senses, sim)
             senses.publish(sim, self._stamp, [kind])
+            interface = self._interface[robot]
+            interface.publish(sim, self._stamp, _follow_interface(interface, sim))
 
     def answered(self, robot: int, left: float, right: float) -> None:
         """Robot `robot`'s controller answered the current step with these wheel speeds (rad/s), naming it."""
@@ -251,3 +266,9 @@ class _SwarmRecord:
 def _follow(senses: SensePorts, sim: Simulation) -> None:
     """The robot's sense topics publish what the simulation computes for it (the recorder reads them all)."""
     senses.follow({kind: bool(wanted[senses.index]) for kind, wanted in sim.senses.wanted.items()}, READ)
+
+
+def _follow_interface(interface: InterfacePorts, sim: Simulation) -> list[str]:
+    """The robot's e-puck interface topics publish what the simulation computes for it (the recorder reads them
+    all); the kinds newly published."""
+    return interface.follow(lambda kind: bool(sim.senses.wanted[kind][interface.index]), INTERFACE_READ)

@@ -22,6 +22,10 @@ CONTROLLER_READS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
 SCRIPT_READS = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
 """How a Webots script's link (`webots.link`) reads its robot's step and sense topics."""
 
+SENSES_ON_QOS = QoSProfile(depth=100, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+"""A robot's `senses_on` (`sense_ports`) is latched with its last changes: a recorder that subscribes late still
+learns when each began."""
+
 COMMAND_READER_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE,
                                 durability=DurabilityPolicy.TRANSIENT_LOCAL)
 """How the simulator reads `swarm/command` (`swarm_ports`): transient local, so a controller's declaration, sent

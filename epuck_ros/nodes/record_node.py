@@ -2,16 +2,24 @@
 
     record [-o DIR] [--compression none|zstd|lz4] [--max-duration S] [TOPIC ...] [--ros-args ...]
 
-Topics (all visible ones when none is named) are found from the graph every `DISCOVERY_PERIOD`
-seconds, so topics that appear later are recorded too. The simulator's on-demand sense topics (camera, ground and
-light sensors, IMU: `nodes/sense_ports.py`) are recorded as they are published, without asking for them: the
-simulator computes a sense while something else reads it (a controller, the view, an echo) or its `senses` parameter
-says so, and a recorder alone must not make it render a camera every step. Such a topic enters the bag with its first
-message. `--senses` / `--all-senses` (or naming the topic) ask for them: those subscriptions are made by a second node,
-`SENSE_ASKER_NODE`, which the simulator counts as a reader that asks. Messages are subscribed raw — the CDR
-bytes go to the bag untouched — with a QoS that matches every publisher, and a thread writes
-the bag so callbacks only enqueue. log_time is the node's clock (simulated time under
-``use_sim_time``); publish_time is the publisher's source timestamp, as rosbag2 records them.
+Topics (all visible ones when none is named) are found from the graph every `DISCOVERY_PERIOD` seconds, so topics that
+appear later are recorded too. The simulator's on-demand sense topics (camera, ground and light sensors, IMU:
+`nodes/sense_ports.py`; the e-puck interface's: `nodes/interface_ports.py`) are recorded as they are published, without
+asking for them: the simulator computes a sense while something else reads it (a controller, the view, an echo) or its
+`senses` parameter says so, and a recorder alone must not make it render a camera every step. Such a topic enters the
+bag with its first message. `--senses` / `--all-senses` (or naming the topic) ask for them: those subscriptions are
+made by a second node, `SENSE_ASKER_NODE`, which the simulator counts as a reader that asks. Messages are subscribed
+raw — the CDR bytes go to the bag untouched — with a QoS that matches every publisher, and a thread writes the bag so
+callbacks only enqueue. publish_time is the publisher's source timestamp, as rosbag2 records it.
+
+log_time: under ``use_sim_time``, a message that names a simulator step (`epuck_ros.bag.steps`: a header stamp, a
+TF's, a `stamp=` label) is logged at that step's simulated time, whenever it arrived; any other message at the node's
+clock (simulated time), as rosbag2 does. A lockstep run's bag is then a function of the run: the same log times and
+messages every time, those of the headless trial (`experiments/recording.py`). For the same reason a step message
+received twice with the same bytes (the simulator sends a first step again to a controller that has not answered it)
+is recorded once, and the answers (`wheel_cmd`, `cmd_vel`) to the last recorded step are left out: they drive
+nothing, and whether they arrived before the recording stopped was a matter of timing. Without ``use_sim_time``
+log_time is the wall clock.
 
 At the end it says what may be missing: samples DDS reported lost (message-lost events) and gaps
 in the header stamps of the bag it wrote (`epuck_ros.bag.gaps`, the same check as ``bag info``).
@@ -27,6 +35,7 @@ import signal
 import sys
 import threading
 import time
+from collections.abc import Callable
 from functools import partial
 from pathlib import Path
 
@@ -44,11 +53,14 @@ from rclpy.utilities import remove_ros_args
 from rclpy.validate_topic_name import validate_topic_name
 
 from epuck_ros.bag.gaps import bag_gaps
+from epuck_ros.bag.msgdefs import message_definition
+from epuck_ros.bag.steps import StepReader, is_answer_topic, step_reader
 from epuck_ros.bag.qos import QosProfile
 from epuck_ros.bag.reader import Bag, BagError
 from epuck_ros.bag.writer import COMPRESSIONS, BackgroundWriter, BagExistsError, BagWriteError, BagWriter
 from epuck_ros.exit_codes import EXIT_FAILED, refuse
 from epuck_ros.nodes.dds_profile import use_package_profile, warn_if_not_fast_dds
+from epuck_ros.nodes.interface_ports import INTERFACE_TOPICS
 from epuck_ros.nodes.qos import matching
 from epuck_ros.nodes.sense_ports import ON_DEMAND_TOPICS, RECORDER_NODE, SENSE_TOPICS
 
@@ -74,6 +86,13 @@ SENSE_ASKER_NODE = 'recorder_senses'
 """The recorder's node for the sense topics it asks for (`--senses`, a named sense topic): any node but RECORDER_NODE
 makes the simulator compute a sense it reads."""
 DEFAULT_BAG_FOLDER = Path('bags')
+STEP_AHEAD_LIMIT_NS = 60 * 10**9
+"""A message naming a step this far (simulated ns) beyond the recorder's clock is logged at the clock instead: no
+publisher on the domain can put a message hours into a bag's future (a player would wait for it)."""
+CLOCK_TOPIC = '/clock'
+SAME_STEP_REMEMBERED = 1024
+"""Messages of one topic's latest step remembered to drop a copy sent again: a step has a few (8 on `proximity`); a
+publisher that names one step for ever cannot grow the recorder's memory."""
 
 
 def default_output() -> Path:
@@ -102,9 +121,12 @@ def subscription_qos(offered: list[QoSProfile]) -> QoSProfile:
 
 
 def sense_of(topic: str) -> str | None:
-    """Which on-demand sense topic `topic` is (a key of sense_ports.ON_DEMAND_TOPICS, any robot's), None for others."""
-    return next((kind for kind, name in ON_DEMAND_TOPICS.items() if topic == '/' + name or topic.endswith('/' + name)),
-                None)
+    """Which on-demand sense topic `topic` is (a key of sense_ports.ON_DEMAND_TOPICS, or a topic of the e-puck
+    interface, interface_ports.INTERFACE_TOPICS; any robot's), None for others."""
+    return next((kind for kind, name in _ON_DEMAND if topic == '/' + name or topic.endswith('/' + name)), None)
+
+
+_ON_DEMAND = [*ON_DEMAND_TOPICS.items(), *((kind, kind) for kind in INTERFACE_TOPICS)]
 
 
 def message_class(type_name: str) -> type:
@@ -126,10 +148,7 @@ class Recorder(Node):
         self._bag = BackgroundWriter(writer)
         self._wanted = {self.resolve_topic_name(t) for t in topics} or None
         self._senses = senses
-        asks = senses or any(sense_of(topic) for topic in self._wanted or ())
-        self.asker = Node(SENSE_ASKER_NODE, context=self.context, enable_rosout=False,
-                          start_parameter_services=False) if asks else None
-        """The node of the sense subscriptions that ask for their sense (see the module)."""
+        self.asker = self._sense_asker()
         self._unregistered: dict[str, tuple[str, list[QosProfile]]] = {}
         """Sense topics recorded without asking, not in the bag until their first message: (type, offered QoS)."""
         self._max_duration_ns = None if max_duration is None else int(max_duration * 1e9)
@@ -141,6 +160,19 @@ class Recorder(Node):
         self._skipped: set[str] = set()
         self._lost: dict[str, int] = {}
         """Samples DDS reported lost per topic (message-lost events)."""
+        self._step_of: dict[str, StepReader] = {}
+        """Under use_sim_time, how to read the step a topic's messages name (its types that name one)."""
+        self._latest_step: dict[str, tuple[int, set[int]]] = {}
+        """Per step topic, its latest step and the hashes of its messages of that step written (a copy sent again is
+        recorded once), at most SAME_STEP_REMEMBERED of them."""
+        self._last_clock: int | None = None
+        self._latest_named = 0
+        """The latest step any message recorded so far named: the simulator is there at least, whatever the node's
+        clock says (its /clock subscription may lag seconds behind under load)."""
+        self._answers: dict[str, list[tuple[int | None, bytes, int, int]]] = {}
+        """Per answer topic, the answers naming a step no later /clock has followed yet and what came after them, in
+        order: (step or None, data, publish time, log time)."""
+        self.answers_left_out = 0
         self.received = 0
         self.domain_id = self.context.get_domain_id()
         self._started = time.monotonic()
@@ -151,10 +183,20 @@ class Recorder(Node):
         """True once --max-duration of the node's clock has been recorded. A plain flag, not a Future:
         rclpy 7.1's spin_until_future_complete adds a callback to the future on every spin, so a
         recording of N messages would keep N callbacks alive (ros2/rclpy#1371)."""
+        self._start_discovery(writer.path)
+
+    def _sense_asker(self) -> Node | None:
+        """The node of the sense subscriptions that ask for their sense (see the module), when there will be any."""
+        if not (self._senses or any(sense_of(topic) for topic in self._wanted or ())):
+            return None
+        return Node(SENSE_ASKER_NODE, context=self.context, enable_rosout=False, start_parameter_services=False)
+
+    def _start_discovery(self, path: Path) -> None:
+        """Look at the graph now and every DISCOVERY_PERIOD, and say where the recording goes."""
         # A steady-clock timer: discovery must run before /clock ticks under use_sim_time.
         self.create_timer(DISCOVERY_PERIOD, self._discover, clock=Clock(clock_type=ClockType.STEADY_TIME))
         self._discover()
-        self.get_logger().info(f'Recording to {writer.path} on ROS_DOMAIN_ID={self.domain_id}: '
+        self.get_logger().info(f'Recording to {path} on ROS_DOMAIN_ID={self.domain_id}: '
                                f'{"all topics" if self._wanted is None else ", ".join(sorted(self._wanted))}')
 
     def _discover(self) -> None:
@@ -185,6 +227,10 @@ class Recorder(Node):
             self._skip(topic, f'type {types[0]} is not installed here')
             return
         self._recording.add(topic)
+        if self._use_sim_time:
+            reader = step_reader(types[0], message_definition(types[0]).text)
+            if reader is not None:
+                self._step_of[topic] = reader
         sense = sense_of(topic)
         asked = sense is not None and (sense in self._senses or self._wanted is not None)
         profiles = [offered_profile(q) for q in offered]
@@ -240,18 +286,61 @@ class Recorder(Node):
     def _record(self, topic: str, data: bytes, info: dict) -> None:
         self.received += 1
         now = self.get_clock().now().nanoseconds
-        if self._use_sim_time and now == 0:
-            # Before the first /clock tick sim time reads 0 (rosbag2 #764): hold the message
-            # and stamp it with the first simulated time instead.
-            self._before_clock.append((topic, data, info.get('source_timestamp') or 0))
-            return
-        if self._before_clock:
-            self._write_held(now)
-        self._write(topic, data, now, info.get('source_timestamp') or now)
-        if self._max_duration_ns is not None:
+        if self._max_duration_ns is not None and now:
             self._first_ns = now if self._first_ns is None else self._first_ns
             if now - self._first_ns >= self._max_duration_ns:
                 self.finished = True
+        published = info.get('source_timestamp') or now
+        read = self._step_of.get(topic)
+        step = None if read is None else read(data)
+        if step is not None and step <= now + STEP_AHEAD_LIMIT_NS:
+            self._latest_named = max(self._latest_named, step)
+            self._record_step(topic, data, step, published)
+            return
+        if now and self._use_sim_time:
+            now = max(now, self._latest_named)
+        if self._answers.get(topic):   # behind an answer held (see _record_step): in its order
+            self._answers[topic].append((None, data, published, now))
+        elif self._use_sim_time and now == 0:
+            # Before the first /clock tick sim time reads 0 (rosbag2 #764): hold the message
+            # and stamp it with the first simulated time instead.
+            self._before_clock.append((topic, data, info.get('source_timestamp') or 0))
+        else:
+            if self._before_clock:
+                self._write_held(now)
+            self._write(topic, data, now, published)
+
+    def _record_step(self, topic: str, data: bytes, step: int, published: int) -> None:
+        """A message of step `step`, logged at it: once (a copy sent again is not), an answer once a later /clock
+        has come. Messages held from before the first /clock go first, at this step."""
+        if self._before_clock:
+            self._write_held(step)
+        latest, written = self._latest_step.get(topic, (-1, set()))
+        digest = hash(data)
+        if step == latest and digest in written:
+            return
+        if step > latest:
+            latest, written = step, set()
+            self._latest_step[topic] = (latest, written)
+        if step == latest and len(written) < SAME_STEP_REMEMBERED:
+            written.add(digest)
+        if is_answer_topic(topic) and CLOCK_TOPIC in self._recording and \
+                (self._last_clock is None or step >= self._last_clock or self._answers.get(topic)):
+            self._answers.setdefault(topic, []).append((step, data, published, step))
+            return
+        self._write(topic, data, step, published)
+        if topic == CLOCK_TOPIC and (self._last_clock is None or step > self._last_clock):
+            self._last_clock = step
+            self._release_answers(lambda named: named < step)
+
+    def _release_answers(self, followed: Callable[[int], bool]) -> None:
+        """Write each topic's held answers from the first on while they name a `followed` step (or none)."""
+        for topic, held in self._answers.items():
+            released = next((index for index, (named, *_) in enumerate(held)
+                             if named is not None and not followed(named)), len(held))
+            for _, data, published, log_time in held[:released]:
+                self._write(topic, data, log_time, published)
+            del held[:released]
 
     def _write_held(self, stamp: int) -> None:
         for topic, data, published in self._before_clock:
@@ -272,10 +361,18 @@ class Recorder(Node):
         """Write what is queued, the MCAP summary and metadata.yaml; then say what may be missing."""
         if self._before_clock:  # nothing came after the first /clock tick, or no tick at all
             self._write_held(self.get_clock().now().nanoseconds or time.time_ns())
+        left = sum(1 for held in self._answers.values() for named, *_ in held if named is not None)
+        self._release_answers(lambda named: False)   # the unnamed messages behind them (a behaviour's last stop)
+        for topic, held in self._answers.items():
+            for named, data, published, log_time in held:
+                if named is None:
+                    self._write(topic, data, log_time, published)
+        self.answers_left_out, self._answers = left, {}
         self._bag.close()
         writer = self._bag.writer
         self.get_logger().info(f'wrote {writer.times.count} messages on {len(writer.topics)} topics '
-                               f'to {writer.path}')
+                               f'to {writer.path}' + (f'; left out {self.answers_left_out} answers to the last '
+                                                      'step (they drive nothing)' if self.answers_left_out else ''))
         for line in self.loss_report():
             if line.startswith('lost'):
                 self.get_logger().warning(line)
@@ -294,7 +391,7 @@ class Recorder(Node):
         lines += [f'lost: {topic_gaps.describe()}' for topic_gaps in gaps]
         if not lines:
             lines.append(f'no message lost: no DDS message-lost event, no gap in the stamps of the {len(checked)} '
-                         'periodic stamped topics')
+                         'periodic stamped and answer topics')
         return lines
 
 

@@ -18,16 +18,19 @@ copied into the tail of its CDR bytes.
 """
 from __future__ import annotations
 
-from collections.abc import Callable, Iterable, Mapping
+from collections.abc import Callable, Iterable, Mapping, Sequence
+from functools import partial
 
 from rclpy.node import Node
 from rclpy.publisher import Publisher
 from rclpy.qos import QoSProfile
 from sensor_msgs.msg import CameraInfo, Image, Imu, Range
-from std_msgs.msg import Float64MultiArray
+from std_msgs.msg import Float64MultiArray, String
 
+from epuck_ros.bag.steps import SENSES_ON_TOPIC, senses_on_text
 from epuck_ros.description import IMU_FRAME
 from epuck_ros.model import CAMERA_FOV, TOF_APERTURE, TOF_NAME
+from epuck_ros.nodes.qos import SENSES_ON_QOS
 from epuck_ros.nodes.robot_ports import STAMP_FIELDS, frame_prefix, quiet_publisher, topic_prefix
 from epuck_ros.conversions import stamp_from_seconds
 from epuck_ros.nodes.serialized import Patch, array_bytes, exact_cdr
@@ -90,6 +93,42 @@ class ImagePatch:
         return bytes(buffer)
 
 
+def camera_messages(frames: str, size: tuple[int, int]) -> tuple[ImagePatch, Patch]:
+    """The camera's Image (rgb8) and CameraInfo in frame `<frames>camera`, serialised once."""
+    width, height = size
+    image = Image(height=height, width=width, encoding='rgb8', is_bigendian=0, step=3 * width)
+    image.header.frame_id = frames + 'camera'
+    image.data = bytes(3 * width * height)
+    info = CameraInfo(height=height, width=width, distortion_model='plumb_bob', d=[0.0] * 5,
+                      k=camera_matrix(width, height, CAMERA_FOV), r=[1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0])
+    k = info.k
+    info.p = [k[0], 0.0, k[2], 0.0, 0.0, k[4], k[5], 0.0, 0.0, 0.0, 1.0, 0.0]
+    info.header.frame_id = frames + 'camera'
+    return ImagePatch(image), Patch(info, STAMP_FIELDS)
+
+
+def readers_of(node: Node, publisher: Publisher | None, settled_counts: dict[str, tuple[int, int]],
+               kind: str) -> tuple[int, int]:
+    """How many readers `publisher`'s topic has, and how many of them ask for it: any reader but a recorder's
+    (RECORDER_NODE). The graph is asked only when the number of matched readers changed (`settled_counts[kind]`, the
+    last settled answer), until it shows that many with their nodes' names; meanwhile the readers known to ask are
+    not counted fewer than before."""
+    count = 0 if publisher is None else publisher.get_subscription_count()
+    settled = settled_counts.get(kind)
+    if settled is not None and settled[0] == count:
+        return settled
+    if count == 0:
+        settled_counts[kind] = (0, 0)
+        return 0, 0
+    names = [info.node_name for info in node.get_subscriptions_info_by_topic(publisher.topic_name)]
+    asking = sum(1 for name in names if name != RECORDER_NODE and not name.startswith(_UNKNOWN_NODE))
+    if len(names) == count and not any(name.startswith(_UNKNOWN_NODE) for name in names):
+        settled_counts[kind] = (count, asking)
+    elif settled is not None:
+        asking = max(asking, settled[1])
+    return count, asking
+
+
 class SensePorts:
     """The sense topics of robot `index`.
 
@@ -99,6 +138,9 @@ class SensePorts:
     is not in the graph (`ros2 topic list`, RViz's list by topic, a recorder of all topics do not see it), so a
     reader names its type. The node uses it from SENSE_TOPICS_ON_DEMAND_FROM robots."""
 
+    taken: frozenset[str] = frozenset()
+    """The kinds it subscribes to (none: every topic of it is published)."""
+
     def __init__(self, node: Node, index: int, name: str, several: bool, stream_qos: QoSProfile,
                  sim: Simulation, frames_prefix: str = '', on_demand: bool = False) -> None:
         self.index = index
@@ -106,6 +148,7 @@ class SensePorts:
         frames = frame_prefix(name, several, frames_prefix)
         width, height = sim.senses.camera_size
         self._node, self._qos = node, stream_qos
+        self._prefix = topics
         self.topics = {kind: topics + topic for kind, topic in ON_DEMAND_TOPICS.items()}
         """Each of its topics (relative to the node's namespace) by kind: SENSE_TOPICS' and 'camera_info'."""
         self._publishers: dict[str, Publisher | None] = dict.fromkeys(ON_DEMAND_TOPICS)
@@ -124,6 +167,10 @@ class SensePorts:
         """The same for camera/camera_info: read, and asked for or the camera wanted."""
         self.publishing = False
         """Some sense topic of this robot is published: the node calls `publish` after each step."""
+        self._senses_on: Publisher | None = None
+        self._announced: list[str] = []
+        """The topics `senses_on` said are published (made at its first message: most robots of a swarm never
+        have one)."""
 
     def offers(self, kind: str) -> bool:
         """Whether the topic of `kind` has its publisher."""
@@ -137,17 +184,8 @@ class SensePorts:
     def _make_messages(self) -> None:
         """The messages, serialised once, when a sense of this robot is first wanted (a swarm's robots mostly never
         are: making them for all would slow its start)."""
-        frames, (width, height) = self._frames, self._size
-        image = Image(height=height, width=width, encoding='rgb8', is_bigendian=0, step=3 * width)
-        image.header.frame_id = frames + 'camera'
-        image.data = bytes(3 * width * height)
-        self._image = ImagePatch(image)
-        info = CameraInfo(height=height, width=width, distortion_model='plumb_bob', d=[0.0] * 5,
-                          k=camera_matrix(width, height, CAMERA_FOV), r=[1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0])
-        k = info.k
-        info.p = [k[0], 0.0, k[2], 0.0, 0.0, k[4], k[5], 0.0, 0.0, 0.0, 1.0, 0.0]
-        info.header.frame_id = frames + 'camera'
-        self._info = Patch(info, STAMP_FIELDS)
+        frames = self._frames
+        self._image, self._info = camera_messages(frames, self._size)
         imu = Imu()
         imu.header.frame_id = frames + IMU_FRAME
         imu.orientation_covariance[0] = -1.0   # REP 145: no orientation estimate
@@ -155,23 +193,26 @@ class SensePorts:
         self._tof = Patch(tof_range(frames), STAMP_FIELDS + [('range', 'f')])
         self._made = True
 
-    def update_wants(self, want: Callable[[str, int, bool], None], forced: frozenset[str]) -> list[str]:
+    def update_wants(self, want: Callable[[str, int, bool], None], forced: frozenset[str],
+                     wanted: Callable[[str], bool] | None = None) -> list[str]:
         """Tell the simulation which of this robot's senses are wanted now (`forced`: by the parameter); the senses
         that have just got a reader that asks for them, or whose publication starts (the node publishes their
-        current step at once: a lockstep controller that subscribed waits for that message)."""
+        current step at once: a lockstep controller that subscribed waits for that message). `wanted`: whether a
+        sense is computed, whoever asked (the e-puck interface's topics ask too, `SenseFeeds`); by default what
+        these topics ask."""
         readers = {kind: self._readers_of(kind) for kind in ON_DEMAND_TOPICS}
-        new = []
+        new, computed = [], {}
         for kind in SENSE_TOPICS:
             count, asking = readers[kind]
-            wanted = asking > 0 or kind in forced
-            if wanted != self._wanted[kind]:
-                self._wanted[kind] = wanted
-                want(kind, self.index, wanted)
-            if asking > self._asking[kind] or (count and wanted and not self.subscribed[kind]):
+            asks = asking > 0 or kind in forced
+            if asks != self._wanted[kind]:
+                self._wanted[kind] = asks
+                want(kind, self.index, asks)
+            computed[kind] = asks if wanted is None else wanted(kind)
+            if asking > self._asking[kind] or (count and computed[kind] and not self.subscribed[kind]):
                 new.append(kind)
             self._asking[kind] = asking
-        self.follow(self._wanted, {kind: count > 0 for kind, (count, _) in readers.items()},
-                    readers[_CAMERA_INFO][1] > 0)
+        self.follow(computed, {kind: count > 0 for kind, (count, _) in readers.items()}, readers[_CAMERA_INFO][1] > 0)
         return new
 
     def follow(self, wanted: Mapping[str, bool], read: Mapping[str, bool], info_asked: bool = False) -> None:
@@ -185,25 +226,24 @@ class SensePorts:
         if self.publishing and not self._made:
             self._make_messages()
 
+    def announce(self, after: tuple[int, int], also: Iterable[str] = ()) -> None:
+        """Say on `senses_on` which sense topics are published from the step after `after` on (called as that step
+        is published), if that changed since it last said (`bag.steps.senses_on_text`): a recorder and `bag info`
+        tell a sense that was off from one that was lost. `also`: the robot's other on-demand topics published (the
+        e-puck interface's, `InterfacePorts.published_topics`)."""
+        published = [ON_DEMAND_TOPICS[kind] for kind in SENSE_TOPICS if self.subscribed[kind]]
+        published += [ON_DEMAND_TOPICS[_CAMERA_INFO]] if self._info_subscribed else []
+        published += also
+        if published == self._announced:
+            return
+        if self._senses_on is None:
+            self._senses_on = quiet_publisher(self._node, String, self._prefix + SENSES_ON_TOPIC, SENSES_ON_QOS)
+        self._announced = published
+        self._senses_on.publish(String(data=senses_on_text(after, published)))
+
     def _readers_of(self, kind: str) -> tuple[int, int]:
-        """How many readers the topic of `kind` has, and how many of them ask for it: any reader but a recorder's
-        (RECORDER_NODE). The graph is asked only when the number of matched readers changed, until it shows that
-        many with their nodes' names; meanwhile the readers known to ask are not counted fewer than before."""
-        publisher = self._publishers[kind]
-        count = 0 if publisher is None else publisher.get_subscription_count()
-        settled = self._readers.get(kind)
-        if settled is not None and settled[0] == count:
-            return settled
-        if count == 0:
-            self._readers[kind] = (0, 0)
-            return 0, 0
-        names = [info.node_name for info in self._node.get_subscriptions_info_by_topic(publisher.topic_name)]
-        asking = sum(1 for name in names if name != RECORDER_NODE and not name.startswith(_UNKNOWN_NODE))
-        if len(names) == count and not any(name.startswith(_UNKNOWN_NODE) for name in names):
-            self._readers[kind] = (count, asking)
-        elif settled is not None:
-            asking = max(asking, settled[1])
-        return count, asking
+        """How many readers the topic of `kind` has, and how many of them ask for it (`readers_of`)."""
+        return readers_of(self._node, self._publishers[kind], self._readers, kind)
 
     def publish(self, sim: Simulation, stamp: tuple[int, int], kinds: Iterable[str] = SENSE_TOPICS) -> None:
         """This robot's sense messages of `kinds` that are published (their readings are those of this step)."""
@@ -227,59 +267,101 @@ class SensePorts:
 
 
 class SenseFeeds:
-    """Every robot's `SensePorts` on the node, and which of them publish: the senses follow their topics' readers.
+    """Every robot's `SensePorts` on the node (and its `companions`' ports: the e-puck interface's), and which of
+    them publish: the senses follow their topics' readers.
 
     `update_all` runs every SENSE_POLL wall seconds, `update_next` (one robot, in turn) after each step; both under
     the caller's lock, since the loop thread publishes. `offer_read_topics` makes the publishers of on-demand topics
     a reader appeared on, outside that lock (it asks the graph)."""
 
     def __init__(self, node: Node, sim: Simulation, stream_qos: QoSProfile, frames_prefix: str,
-                 forced: frozenset[str], before_each: Callable[[], None]) -> None:
+                 forced: frozenset[str], before_each: Callable[[], None],
+                 companions: Sequence[Callable[..., SensePorts]] = ()) -> None:
         """`forced`: the senses the `senses` parameter asks for; `before_each` runs before each robot's ports are
-        made (a swarm's take seconds: a stop request is honoured there)."""
+        made (a swarm's take seconds: a stop request is honoured there); `companions`: other ports made as
+        SensePorts is (the same arguments, the same protocol), whose topics ask for senses too."""
         several, on_demand = len(sim.names) > 1, len(sim.names) >= SENSE_TOPICS_ON_DEMAND_FROM
-        self.ports: list[SensePorts] = []
+        self.ports: list[list[SensePorts]] = []
+        """Per robot, its ports: the companions' first (their asks are then seen by the SensePorts' follow)."""
         for index, name in enumerate(sim.names):
             before_each()
-            self.ports.append(SensePorts(node, index, name, several, stream_qos, sim, frames_prefix, on_demand))
+            self.ports.append([make(node, index, name, several, stream_qos, sim, frames_prefix, on_demand)
+                               for make in (*companions, SensePorts)])
         self._node, self._sim, self._forced = node, sim, forced
-        self._unoffered = {node.resolve_topic_name(topic): (ports, kind) for ports in self.ports
+        self._unoffered = {node.resolve_topic_name(topic): (ports, kind) for groups in self.ports for ports in groups
                            for kind, topic in ports.topics.items() if not ports.offers(kind)}
-        """The sense topics without a publisher yet (on demand), by their full names."""
+        """The topics without a publisher (or subscription) yet (on demand), by their full names."""
+        self._askers: dict[tuple[int, str], set[int]] = {}
+        """Per (robot, sense), which of its ports ask for the sense (by position): it is computed while one does."""
         self._publishing: list[SensePorts] = []
-        """The robots with a reader on some sense topic: their sense messages are published after each step."""
+        """The ports with a reader on some topic: their messages are published after each step."""
+        self._unannounced: set[int] = set()
+        """The robots whose senses may have changed since their `senses_on` last said: said with the next step (a
+        change after the last step is none)."""
+        self._last_stamp = (0, 0)
         self._turn = 0
+        self._wants_changed = False
 
     def publish(self, stamp: tuple[int, int]) -> None:
+        for robot in self._unannounced:
+            *companions, senses = self.ports[robot]
+            senses.announce(self._last_stamp, [topic for ports in companions for topic in ports.published_topics])
+        self._unannounced.clear()
+        self._last_stamp = stamp
         for ports in self._publishing:
             ports.publish(self._sim, stamp)
 
     def offer_read_topics(self) -> None:
-        """The publisher of each on-demand topic a reader has appeared on: one look at the graph's topics (a topic
-        with only a reader is in it) instead of one question per topic."""
+        """The publisher of each on-demand topic a reader has appeared on (the subscription of each one a writer
+        has): one look at the graph's topics (a topic with only a reader is in it) instead of one question per
+        topic."""
         if not self._unoffered:
             return
         for topic, _ in self._node.get_topic_names_and_types():
-            if topic in self._unoffered and self._node.count_subscribers(topic):
-                ports, kind = self._unoffered.pop(topic)
-                ports.offer(kind)
+            if topic in self._unoffered:
+                ports, kind = self._unoffered[topic]
+                if (self._node.count_publishers if kind in ports.taken else self._node.count_subscribers)(topic):
+                    del self._unoffered[topic]
+                    ports.offer(kind)
 
     def update_all(self) -> None:
-        for ports in self.ports:
-            self._update(ports)
+        for robot in range(len(self.ports)):
+            self._update(robot)
 
     def update_next(self) -> None:
         """One robot, in turn: at real_time_factor 0 the wall-clock poll alone would leave a controller that just
         enabled a sense without readings for hundreds of steps."""
         self._turn = (self._turn + 1) % len(self.ports)
-        self._update(self.ports[self._turn])
+        self._update(self._turn)
 
-    def _update(self, ports: SensePorts) -> None:
-        """One robot's wants; a sense just subscribed is published at once for the current step (see the module)."""
-        was = ports.publishing
-        new = ports.update_wants(lambda kind, robot, wanted: self._sim.senses.want(kind, [robot], wanted),
-                                 self._forced)
-        if ports.publishing != was:
-            self._publishing = [ports for ports in self.ports if ports.publishing]
-        if new and self._sim.steps:   # no step published yet: the first one will carry it
-            ports.publish(self._sim, stamp_from_seconds(self._sim.time), new)
+    def _update(self, robot: int) -> None:
+        """One robot's wants; a sense just subscribed is published at once for the current step (see the module).
+        When a sense's want changed, a second pass: the ports looked at before it follow it at once too."""
+        wanted = self._sim.senses.wanted
+        changed = False
+        for _ in range(2):
+            self._wants_changed = False
+            for position, ports in enumerate(self.ports[robot]):
+                was = ports.publishing
+                new = ports.update_wants(partial(self._want, position), self._forced,
+                                         lambda kind: bool(wanted[kind][robot]))
+                changed |= ports.publishing != was
+                if new and self._sim.steps:   # no step published yet: the first one will carry it
+                    ports.publish(self._sim, stamp_from_seconds(self._sim.time), new)
+            if not self._wants_changed:
+                break
+        self._unannounced.add(robot)
+        if changed:
+            self._publishing = [ports for groups in self.ports for ports in groups if ports.publishing]
+
+    def _want(self, position: int, kind: str, robot: int, wanted: bool) -> None:
+        """Robot `robot`'s ports at `position` ask for sense `kind` (or no longer): computed while any does."""
+        askers = self._askers.setdefault((robot, kind), set())
+        before = bool(askers)
+        if wanted:
+            askers.add(position)
+        else:
+            askers.discard(position)
+        if bool(askers) != before:
+            self._sim.senses.want(kind, [robot], bool(askers))
+            self._wants_changed = True

@@ -40,6 +40,7 @@ from epuck_ros.model import TIME_STEP, RobotModel
 from epuck_ros.nodes.ack_window import AckWindow, history_steps, window_steps
 from epuck_ros.nodes.dds_profile import use_no_local_profile, use_package_profile, warn_if_not_fast_dds
 from epuck_ros.nodes.domain_watch import DISCOVERY_WINDOW, DomainWatch
+from epuck_ros.nodes.interface_ports import InterfacePorts
 from epuck_ros.nodes.lockstep_report import LockstepReport
 from epuck_ros.nodes.pacing import Controls, Pacer, Settings
 from epuck_ros.nodes.params import ParamSpec, Usage, command_line_value, declare_parameters, prepare_arguments
@@ -109,7 +110,8 @@ USAGE = Usage(
     'The e-puck simulator: steps the robots of a world and publishes, per robot, odom, ground_truth, proximity '
     '(8 Range), ir_raw (the 8 raw IR values), joint_states and collisions, the latched robot_description, and '
     'while they have subscribers camera/image_raw, camera/camera_info, ground_raw, light_raw, imu and tof, plus the '
-    'latched world, world_markers and /tf_static, and /tf and /clock; takes cmd_vel (Twist) or wheel_cmd '
+    'latched world, world_markers and /tf_static, and /tf and /clock; the e-puck\'s own interface while read '
+    '(ps0..ps7, scan, ls0..ls7, image_raw, camera_info; led0..led9 taken); takes cmd_vel (Twist) or wheel_cmd '
     '([left, right] rad/s) per robot; services '
     'reset (Empty) and step (Trigger, one step while paused). With several robots, robot NAME\'s topics are '
     'NAME/odom, NAME/cmd_vel, ...',
@@ -154,7 +156,8 @@ class SimNode(Node):
         self.ports = self._make_ports(values, stream)
         self._swarm = SwarmPorts(self, self._sim.names, stream, self._on_swarm_command, self._on_declare) \
             if len(self.ports) > 1 else None
-        self._senses = SenseFeeds(self, self._sim, stream, values['frame_prefix'], self._forced_senses, _stop_if_asked)
+        self._senses = SenseFeeds(self, self._sim, stream, values['frame_prefix'], self._forced_senses, _stop_if_asked,
+                                  companions=(InterfacePorts,))   # the e-puck's own interface (issue 32)
         self.create_timer(SENSE_POLL, self._update_sense_wants)
         _stop_if_asked()
         self._tf = TfPorts(self, self.ports, self._sim, len(self.ports) > 1, stream, LATCHED,

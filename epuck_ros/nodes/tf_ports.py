@@ -1,7 +1,8 @@
 """The simulator's robot descriptions and TF tree (REP 105), as robot_state_publisher and a diff-drive base give them.
 
 `/tf_static`: `world` -> each robot's `odom` at its start pose (odometry starts there at zero, so ground truth and
-odometry sit in one tree) and `base_link` -> every sensor frame of `epuck_ros.description`. `/tf`, every step:
+odometry sit in one tree), `base_link` -> every sensor frame of `epuck_ros.description` and -> `laser_scanner`, the
+frame of the e-puck interface's `scan`. `/tf`, every step:
 `odom` -> `base_link` from the encoders, and `base_link` -> each wheel at its encoder angle. `robot_description`
 (latched) per robot, its links named as its frames. Frames and topics are the robot's own (`RobotPorts`).
 
@@ -17,6 +18,7 @@ from std_msgs.msg import String
 
 from epuck_ros.conversions import quaternion_from_yaw
 from epuck_ros.description import WHEEL_LINKS, sensor_frames, urdf, wheel_offsets
+from epuck_ros.epuck_interface import SCAN_FRAME, SCAN_FRAME_HEIGHT
 from epuck_ros.model import RobotModel
 from epuck_ros.nodes.qos import LATCHED, deeper
 from epuck_ros.nodes.robot_ports import RobotPorts, quiet_publisher, topic_prefix
@@ -63,6 +65,8 @@ class TfPorts:
             static.append(_transform(world_frame, robot.odom_frame, (x, y, 0.0), _yaw(yaw)))
             static += [_transform(robot.base_frame, _prefix(robot) + frame.name, frame.xyz, frame.quaternion())
                        for frame in sensor_frames(model)]
+            static.append(_transform(robot.base_frame, _prefix(robot) + SCAN_FRAME, (0.0, 0.0, SCAN_FRAME_HEIGHT),
+                                     _yaw(0.0)))   # the e-puck interface's `scan` (epuck_interface)
         # LATCHED is tf2_ros's StaticBroadcasterQoS (depth 1, reliable, transient local): late joiners get the tree
         quiet_publisher(node, TFMessage, '/tf_static', LATCHED).publish(TFMessage(transforms=static))
         self._tf_pub = quiet_publisher(node, TFMessage, '/tf', deeper(stream_qos, len(ports)))

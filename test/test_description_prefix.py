@@ -1,4 +1,5 @@
-"""Issue 28, item 6: `python -m epuck_ros.description epuck3` names frames `epuck3/base_link`, as the simulator does."""
+"""The description's frame prefix (issue 28, item 6): `python -m epuck_ros.description epuck3` names frames
+`epuck3/base_link`, as the simulator does."""
 from __future__ import annotations
 
 import subprocess

@@ -1,4 +1,4 @@
-"""Issue 28, item 4: a first set-up says what it is doing, and a run's terminal is readable.
+"""What the terminal shows (issue 28, item 4): a first set-up says what it is doing, and a run's terminal is readable.
 
 `scripts/setup.sh` spent minutes in a quiet pip: a line per phase with its time. `bringup` printed one line into
 another (print() writes a line and its newline apart, from several threads) and flooded the terminal with every

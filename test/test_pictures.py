@@ -1,4 +1,4 @@
-"""Issue 28, item 3: every picture of the manual (README.md, docs/) comes from scripts/make_pictures.py, none stale.
+"""Every picture of the manual (README.md, docs/) comes from scripts/make_pictures.py, and none is stale.
 
 docs/images/senses_light_seeker.png showed a contact and a path along the bottom wall that today's runs do not
 make, and the README's text about it was as old. The script remakes every picture in a scratch folder and compares
@@ -11,6 +11,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
 from manual_pages import manual_text
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -25,6 +26,7 @@ def test_every_picture_of_the_manual_is_made_by_the_script():
     assert shown == made == files, (shown ^ made, made ^ files)
 
 
+@pytest.mark.slow   # remakes every picture: 40 s of both cores
 def test_the_pictures_and_the_readmes_figures_are_those_the_commands_make_today():
     run = subprocess.run([sys.executable, str(SCRIPT), '--check'], capture_output=True, text=True, timeout=3600)
     assert run.returncode == 0, run.stdout + run.stderr

@@ -1,4 +1,4 @@
-"""Issue 28, items 7 and 20: the environments at their edges.
+"""The environments at their edges (issue 28, items 7 and 20).
 
 Actions beyond [-1, 1] are clipped (whatever their size), numbers no float holds refused; step() before reset() and
 after the swarm's episode are refused; an unknown agent is refused; render() without a render mode warns; infos say

@@ -1,4 +1,4 @@
-"""Issue 28, item 13: floor paint cheap to write was costly to draw.
+"""Floor paint costs what it paints (issue 28, item 13): paint cheap to write was costly to draw.
 
 Each polyline segment painted over the bounding box of its whole polyline (a 10,000-point line: 10,000 times the
 box), a polygon looked at every edge for every texel of its box; a world's total paint work was not bounded; a

@@ -1,6 +1,6 @@
-"""Issue 33, items 11, 12, 14, 15 and 16: bringup's summary from every step, with each robot's final pose (bringup
-and `bag summary`), `bag play`'s wait said and chosen, the small things a newcomer hit, the fixture's executables and
-domains."""
+"""Edges a newcomer hit: bringup's summary from every step, with each robot's final pose (bringup and `bag summary`),
+`bag play`'s wait said and chosen, a second simulator's refusal, `record` alone, IPv6 addresses, a closed pipe, the
+fixture's executables and domains (issue 33, items 11, 12, 14, 15 and 16)."""
 from __future__ import annotations
 
 import re

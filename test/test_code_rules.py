@@ -1,5 +1,5 @@
-"""Issue 28, house items: the latched QoS is made in one place, and module docstrings say why, not what was
-measured (figures belong in the README's benchmark table)."""
+"""Rules of the code (issue 28, house items): the latched QoS is made in one place, and module docstrings say
+why, not what was measured (figures belong in the README's benchmark table)."""
 from __future__ import annotations
 
 import ast
