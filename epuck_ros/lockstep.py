@@ -1,18 +1,30 @@
 """Lockstep: step a simulation only once every driven robot answered the last step — without ROS.
 
 The step protocol. Every message of a step names it (its stamp, the step's simulated time), and a lockstep
-controller's answer names the step it answers (a stamped wheel_cmd, a TwistStamped): `classify` pairs an answer
-with the current step by that name, never by arrival order. A robot whose controller has answered with a name is
-*in lockstep*: each step waits for its answer, however long (a line every STALL_REPORT while it waits), unless the
-user set a `timeout`. A controller recognised by what it sends as one that does not answer each step — answers that
-name no step (a plain Twist, an unstamped wheel_cmd: a timer, a joystick) or that name an older step than the one
-it is asked — is *free*: its commands drive when they arrive, each step waits at most OWN_RATE_WAIT for it, and
-the run is no longer reproducible (`on_free` says so once; so does `on_timeout` for a step that went on without
-an answer). Until a controller has answered at all, the step it has not answered is sent again every
-RESEND_AFTER: it may have subscribed after the step went out. One that has not answered within FIRST_ANSWER_WAIT
-is taken for free too: a timer on simulated time cannot answer before time moves on. Both only over DDS
-(`over_dds`): in one process (the headless trials) no step is lost in transit, and a controller that has not
-answered yet is still computing its answer (a script that loops without stepping is its time limit's to end).
+controller's answer names the step it answers (a stamped wheel_cmd, a TwistStamped): `classify` pairs an answer with
+the current step by that name, never by arrival order. A robot whose controller has answered with a name is *in
+lockstep*: each step waits for its answer, however long (a line every STALL_REPORT while it waits), unless the user
+set a `timeout` — also once its controller has left the graph (a process stopped, frozen or crashed leaves no word,
+and DDS drops it after its lease): it may come back, and when a controller of that robot is seen again the step is
+sent again. Stepping on without it would make the rest of the run depend on the moment it left. A controller that
+ends on purpose while the simulation runs says goodbye: it declares its own rate for its topics (see below), and
+once it has left the graph its robot is no longer waited for (its last answer drives on, whenever the simulator
+learns it: the run stays a function of the answers). A controller recognised by what it sends as one that does not
+answer each step — answers that name no step (a plain Twist, an unstamped wheel_cmd: a timer, a joystick) or that
+name an older step than the one it is asked — is *free*: its commands drive when they arrive, each step waits at
+most OWN_RATE_WAIT for it, and the run is no longer reproducible (`on_free` says so once; so does `on_timeout` for a
+step that went on without an answer). Until a controller has answered at all, the step it has not answered is sent
+again every RESEND_AFTER: it may have subscribed after the step went out. Before its first answer the graph and the
+controller's declaration say what to expect (`Controller`, `controller()`): one declared in lockstep is waited for
+as long as it takes; one that publishes only a type that cannot name a step (plain Twist), or that declared its own
+rate, is free from the moment the graph shows it (it is said only once its commands drive); an undeclared one that
+has not answered within FIRST_ANSWER_WAIT is taken for free too: a timer on simulated time cannot answer before time
+moves on. All this only over DDS (`over_dds`): in one process (the headless trials) no step is lost in transit, and
+a controller that has not answered yet is still computing its answer (a script that loops without stepping is its
+time limit's to end).
+
+Two different answers to one step (a second publisher answering by name, or one answering twice, differently) are
+a CONFLICT: the first drives, and the run is no longer reproducible (which one came first is a matter of timing).
 
 One `Lockstep` holds all of it: which robots the current step waits for, which answered, the modes, the resends,
 and how many controllers must be connected before the first step. The sim node and the headless trials
@@ -35,8 +47,9 @@ from collections.abc import Callable, Sequence
 RESEND_AFTER = 1.0
 """Wall seconds a step waits for the first answer of a controller before it is sent again."""
 FIRST_ANSWER_WAIT = 10.0
-"""Wall seconds a controller may take to answer for the first time (a loaded machine starting a Python script)
-before it is taken for one that does not answer each step (a timer on simulated time waits for time to move)."""
+"""Wall seconds an undeclared controller may take to answer for the first time (a loaded machine starting a Python
+script) before it is taken for one that does not answer each step (a timer on simulated time waits for time to
+move). A declared one is never timed so (`Controller`)."""
 STALL_REPORT = 5.0
 """Wall seconds between two reports of a step still waiting for answers."""
 OWN_RATE_WAIT = 0.01
@@ -51,6 +64,56 @@ StepFunction = Callable[[bool], None]
 """Takes one step and publishes it; with True, publishes the last step again instead (a re-sent step)."""
 
 
+DECLARATION_TOPIC = '/lockstep_declarations'
+"""Where a controller declares, before its first answer, which it is (std_msgs/String, latched): a line
+`lockstep TOPIC...` or `own_rate TOPIC...`, TOPIC the fully qualified command topics it publishes (/epuck3/wheel_cmd).
+Global, as the topics it names are: one publisher per process, whatever namespaces its robots are in."""
+MAX_DECLARATION = 1_000_000
+"""Characters a declaration may have (20,000 robots' topics); a longer one is refused."""
+
+
+class Controller(enum.Enum):
+    """What is known of a robot's controller before its first answer: from its declaration, or from the type it
+    publishes (the values complete a sentence: "the controller of epuck3 ...")."""
+
+    UNDECLARED = 'did not declare which it is'
+    """It may answer by name (a wheel_cmd publisher): waited for at most FIRST_ANSWER_WAIT for its first answer."""
+    LOCKSTEP = 'is declared in lockstep'
+    """Waited for as long as it takes from the first step."""
+    OWN_RATE = f'is declared to answer at its own rate (on {DECLARATION_TOPIC})'
+    UNNAMING = 'publishes commands of a type that cannot name a step (plain Twist on cmd_vel, cmd_vel_stamped off)'
+
+    @property
+    def free(self) -> bool:
+        """Not waited for beyond OWN_RATE_WAIT, from the moment the graph shows it."""
+        return self in (Controller.OWN_RATE, Controller.UNNAMING)
+
+
+DECLARATION_WORDS = {'lockstep': Controller.LOCKSTEP, 'own_rate': Controller.OWN_RATE}
+"""The first word of a declaration."""
+HOW_TO_DECLARE = (f'a controller says which it is before its first answer on {DECLARATION_TOPIC} (std_msgs/String, '
+                  f'transient local): "lockstep TOPIC" or "own_rate TOPIC", TOPIC its fully qualified command topic')
+
+
+def declaration(controller: Controller, topics: Sequence[str]) -> str:
+    """The text of a declaration that the publishers on `topics` are `controller` (LOCKSTEP or OWN_RATE)."""
+    word = next(word for word, kind in DECLARATION_WORDS.items() if kind is controller)
+    return ' '.join([word, *topics])
+
+
+def read_declaration(text: str) -> tuple[Controller, list[str]]:
+    """A declaration's kind and topics; ValueError saying what is wrong (it comes from anyone on the domain)."""
+    if len(text) > MAX_DECLARATION:
+        raise ValueError(f'{len(text)} characters, more than {MAX_DECLARATION}')
+    words = text.split()
+    if not words or words[0] not in DECLARATION_WORDS:
+        raise ValueError(f'it must start with {" or ".join(DECLARATION_WORDS)}, got {text[:40]!r}')
+    topics = words[1:]
+    if not topics or not all(topic.startswith('/') for topic in topics):
+        raise ValueError('it must name fully qualified topics (/epuck3/wheel_cmd)')
+    return DECLARATION_WORDS[words[0]], topics
+
+
 class Answer(enum.Enum):
     """What an answer is to the current step (`Lockstep.classify`)."""
 
@@ -61,8 +124,11 @@ class Answer(enum.Enum):
     and answers nothing."""
     STALE = 'answered with a command naming an older step than the current one'
     REPEATED = 'answers a step it has answered already'
+    """The same command again (a step sent again, answered twice): dropped."""
+    CONFLICT = 'answers a step it has answered already, differently'
+    """Two answers to one step that differ (another publisher, or one that answers twice): the first drives."""
     FUTURE = 'names a step the simulation has not reached'
-    SILENT = f'did not answer its first step within {FIRST_ANSWER_WAIT:g} s'
+    SILENT = f'did not answer its first step within {FIRST_ANSWER_WAIT:g} s, and did not declare which it is'
 
 
 class StepClaimError(RuntimeError):
@@ -78,17 +144,23 @@ class Lockstep:
 
     def __init__(self, robots: int, step: StepFunction, timeout: float = 0.0,
                  driven: Callable[[], Sequence[int]] | None = None, lend: Callable[[], bool] = lambda: False,
-                 on_stall: Callable[[Sequence[int], float], None] = lambda robots, waited: None,
-                 on_resend: Callable[[], None] = lambda: None,
-                 on_free: Callable[[int, Answer], None] = lambda robot, answer: None,
-                 on_timeout: Callable[[Sequence[int]], None] = lambda robots: None, over_dds: bool = True) -> None:
+                 on_stall: Callable[[Sequence[int], float, Sequence[int]], None] = lambda robots, waited, gone: None,
+                 on_resend: Callable[[Sequence[int]], None] = lambda back: None,
+                 on_free: Callable[[int, Answer | Controller], None] = lambda robot, why: None,
+                 on_timeout: Callable[[Sequence[int]], None] = lambda robots: None, over_dds: bool = True,
+                 controller: Callable[[int], Controller] = lambda robot: Controller.UNDECLARED,
+                 on_leave: Callable[[int], None] = lambda robot: None) -> None:
         """`timeout`: wall seconds a step waits for the answers of controllers in lockstep, 0 = as long as it takes;
-        `driven()`: the robots that have a controller now (default: all); `lend()`: whether the thread of a step's
-        last answer takes the next step (asked under the condition while the holder waits, so nothing the holder
-        writes changes meanwhile); `on_stall(robots, waited)`: every STALL_REPORT while a step waits for them;
-        `on_resend()`: the step is about to be sent again; `on_free(robot, answer)`: that robot's controller is
-        free from now on, for what its answer was; `on_timeout(robots)`: the step goes on without their answers;
-        `over_dds`: steps and answers travel over DDS (resends and the first answer's wait, see the module)."""
+        `driven()`: the robots that have a controller on the graph now (default: all); `lend()`: whether the thread of a
+        step's last answer takes the next step (asked under the condition while the holder waits, so nothing the holder
+        writes changes meanwhile); `on_stall(robots, waited, gone)`: every STALL_REPORT while a step waits for them,
+        `waited` wall seconds since it first went out, `gone` those of them whose controller left the graph;
+        `on_resend(back)`: the step is about to be sent again (`back`: for these robots, whose controller is back on the
+        graph; else for a first answer); `on_free(robot, why)`: that robot's controller is free from now on, for what
+        its answer was or what it is; `on_timeout(robots)`: the step goes on without their answers; `over_dds`: steps
+        and answers travel over DDS (resends and the first answer's wait, see the module); `controller(robot)`: what is
+        known of a driven robot's controller before its first answer (and of one that left the graph: OWN_RATE is its
+        goodbye); `on_leave(robot)`: that robot's controller left, declared at its own rate: no longer waited for."""
         self._robots = robots
         self._step = step
         self._timeout = timeout if timeout > 0.0 else math.inf
@@ -96,6 +168,7 @@ class Lockstep:
         self._lend = lend
         self._on_stall, self._on_resend, self._on_free, self._on_timeout = on_stall, on_resend, on_free, on_timeout
         self._over_dds = over_dds
+        self._controller, self._on_leave = controller, on_leave
         self._holder: int | None = None
         """The thread (ident) that may step now."""
         self._changed = threading.Condition()
@@ -103,14 +176,22 @@ class Lockstep:
         self._answered = [False] * robots
         """An answer to the current step arrived."""
         self._answered_once = [False] * robots
-        self._declared = [False] * robots
-        """The robot's controller declared it answers each step by name (`declare`): never free for silence."""
         self._free = [False] * robots
         """The controller does not answer each step (see the module): waited for at most OWN_RATE_WAIT."""
         self._first_awaited: dict[int, float] = {}
         """When each robot that never answered was first awaited (monotonic s): FIRST_ANSWER_WAIT counts from it."""
         self._last_named: list[int | None] = [None] * robots
-        """The step (ns) the robot's last named answer named: a second answer to it is a repeat."""
+        """The step (ns) the robot's last named answer named: a second answer to it is a repeat or a conflict."""
+        self._last_command: list[object] = [None] * robots
+        """The command of that answer: a second answer to the step with another is a conflict."""
+        self._kinds: dict[int, Controller] = {}
+        """What the graph said last of each driven robot that never answered (`controller`)."""
+        self._members: set[int] = set()
+        """Robots in lockstep: their controller answered by name, and is not free."""
+        self._gone: set[int] = set()
+        """Robots in lockstep whose controller is no longer on the graph."""
+        self._back: set[int] = set()
+        """Robots of `_gone` whose controller is on the graph again: the current step is to be sent again."""
         self._awaited: set[int] = set()
         """Robots in lockstep (or not yet answered) whose answer to the current step is still awaited."""
         self._free_awaited: set[int] = set()
@@ -118,6 +199,11 @@ class Lockstep:
         self._parked = False
         """The holder waits for the current step's answers (`await_answers`)."""
         self._started = self._deadline = self._own_rate_deadline = 0.0
+        """When the step was last sent (again), its time-out, and how long free controllers are waited for."""
+        self._sent = 0.0
+        """When the current step first went out (monotonic s): a stall is measured from it."""
+        self._stall_reports = 0
+        """Stall lines said for the current step."""
         self._required = 0
         """Controllers to be connected before the next step (`require_controllers`); 0 once they were."""
         self._closed = False
@@ -160,6 +246,7 @@ class Lockstep:
         if not resend:
             with self._changed:
                 self._answered = [False] * self._robots
+                self._sent, self._stall_reports = time.monotonic(), 0
         self._step(resend)
 
     def await_answers(self) -> bool:
@@ -192,34 +279,36 @@ class Lockstep:
 
     # --- the answers' side ------------------------------------------------------------------------------
 
-    def declare(self, robots: Sequence[int]) -> None:
-        """These robots' controller declared, before any answer, that it answers each of their steps by name (a swarm
-        controller's declaration, nodes/swarm_ports.py): however long its first answer takes, it is waited for, never
-        taken for free after FIRST_ANSWER_WAIT (whether a controller is in lockstep never depends on a wall clock)."""
+    def last_answer(self, robot: int) -> tuple[int | None, object]:
+        """The step (ns) `robot`'s last named answer named, and its command (what a conflict is told from)."""
         with self._changed:
-            for robot in robots:
-                self._declared[robot] = True
+            return self._last_named[robot], self._last_command[robot]
 
-    def classify(self, robot: int, named: int | None, current: int) -> Answer:
-        """What an answer of `robot` naming step `named` (ns; None: it names none) is while step `current` (ns) is
-        out. A repeat (a step sent again, answered twice) and a step not reached yet are the caller's to drop; the
-        others drive, and all but BESIDE answer (`answer`)."""
+    def classify(self, robot: int, named: int | None, current: int, command: object = None) -> Answer:
+        """What an answer of `robot` naming step `named` (ns; None: it names none) with `command` (anything that
+        compares equal for the same command) is while step `current` (ns) is out. A repeat (a step sent again,
+        answered twice), a conflict (a second answer to a step, or to an older one than the robot answered, that is
+        not the same command) and a step not reached yet are the caller's to drop; the others drive, and all but
+        BESIDE answer (`answer`)."""
         with self._changed:
+            last = self._last_named[robot]
             if named is None:
-                return Answer.BESIDE if self._last_named[robot] is not None else Answer.UNSTAMPED
-            if named == self._last_named[robot]:
-                return Answer.REPEATED
+                return Answer.BESIDE if last is not None else Answer.UNSTAMPED
+            if named == last:
+                return Answer.REPEATED if command == self._last_command[robot] else Answer.CONFLICT
+            if last is not None and named < last:
+                return Answer.CONFLICT
             if named > current:
                 return Answer.FUTURE
             return Answer.STEP if named == current else Answer.STALE
 
-    def answer(self, robot: int, kind: Answer = Answer.STEP, named: int | None = None) -> None:
-        """An answer of `robot` (`kind`: `classify`'s verdict, STEP, STALE or UNSTAMPED; `named`: the step it names)
-        was applied. If it was the step's last awaited answer and the holder, waiting, lends its claim, the next
-        step is taken here, in the calling thread."""
+    def answer(self, robot: int, kind: Answer = Answer.STEP, named: int | None = None, command: object = None) -> None:
+        """An answer of `robot` (`kind`: `classify`'s verdict, STEP, STALE or UNSTAMPED; `named`: the step it names;
+        `command`: what it commands, as given to `classify`) was applied. If it was the step's last awaited answer and
+        the holder, waiting, lends its claim, the next step is taken here, in the calling thread."""
         with self._changed:
             if named is not None:
-                self._last_named[robot] = named
+                self._last_named[robot], self._last_command[robot] = named, command
             if kind is not Answer.STEP:
                 self._make_free(robot, kind)
             self._answered[robot] = True
@@ -242,7 +331,6 @@ class Lockstep:
 
     def _wait_for_answers(self) -> bool:
         """Until the answers are in or may be done without (True), or the step is to be sent again (False)."""
-        next_report = self._started + STALL_REPORT
         while True:
             now = time.monotonic()
             free_done = not self._free_awaited or now >= self._own_rate_deadline
@@ -253,19 +341,25 @@ class Lockstep:
                 self._on_timeout(sorted(self._awaited))
                 self._take_answers()
                 return True
+            if self._back:   # a controller that had left is back: it may have missed the step
+                self._on_resend(sorted(self._back))
+                self._back.clear()
+                return False
             unanswered = [robot for robot in self._awaited if not self._answered_once[robot]] if self._over_dds else []
             for robot in unanswered:
-                waited = now - self._first_awaited.setdefault(robot, now)
-                if waited >= FIRST_ANSWER_WAIT and not self._declared[robot]:
+                if self._kinds.get(robot) is Controller.UNDECLARED and \
+                        now - self._first_awaited.setdefault(robot, now) >= FIRST_ANSWER_WAIT:
                     self._make_free(robot, Answer.SILENT)
             if unanswered and not self._awaited:
                 continue
             if unanswered and now - self._started >= RESEND_AFTER:
-                self._on_resend()
+                self._on_resend([])
                 return False
+            next_report = self._sent + STALL_REPORT * (self._stall_reports + 1)
             if self._awaited and now >= next_report:
-                self._on_stall(sorted(self._awaited), now - self._started)
-                next_report += STALL_REPORT
+                self._stall_reports = int((now - self._sent) // STALL_REPORT)   # one line, however late this look
+                self._on_stall(sorted(self._awaited), now - self._sent, sorted(self._awaited & self._gone))
+                continue
             if self._awaited:
                 until = min(self._deadline, next_report, now + GRAPH_POLL,
                             self._started + RESEND_AFTER if unanswered else math.inf)
@@ -274,10 +368,12 @@ class Lockstep:
             if not self._changed.wait(max(0.0, until - now)):
                 self._read_graph()
 
-    def _make_free(self, robot: int, why: Answer) -> None:
+    def _make_free(self, robot: int, why: Answer | Controller) -> None:
         """From now on `robot`'s controller is not waited for beyond OWN_RATE_WAIT (said once)."""
         if not self._free[robot]:
             self._free[robot] = True
+            self._members.discard(robot)
+            self._gone.discard(robot)
             self._awaited.discard(robot)
             self._on_free(robot, why)
 
@@ -289,10 +385,26 @@ class Lockstep:
         self._read_graph()
 
     def _read_graph(self) -> None:
-        """Which robots' answers the current step waits for: those with a controller, in lockstep or free."""
-        driven = list(self._driven())
-        self._awaited = {robot for robot in driven if not self._answered[robot] and not self._free[robot]}
-        self._free_awaited = {robot for robot in driven if not self._answered[robot] and self._free[robot]}
+        """Which robots' answers the current step waits for: those with a controller on the graph, and those in
+        lockstep whose controller left it (see the module); free ones at most OWN_RATE_WAIT."""
+        driven = set(self._driven())
+        for robot in self._gone - driven:
+            if self._controller(robot) is Controller.OWN_RATE:   # its goodbye: it left on purpose
+                self._members.discard(robot)
+                self._on_leave(robot)
+        members = self._members
+        gone = members - driven
+        self._back |= (self._gone - gone) & driven
+        self._gone = gone
+        free = set()
+        for robot in driven - members:
+            if not self._answered_once[robot] and not self._free[robot]:
+                self._kinds[robot] = kind = self._controller(robot)
+                if kind.free:
+                    free.add(robot)
+        waiting = {robot for robot in driven | members if not self._answered[robot]}
+        self._free_awaited = {robot for robot in waiting if self._free[robot] or robot in free}
+        self._awaited = waiting - self._free_awaited
 
     def _take_answers(self) -> None:
         """The current step is answered: note who answered, and clear the answers, so that no thread takes them
@@ -300,5 +412,8 @@ class Lockstep:
         for robot, answered in enumerate(self._answered):
             if answered:
                 self._answered_once[robot] = True
+                if not self._free[robot]:
+                    self._members.add(robot)
         self._answered = [False] * self._robots
         self._awaited, self._free_awaited = set(), set()
+        self._back.clear()   # whoever came back has answered

@@ -9,7 +9,8 @@ import threading
 import pytest
 
 import epuck_ros.lockstep as lockstep_module
-from epuck_ros.lockstep import Answer, Lockstep, StepClaimError
+from epuck_ros.lockstep import (MAX_DECLARATION, Answer, Controller, Lockstep, StepClaimError, declaration,
+                                read_declaration)
 
 SHORT = 0.02
 """A timeout that expires quickly."""
@@ -89,7 +90,8 @@ def test_a_stalled_controller_in_lockstep_is_waited_for_as_long_as_it_takes_and_
     """No time-out unless the user sets one: a line every STALL_REPORT names the robot and how long."""
     monkeypatch.setattr(lockstep_module, 'STALL_REPORT', SHORT)
     stalls: list[tuple[list[int], float]] = []
-    step, sim = lockstep(robots=2, timeout=0.0, on_stall=lambda robots, waited: stalls.append((list(robots), waited)))
+    step, sim = lockstep(robots=2, timeout=0.0,
+                         on_stall=lambda robots, waited, gone: stalls.append((list(robots), waited)))
     step.step()
     step.answer(0)
     step.answer(1)
@@ -237,7 +239,7 @@ def test_answers_are_paired_with_the_step_they_name():
 def test_a_resend_publishes_the_same_step_again_keeps_its_answers_and_says_so(monkeypatch):
     monkeypatch.setattr(lockstep_module, 'RESEND_AFTER', SHORT)
     resent = []
-    step, sim = lockstep(robots=2, timeout=0.0, on_resend=lambda: resent.append(sim.count))
+    step, sim = lockstep(robots=2, timeout=0.0, on_resend=lambda back: resent.append(sim.count))
     step.step()
     step.answer(0)
     assert not step.await_answers()
@@ -361,3 +363,192 @@ def test_answers_from_several_threads_step_each_step_once():
     holder.join()
     assert [count for count, _, _ in sim.steps] == list(range(1, rounds + 2))
     assert {thread for _, _, thread in sim.steps[1:]} <= {'holder'} | {f'robot{robot}' for robot in range(robots)}
+
+
+class FakeClock:
+    """lockstep's `time`: monotonic seconds that move only when a test says (what a stall line measures)."""
+
+    def __init__(self) -> None:
+        self.now = 1000.0
+
+    def monotonic(self) -> float:
+        return self.now
+
+
+def test_a_stall_line_measures_the_stall_not_the_time_since_the_holder_began_to_wait(monkeypatch):
+    """Issue 33 item 5: lent steps, each answered within a (fake) second, for 20 s: the holder, waiting all along,
+    said "has waited 0 s" once 5 s had passed since it began. A line comes once a step has waited STALL_REPORT since
+    it first went out, and says how long, once per STALL_REPORT however late the holder looks."""
+    clock = FakeClock()
+    monkeypatch.setattr(lockstep_module, 'time', clock)
+    looked = threading.Semaphore(0)   # released each time the graph is read: by the parked holder or a lent step
+    stalls: list[tuple[list[int], float]] = []
+    sim = Sim()
+    step = Lockstep(1, sim, 0.0, driven=lambda: looked.release() or [0], lend=lambda: True,
+                    on_stall=lambda robots, waited, gone: stalls.append((list(robots), waited)))
+
+    def holder() -> None:
+        step.claim()
+        step.step()
+        step.await_answers()
+
+    holding = in_thread(holder, 'holder')
+    for _ in range(20):
+        assert looked.acquire(timeout=LONG)   # the holder is parked (or the last answer's step was taken)
+        clock.now += 1.0
+        step.answer(0)                        # a lent step, answered a second after it went out
+    for _ in range(3):                        # the holder looks again, 20 s after it began to wait
+        assert looked.acquire(timeout=LONG)
+    assert stalls == []
+    clock.now += 12.0                         # now the 21st step stalls
+    for _ in range(3):
+        assert looked.acquire(timeout=LONG)
+    step.close()
+    holding.join()
+    assert stalls == [([0], 12.0)]
+    assert len(sim.steps) == 21
+
+
+def test_a_robot_in_lockstep_whose_controller_left_the_graph_is_waited_for_and_sent_its_step_again_when_back(
+        monkeypatch):
+    """Issue 33 item 4: a controller stopped (SIGSTOP), frozen or crashed leaves the graph only once DDS drops it;
+    the robot was then undriven, and the run went on, called reproducible. Its robot is waited for as long as it
+    takes (the stall line says its controller left), and when a controller of it is back, the step goes out again:
+    it may have missed it."""
+    monkeypatch.setattr(lockstep_module, 'STALL_REPORT', SHORT)
+    on_graph = [0, 1]
+    stalls: list[tuple[list[int], list[int]]] = []
+    resent = []
+    step, sim = lockstep(robots=2, timeout=0.0, driven=lambda: list(on_graph), on_resend=resent.append,
+                         on_stall=lambda robots, waited, gone: stalls.append((list(robots), list(gone))))
+    step.step()
+    step.answer(0)
+    step.answer(1)
+    assert step.await_answers()
+    step.step()
+    step.answer(1)
+    on_graph.remove(0)
+
+    def come_back() -> None:
+        while len(stalls) < 2:
+            threading.Event().wait(SHORT)
+        on_graph.append(0)
+
+    back = in_thread(come_back)
+    assert step.await_answers() is False
+    back.join()
+    assert stalls[:2] == [([0], [0])] * 2 and resent == [[0]]
+    step.step(resend=True)
+    step.answer(0)
+    assert step.await_answers()
+    assert [(count, resend) for count, resend, _ in sim.steps] == [(1, False), (2, False), (2, True)]
+
+
+def test_a_second_answer_to_a_step_is_a_repeat_only_with_the_same_command():
+    """Issue 33 item 3: a second answer to a step was dropped as a repeat, whatever it said, whoever sent it: a second
+    controller answering by name took a robot over, silently. One that differs is a conflict (the caller breaks the
+    run); so is an answer to a step older than one the robot answered."""
+    step, _ = lockstep(robots=1)
+    step.step()
+    step.answer(0, Answer.STEP, 64, ('/wheel_cmd', 1.0, 1.0))
+    assert step.classify(0, 64, 64, ('/wheel_cmd', 1.0, 1.0)) is Answer.REPEATED
+    assert step.classify(0, 64, 64, ('/wheel_cmd', 2.0, 1.0)) is Answer.CONFLICT
+    assert step.classify(0, 64, 64, ('/cmd_vel', 1.0, 1.0)) is Answer.CONFLICT
+    assert step.classify(0, 64, 96, ('/wheel_cmd', 2.0, 1.0)) is Answer.CONFLICT   # come after the next step
+    assert step.classify(0, 32, 96, ('/wheel_cmd', 1.0, 1.0)) is Answer.CONFLICT   # older than one it answered
+    assert step.last_answer(0) == (64, ('/wheel_cmd', 1.0, 1.0))
+
+
+@pytest.mark.parametrize('kind', [Controller.UNNAMING, Controller.OWN_RATE])
+def test_a_controller_that_cannot_or_says_it_will_not_answer_by_name_is_not_waited_for_from_the_start(
+        monkeypatch, kind):
+    """Issue 33 item 6: a plain Twist publisher (or one declared at its own rate) held the first step 10 s
+    (FIRST_ANSWER_WAIT), the step sent again every second. It is free from the moment the graph shows it; the run
+    breaks only once its commands drive."""
+    monkeypatch.setattr(lockstep_module, 'RESEND_AFTER', SHORT)
+    freed: list[tuple[int, object]] = []
+    resent = []
+    step, sim = lockstep(robots=2, timeout=0.0, on_resend=resent.append,
+                         on_free=lambda robot, why: freed.append((robot, why)),
+                         controller=lambda robot: kind if robot == 1 else Controller.LOCKSTEP)
+    for _ in range(3):
+        step.step()
+        step.answer(0)
+        assert step.await_answers()
+    assert resent == [] and freed == []
+    step.step()
+    step.answer(0)
+    step.answer(1, Answer.UNSTAMPED)
+    assert step.await_answers()
+    assert freed == [(1, Answer.UNSTAMPED)] and resent == []
+    assert len(sim.steps) == 4
+
+
+@pytest.mark.parametrize('kind, freed_as', [(Controller.LOCKSTEP, []), (Controller.UNDECLARED, [Answer.SILENT])])
+def test_only_an_undeclared_controller_is_timed_for_its_first_answer(monkeypatch, kind, freed_as):
+    """A controller declared in lockstep is sent its first step again until it answers, as long as it takes (here
+    ten times FIRST_ANSWER_WAIT); an undeclared one is taken to answer at its own rate after FIRST_ANSWER_WAIT."""
+    monkeypatch.setattr(lockstep_module, 'RESEND_AFTER', SHORT)
+    monkeypatch.setattr(lockstep_module, 'FIRST_ANSWER_WAIT', 3 * SHORT)
+    freed: list[object] = []
+    step, _ = lockstep(robots=1, timeout=0.0, on_free=lambda robot, why: freed.append(why),
+                       controller=lambda robot: kind)
+    step.step()
+    deadline = threading.Event()
+    threading.Timer(30 * SHORT, deadline.set).start()
+    answered = False
+    while not answered and not deadline.is_set():
+        answered = step.await_answers()
+        step.step(resend=not answered)
+    assert answered is (kind is Controller.UNDECLARED)
+    assert freed == freed_as
+    if not answered:
+        step.answer(0)
+        assert step.await_answers()
+
+
+def test_a_declaration_names_the_kind_and_the_topics_and_anything_else_is_refused():
+    text = declaration(Controller.LOCKSTEP, ['/epuck0/wheel_cmd', '/epuck1/wheel_cmd'])
+    assert text == 'lockstep /epuck0/wheel_cmd /epuck1/wheel_cmd'
+    assert read_declaration(text) == (Controller.LOCKSTEP, ['/epuck0/wheel_cmd', '/epuck1/wheel_cmd'])
+    assert read_declaration(' own_rate  /wheel_cmd\n') == (Controller.OWN_RATE, ['/wheel_cmd'])
+    for bad in ['', 'lockstep', 'maybe /wheel_cmd', 'lockstep wheel_cmd', 'lockstep ' + '/w' * MAX_DECLARATION]:
+        with pytest.raises(ValueError):
+            read_declaration(bad)
+
+
+def test_a_controller_that_leaves_declared_at_its_own_rate_is_no_longer_waited_for(monkeypatch):
+    """Its goodbye: a controller that ends on purpose while the simulation runs declares its own rate, then leaves;
+    its robot is waited for until the simulator has both seen it leave and read the goodbye, in either order."""
+    monkeypatch.setattr(lockstep_module, 'STALL_REPORT', SHORT)
+    on_graph = [0, 1]
+    declared = {0: Controller.LOCKSTEP, 1: Controller.LOCKSTEP}
+    gone: list[list[int]] = []
+    left: list[int] = []
+    resent: list[list[int]] = []
+    step, sim = lockstep(robots=2, timeout=0.0, driven=lambda: list(on_graph), controller=declared.__getitem__,
+                         on_leave=left.append, on_stall=lambda robots, waited, away: gone.append(list(away)),
+                         on_resend=resent.append)
+    step.step()
+    step.answer(0)
+    step.answer(1)
+    assert step.await_answers()
+    step.step()
+    on_graph.remove(0)
+
+    def say_goodbye() -> None:
+        while [0] not in gone:   # seen gone (and waited for) before the goodbye is read
+            threading.Event().wait(SHORT)
+        declared[0] = Controller.OWN_RATE
+        while not left:
+            threading.Event().wait(SHORT)
+        step.answer(1)           # the step's other answer comes after
+
+    goodbye = in_thread(say_goodbye)
+    assert step.await_answers()
+    goodbye.join()
+    assert left == [0]
+    step.step()
+    step.answer(1)
+    assert step.await_answers()
+    assert len(sim.steps) == 3 and resent == []   # not "back": it left

@@ -22,6 +22,7 @@ from std_msgs.msg import Float64MultiArray, MultiArrayDimension, String
 from std_srvs.srv import Trigger
 
 from epuck_ros.conversions import stamp_from_label, stamp_label
+from epuck_ros.lockstep import DECLARATION_TOPIC, Controller, declaration
 from epuck_ros.nodes.ack_window import history_steps
 from epuck_ros.nodes.sense_ports import SENSE_TOPICS_ON_DEMAND_FROM
 
@@ -171,10 +172,13 @@ def test_each_robot_follows_its_own_client_and_times_out_alone(launch, test_node
         if name == 'epuck1':
             return Twist(angular=Vector3(z=1.0))
         if step == last_wheel_command:  # epuck0's client goes away: epuck0 times out, epuck1 goes on
+            # Its goodbye first: a lockstep controller that left without one is waited for (issue 33 item 4).
+            goodbye.publish(String(data=declaration(Controller.OWN_RATE, ['/epuck0/wheel_cmd'])))
             test_node.node.destroy_publisher(clients.publishers.pop('epuck0'))
             return None
         return Float64MultiArray(data=[HALF_SPEED, HALF_SPEED])
 
+    goodbye = test_node.node.create_publisher(String, DECLARATION_TOPIC, LATCHED)
     names = ['epuck0', 'epuck1', 'epuck2']
     clients = LockstepClients(test_node, names, {'epuck0': (Float64MultiArray, 'wheel_cmd'),
                                                  'epuck1': (Twist, 'cmd_vel')}, command)

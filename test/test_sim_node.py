@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import math
+import signal
 import time
 from pathlib import Path
 
@@ -21,10 +22,12 @@ from std_srvs.srv import Empty
 from visualization_msgs.msg import MarkerArray
 
 from epuck_ros.conversions import stamp_label
+from epuck_ros.lockstep import DECLARATION_TOPIC, Controller, declaration
 from epuck_ros.model import MAX_WHEEL_SPEED, SENSOR_NAMES
-from epuck_ros.nodes.qos import LATCHED
+from epuck_ros.nodes.qos import DECLARATIONS_READ, LATCHED
 from epuck_ros.nodes.robot_ports import WARN_PERIOD
 from epuck_ros.nodes.sim_node import publication_mode
+from epuck_ros.webots.link import SimLink
 
 HALF_SPEED = 0.5 * MAX_WHEEL_SPEED
 LINEAR_SPEED = HALF_SPEED * 0.02  # 0.0628 m/s
@@ -34,6 +37,10 @@ STEP = 0.032
 
 def stamp_seconds(msg: object) -> float:
     return msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
+
+
+def stamp_seconds_of(clock: Clock) -> float:
+    return clock.clock.sec + clock.clock.nanosec * 1e-9
 
 
 def start_sim(launch, test_node, **params):
@@ -481,3 +488,138 @@ def test_the_no_local_profile_is_the_package_profile_without_local_matching(monk
             monkeypatch.setenv(PROFILES_VARIABLE, chosen)
         use_no_local_profile()
         assert Path(os.environ[PROFILES_VARIABLE]) == used
+
+
+def lockstep_sim(launch, test_node, **params):
+    """A lockstep sim at full speed, its /clock and lockstep_status collected."""
+    sim = start_sim(launch, test_node, lockstep=True, real_time_factor=0.0, **params)
+    return sim, test_node.collect(Clock, '/clock', 1000), test_node.collect(DiagnosticStatus, 'lockstep_status',
+                                                                            LATCHED)
+
+
+@pytest.mark.parametrize('second', ['another publisher', 'the same publisher'])
+def test_two_different_answers_to_one_step_break_the_run_and_name_the_publishers(launch, test_node, second):
+    """Issue 33 item 3: a second process answering each step by name took a robot over, and the run was called
+    reproducible: the controller's own answer was dropped as a repeat. The same answer twice is still a repeat."""
+    sim, clocks, statuses = lockstep_sim(launch, test_node)
+    controller = test_node.node.create_publisher(Float64MultiArray, 'wheel_cmd', 10)
+    intruder = test_node.node.create_publisher(Float64MultiArray, 'wheel_cmd', 10) \
+        if second == 'another publisher' else controller
+    test_node.spin_until(lambda: clocks and controller.get_subscription_count() and intruder.get_subscription_count(),
+                         what='the first step, our publishers matched')
+    step = clocks[-1]
+    controller.publish(answer(1.0, 1.0, step))
+    test_node.spin_until(lambda: clocks[-1].clock != step.clock, what='the step answering the command')
+    controller.publish(answer(1.0, 1.0, step))   # a repeat: dropped, nothing said
+    test_node.spin_for(0.3)
+    assert statuses[-1].level == DiagnosticStatus.OK, statuses[-1].message
+    intruder.publish(answer(-1.0, 1.0, step))
+    test_node.spin_until(lambda: statuses[-1].level == DiagnosticStatus.WARN, what='the run said not reproducible')
+    message = statuses[-1].message
+    assert 'epuck got two different answers to t=0.032 s ([1.0, 1.0] on /wheel_cmd, then [-1.0, 1.0] on ' \
+           '/wheel_cmd)' in message, message
+    assert message.count(f'/{test_node.node.get_name()} on /wheel_cmd (gid ') == \
+        (2 if second == 'another publisher' else 1), message
+    assert sim.proc.poll() is None
+
+
+def test_a_nan_answer_answers_nothing_and_the_step_waits_for_a_valid_one(launch, test_node):
+    """Issue 33 item 3: a NaN answer naming the current step was taken as its answer (the robot kept its last
+    command) and the controller's valid answer after it dropped as a repeat."""
+    sim, clocks, statuses = lockstep_sim(launch, test_node)
+    truth = test_node.collect(Odometry, 'ground_truth', EVERY_MESSAGE)
+    pub = test_node.node.create_publisher(Float64MultiArray, 'wheel_cmd', 10)
+    test_node.spin_until(lambda: clocks and pub.get_subscription_count(), what='the first step')
+    step, seen = clocks[-1], len(clocks)
+    pub.publish(answer(math.nan, 1.0, step))
+    test_node.spin_for(0.5)
+    assert len(clocks) == seen, 'a NaN answer took the step'
+    pub.publish(answer(HALF_SPEED, HALF_SPEED, step))
+    test_node.spin_until(lambda: len(clocks) > seen, what='the step answering the valid command')
+    test_node.spin_until(lambda: truth and truth[-1].twist.twist.linear.x > 0, what='the valid command to drive')
+    assert 'wheel_cmd refused' in sim.output()
+    assert statuses[-1].level == DiagnosticStatus.OK, statuses[-1].message
+
+
+def test_a_lockstep_controller_that_left_the_graph_is_waited_for_and_sent_its_step_again_when_back(launch, test_node):
+    """Issue 33 item 4: a controller stopped (SIGSTOP) left the graph once DDS dropped it; its robot was then
+    undriven, the run went on without it and was called reproducible. Here the publisher leaves at once: no step
+    is taken without its answer, and when a controller is back it gets the step again."""
+    sim, clocks, statuses = lockstep_sim(launch, test_node)
+    pub = test_node.node.create_publisher(Float64MultiArray, 'wheel_cmd', 10)
+    test_node.spin_until(lambda: clocks and pub.get_subscription_count(), what='the first step')
+    for _ in range(3):
+        step = clocks[-1]
+        pub.publish(answer(1.0, 1.0, step))
+        test_node.spin_until(lambda: clocks[-1].clock != step.clock, what='the step answering the command')
+    test_node.node.destroy_publisher(pub)
+    waiting, seen = clocks[-1], len(clocks)
+    test_node.spin_for(1.5)
+    assert [c.clock for c in clocks[seen:]] in ([], [waiting.clock]), 'steps taken without the robot\'s answer'
+    back = test_node.node.create_publisher(Float64MultiArray, 'wheel_cmd', 10)
+    test_node.spin_until(lambda: len(clocks) > seen and clocks[-1].clock == waiting.clock,
+                         what='the step sent again once a controller is back')
+    sim.wait_for_output(
+        f'the controller of epuck is back on the graph: sending t={stamp_seconds_of(waiting):.3f} s again')
+    back.publish(answer(1.0, 1.0, waiting))
+    test_node.spin_until(lambda: clocks[-1].clock != waiting.clock, what='the step after the answer')
+    assert statuses[-1].level == DiagnosticStatus.OK, statuses[-1].message
+    assert sim.proc.poll() is None
+
+
+def test_a_plain_twist_publisher_is_at_its_own_rate_from_the_moment_the_graph_shows_it(launch, test_node):
+    """Issue 33 item 6: a node publishing Twist on cmd_vel from a timer on simulated time cannot answer before time
+    moves: the first step waited FIRST_ANSWER_WAIT (10 s), sent again every second. Its type names no step: it is
+    not waited for; the run breaks once its commands drive."""
+    sim, clocks, statuses = lockstep_sim(launch, test_node)
+    pub = test_node.node.create_publisher(Twist, 'cmd_vel', 10)
+    test_node.spin_until(lambda: clocks and clocks[-1].clock.nanosec >= 500_000_000, what='half a simulated second')
+    assert statuses[-1].level == DiagnosticStatus.OK, statuses[-1].message   # nothing drove
+    pub.publish(Twist(linear=Vector3(x=0.05)))
+    test_node.spin_until(lambda: statuses[-1].level == DiagnosticStatus.WARN, what='the run said not reproducible')
+    assert 'the controller of epuck sends commands that name no step' in statuses[-1].message
+    assert 'sending it again' not in sim.output() and 'first step within' not in sim.output()
+
+
+def test_a_controller_declared_at_its_own_rate_is_not_waited_for(launch, test_node):
+    """Issue 33 item 6: an unlabelled wheel_cmd timer cannot be told from a lockstep controller by its type: it
+    declares itself (epuck_ros/lockstep.py, DECLARATION_TOPIC) and is not waited for. A declaration that is no
+    declaration costs a line."""
+    sim, clocks, statuses = lockstep_sim(launch, test_node)
+    nonsense = test_node.node.create_publisher(String, DECLARATION_TOPIC, LATCHED)   # a writer each: both kept
+    nonsense.publish(String(data='whatever /wheel_cmd'))
+    declarations = test_node.node.create_publisher(String, DECLARATION_TOPIC, LATCHED)
+    declarations.publish(String(data=declaration(Controller.OWN_RATE, ['/wheel_cmd'])))
+    pub = test_node.node.create_publisher(Float64MultiArray, 'wheel_cmd', 10)
+    test_node.spin_until(lambda: clocks and clocks[-1].clock.nanosec >= 500_000_000, what='half a simulated second')
+    assert 'sending it again' not in sim.output()
+    pub.publish(wheel_cmd(1.0, 1.0))
+    test_node.spin_until(lambda: statuses[-1].level == DiagnosticStatus.WARN, what='the run said not reproducible')
+    assert 'the controller of epuck sends commands that name no step' in statuses[-1].message
+    assert f'a declaration on {DECLARATION_TOPIC} refused: it must start with lockstep or own_rate' in sim.output()
+
+
+def test_the_behaviours_and_the_webots_link_declare_lockstep(launch, test_node):
+    declared = test_node.collect(String, DECLARATION_TOPIC, DECLARATIONS_READ)
+    launch('forward', *ros_args({'use_sim_time': True}))
+    launch('spin', '--ros-args', '-r', '__ns:=/epuck2')   # on its own clock: not in lockstep
+    link = SimLink('link_under_test', 'epuck3', lambda: True)
+    try:
+        test_node.spin_until(lambda: len(declared) >= 3, what='three declarations')
+    finally:
+        link.node.destroy_node()
+    assert sorted(message.data for message in declared) == [
+        'lockstep /epuck3/wheel_cmd', 'lockstep /wheel_cmd', 'own_rate /epuck2/wheel_cmd']
+
+
+def test_a_behaviour_that_ends_says_goodbye_and_a_lockstep_run_goes_on_without_it(launch, test_node):
+    """A controller that left without a word is waited for (item 4); one that ends on purpose (Ctrl-C) says so
+    first, and the simulation goes on without it."""
+    sim, clocks, _ = lockstep_sim(launch, test_node)
+    forward = launch('forward', *ros_args({'use_sim_time': True}))
+    test_node.spin_until(lambda: clocks and clocks[-1].clock.sec >= 1, timeout=60, what='a second driven by forward')
+    forward.proc.send_signal(signal.SIGINT)
+    test_node.spin_until(lambda: forward.proc.poll() is not None, what='forward to end')
+    sim.wait_for_output('lockstep: the controller of epuck left, declared at its own rate: no longer waited for')
+    seen = len(clocks)
+    test_node.spin_until(lambda: len(clocks) > seen + 10, what='steps without it')

@@ -1,8 +1,6 @@
-"""The swarm messages (nodes/swarm_messages.py) as bytes, the lockstep declaration they carry (without DDS), and what
-the simulator does with bad ones (over DDS)."""
+"""The swarm messages (nodes/swarm_messages.py) as bytes (without DDS), and what the simulator does with bad ones (over
+DDS). A swarm controller's declaration is a lockstep declaration of its robots (test_lockstep)."""
 from __future__ import annotations
-
-import time
 
 import numpy as np
 import pytest
@@ -12,8 +10,6 @@ from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from rosgraph_msgs.msg import Clock
 from std_msgs.msg import Float64MultiArray
 
-from epuck_ros import lockstep
-from epuck_ros.lockstep import Answer, Lockstep
 from epuck_ros.nodes.serialized import _TYPESTORE
 from epuck_ros.nodes.swarm_messages import COMMAND_FIELDS, OBSERVATION_FIELDS, SwarmLayout, SwarmReader
 
@@ -50,31 +46,6 @@ def test_bytes_that_are_no_swarm_message_are_none_not_an_error():
                     data=np.ones(3)), FLOAT64_ARRAY)]:
         assert reader.read(bytes(bad)) is None
     assert reader.read(good).robots == ('epuck0', 'epuck1')
-
-
-def test_a_declared_controller_is_waited_for_however_long_its_first_answer_takes(monkeypatch):
-    """Two robots whose controllers never answered: the undeclared one is taken for free after FIRST_ANSWER_WAIT
-    (a wall-clock rule), the declared one (a swarm controller said it answers by name) is waited for: the step is
-    re-sent, never passed without it, until it answers."""
-    monkeypatch.setattr(lockstep, 'FIRST_ANSWER_WAIT', 0.05)
-    monkeypatch.setattr(lockstep, 'RESEND_AFTER', 0.01)
-    steps, freed = [], []
-    sync = Lockstep(2, lambda resend: steps.append(resend), on_free=lambda robot, why: freed.append((robot, why)))
-    sync.claim()
-    sync.declare([0])
-    sync.step()
-    deadline = time.monotonic() + 60.0
-    while not freed and time.monotonic() < deadline:
-        assert not sync.await_answers()   # re-sent: robot 0 has not answered
-        sync.step(resend=True)
-    assert freed == [(1, Answer.SILENT)]
-    started = time.monotonic()
-    while time.monotonic() - started < 0.2:   # four times FIRST_ANSWER_WAIT more: still waited for
-        assert not sync.await_answers()
-        sync.step(resend=True)
-    assert freed == [(1, Answer.SILENT)]
-    sync.answer(0, Answer.STEP, 32_000_000)
-    assert sync.await_answers()   # answered: the step is done (the free robot 1 waited for OWN_RATE_WAIT at most)
 
 
 def test_bad_swarm_commands_are_refused_in_a_line_and_good_ones_drive(launch, test_node):

@@ -54,8 +54,10 @@ from epuck_ros.behaviours import BEHAVIOURS, BehaviourSpec, ConfigError, Observa
 from epuck_ros.behaviours.base import Behaviour, describe, ranges_from_raw
 from epuck_ros.conversions import (nanoseconds_from_stamp, quaternion_from_yaw, stamp_from_nanoseconds,
                                    yaw_from_quaternion)
+from epuck_ros.lockstep import Controller
 from epuck_ros.model import SENSOR_NAMES, TIME_STEP
 from epuck_ros.nodes.ack_window import command_qos
+from epuck_ros.nodes.declaration import Declarer
 from epuck_ros.nodes.dds_profile import use_no_local_profile, use_package_profile, warn_if_not_fast_dds
 from epuck_ros.nodes.params import ParamSpec, Usage, declare_parameters, prepare_arguments, user_arguments
 from epuck_ros.nodes.qos import CONTROLLER_READS, LATCHED
@@ -199,13 +201,15 @@ class BehaviourNode(Node):
     """
 
     def __init__(self, name: str, spec: BehaviourSpec, namespace: str | None = None, announce: bool = True,
-                 ir_raw_only: bool = False, process_robots: int = 1, **options: Any) -> None:
+                 ir_raw_only: bool = False, process_robots: int = 1, declarer: Declarer | None = None,
+                 **options: Any) -> None:
         """`announce`: say the settings at INFO (else at DEBUG: the process's other nodes have said them).
         `ir_raw_only`: the robot is a simulator's (its `world` topic named it, `--robots all`), which always publishes
         `ir_raw`: the node never looks at the graph for `proximity`. Each look reads the whole graph; with each of 500
         nodes looking 10 times a second until its `ir_raw` publisher showed up, the process did nothing else, its
         DDS discovery starved and the simulator waited for its robots' answers (test_swarm_bringup).
         `process_robots`: how many robots this process drives (the history of `wheel_cmd`: `command_qos`).
+        `declarer`: the process's (its first node makes it, `self.declarer`).
         `options`: rclpy Node's (SWARM_NODE_OPTIONS)."""
         super().__init__(name, cli_args=None if namespace is None else ['--ros-args', '-r', f'__ns:={namespace}'],
                          **options)
@@ -240,7 +244,11 @@ class BehaviourNode(Node):
             self.create_timer(period, self._on_tick)
         elif not (self.behaviour.needs_odom or self.behaviour.needs_proximity):
             self.create_subscription(RosClock, '/clock', self._on_clock, QOS)
-        # Last: a lockstep simulator waits for the answers of a robot whose wheel_cmd has a publisher.
+        # Last: a lockstep simulator waits for the answers of a robot whose wheel_cmd has a publisher; declared
+        # before it is made, lockstep knows from its first step how to wait for it (epuck_ros/lockstep.py).
+        self.declarer = declarer or Declarer(self, process_robots)
+        self.command_topic = self.resolve_topic_name('wheel_cmd')
+        self.declarer.declare(Controller.LOCKSTEP if self._stepped else Controller.OWN_RATE, [self.command_topic])
         self._publisher = self.create_publisher(Float64MultiArray, 'wheel_cmd', command_qos(process_robots))
         summary = ', '.join(f'{setting}={value}' for setting, value in settings.items())
         line = f'{spec.summary}; {summary}, control_period={period}'
@@ -340,8 +348,9 @@ class BehaviourNode(Node):
         self._publisher.publish(array_bytes((0.0, 0.0)))
 
     def stopped(self) -> bool:
-        """Whether every reader acknowledged the zero command (not waiting: rclpy holds the GIL while it waits)."""
-        return self._publisher.wait_for_all_acked(Duration(seconds=0))
+        """Whether every reader acknowledged the zero command and the goodbye (not waiting: rclpy holds the GIL while
+        it waits)."""
+        return self._publisher.wait_for_all_acked(Duration(seconds=0)) and self.declarer.delivered()
 
 
 _ODOM_X, _ODOM_Y, _ODOM_YAW = (OBSERVATION_FIELDS.index(field) for field in ('odom_x', 'odom_y', 'odom_yaw'))
@@ -530,7 +539,8 @@ def main(name: str, args: list[str] | None = None) -> None:
             if shutdown_requested():  # SIGTERM while a swarm's nodes are made: no need to make the others
                 break
             nodes.append(BehaviourNode(name, spec, namespace, announce=not nodes, ir_raw_only=robots == [ALL_ROBOTS],
-                                       process_robots=len(namespaces), **(SWARM_NODE_OPTIONS if swarm else {})))
+                                       process_robots=len(namespaces), declarer=nodes[0].declarer if nodes else None,
+                                       **(SWARM_NODE_OPTIONS if swarm else {})))
         if nodes and not shutdown_requested():
             spin_until_shutdown(*nodes, executor_type=EventsExecutor)
         code = 0
@@ -539,6 +549,8 @@ def main(name: str, args: list[str] | None = None) -> None:
         code = 2
     finally:
         stopping = [node for node in nodes if node.context.ok()]
+        if stopping:   # a lockstep simulator that still runs goes on without them (epuck_ros/lockstep.py)
+            stopping[0].declarer.goodbye([node.command_topic for node in stopping])
         for node in stopping:
             node.stop_robot()
         wait_until_stopped(stopping, STOP_ACK_TIMEOUT)

@@ -26,6 +26,19 @@ SENSES_ON_QOS = QoSProfile(depth=100, durability=DurabilityPolicy.TRANSIENT_LOCA
 """A robot's `senses_on` (`sense_ports`) is latched with its last changes: a recorder that subscribes late still
 learns when each began."""
 
+DECLARATIONS_READ = QoSProfile(history=HistoryPolicy.KEEP_ALL, reliability=ReliabilityPolicy.RELIABLE,
+                               durability=DurabilityPolicy.TRANSIENT_LOCAL)
+"""How the simulator reads the controllers' declarations (`declaration`): every process's latched declaration,
+however many come at once (a swarm's)."""
+
+
+def declarations_kept(robots: int) -> QoSProfile:
+    """How a process publishes its declarations (`declaration.Declarer`): reliable, latched, one kept per robot it
+    drives."""
+    return QoSProfile(depth=max(1, robots), reliability=ReliabilityPolicy.RELIABLE,
+                      durability=DurabilityPolicy.TRANSIENT_LOCAL)
+
+
 COMMAND_READER_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE,
                                 durability=DurabilityPolicy.TRANSIENT_LOCAL)
 """How the simulator reads `swarm/command` (`swarm_ports`): transient local, so a controller's declaration, sent

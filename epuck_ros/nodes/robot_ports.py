@@ -22,6 +22,7 @@ from std_msgs.msg import Float64MultiArray, UInt32
 
 from epuck_ros.conversions import nanoseconds_from_stamp, quaternion_from_yaw
 from epuck_ros.description import JOINT_NAMES
+from epuck_ros.lockstep import Controller
 from epuck_ros.model import SENSOR_NAMES, RobotModel
 from epuck_ros.nodes.qos import deeper
 from epuck_ros.nodes.serialized import PatchCache, array_bytes, array_values
@@ -104,7 +105,8 @@ class RobotPorts:
         self.odom_frame, self.base_frame = frames + 'odom', frames + 'base_link'
         world_frame = frames_prefix + WORLD_FRAME  # shared by all robots, as are the world's markers
         self._on_command = on_command
-        self._logger = node.get_logger()
+        self._node, self._logger = node, node.get_logger()
+        self._stamped = cmd_vel_stamped
         self._make_messages(frames, world_frame, model, patches or PatchCache())
 
         self.matches = np.zeros(MATCH_COLUMNS, dtype=np.int64) if matches is None else matches
@@ -185,6 +187,27 @@ class RobotPorts:
         """Ask the middleware now who is matched (see `Matched`)."""
         for matched in self._matched:
             matched.read()
+
+    @property
+    def command_topics(self) -> tuple[str, str]:
+        """The fully qualified topics of its commands (wheel_cmd, cmd_vel): what a declaration names."""
+        return self._wheels_sub.topic_name, self._twist_sub.topic_name
+
+    def controller(self, declared: Controller | None) -> Controller:
+        """What the graph says of its controller: only plain Twist publishers cannot answer by name; else it is
+        what it `declared` (also once it has left the graph: its goodbye)."""
+        naming = self._wheels_sub.get_publisher_count() or (self._stamped and self._twist_sub.get_publisher_count())
+        if not naming and self._twist_sub.get_publisher_count():
+            return Controller.UNNAMING
+        return declared or Controller.UNDECLARED
+
+    def publishers(self) -> str:
+        """The publishers of its commands, as the graph shows them (node, topic, endpoint GID)."""
+        found = [f'{info.node_namespace.rstrip("/")}/{info.node_name} on {sub.topic_name} '
+                 f'(gid {bytes(info.endpoint_gid).hex()})'
+                 for sub in (self._wheels_sub, self._twist_sub)
+                 for info in self._node.get_publishers_info_by_topic(sub.topic_name)]
+        return ', '.join(found) or 'none left on the graph'
 
     # --- publishing -------------------------------------------------------------------------------------
 

@@ -34,10 +34,11 @@ from visualization_msgs.msg import MarkerArray
 from epuck_ros.description import frame_prefix
 from epuck_ros.conversions import nanoseconds_from_seconds, stamp_from_seconds
 from epuck_ros.integrity import HELD, NOT_LOCKSTEP
-from epuck_ros.lockstep import Answer, Lockstep
+from epuck_ros.lockstep import DECLARATION_TOPIC, Answer, Controller, Lockstep
 from epuck_ros.markers import world_markers
 from epuck_ros.model import TIME_STEP, RobotModel
 from epuck_ros.nodes.ack_window import AckWindow, history_steps, window_steps
+from epuck_ros.nodes.declaration import read_declarations
 from epuck_ros.nodes.dds_profile import use_no_local_profile, use_package_profile, warn_if_not_fast_dds
 from epuck_ros.nodes.domain_watch import DISCOVERY_WINDOW, DomainWatch
 from epuck_ros.nodes.interface_ports import InterfacePorts
@@ -172,9 +173,15 @@ class SimNode(Node):
         self._report = LockstepReport(self, self._sim.names, HELD if self._lockstep_on else NOT_LOCKSTEP,
                                       self._lockstep_timeout, lambda: self._sim.time)
         report = self._report
+        self._declared: dict[int, Controller] = {}
+        """What each robot's controller declared (`_on_declaration`)."""
+        self._robot_of_topic = {topic: ports.index for ports in self.ports for topic in ports.command_topics}
         self._lockstep = Lockstep(len(self.ports), self._take_step, self._lockstep_timeout, driven=self._driven,
                                   lend=self._lend_on_answers, on_stall=report.stall, on_resend=report.resend,
-                                  on_free=report.free, on_timeout=report.timeout)
+                                  on_free=report.free, on_timeout=report.timeout, controller=self._controller,
+                                  on_leave=self._on_leave)
+        if self._lockstep_on:
+            read_declarations(self, self._on_declaration, self._on_bad_declaration)
         self._lockstep.require_controllers(values['lockstep_controllers'])
         warn_if_not_fast_dds(self.get_logger())
         self._ready = self._ready_line(world, values)
@@ -257,30 +264,66 @@ class SimNode(Node):
 
     def _on_command(self, robot: int, topic: str, kind: str, first: float, second: float, named: int | None) -> None:
         """A command; in lockstep, paired with the current step by the step it names (`Lockstep.classify`): a repeat
-        of an answer is dropped, as is one naming a step not reached yet."""
+        of an answer is dropped, as is one naming a step not reached yet, and a second, different answer to a step
+        (it breaks the run). A command the simulation refuses (NaN) answers nothing."""
         apply = self._sim.command_wheels if kind == 'wheels' else self._sim.command_twist
+        command = (topic, first, second)
         refused = ''
+        applied = False
         with self._lock:   # the step cannot change between the verdict and the command (a step holds the lock)
             current = nanoseconds_from_seconds(self._sim.time)
-            verdict = self._lockstep.classify(robot, named, current) if self._lockstep_on else None
-            if verdict in (Answer.REPEATED, Answer.FUTURE):
-                refused = '' if verdict is Answer.REPEATED else \
-                    f'it names t={named * 1e-9:.3f} s, which the simulation has not reached (t={self._sim.time:.3f} ' \
-                    f's): is the controller\'s use_sim_time off?'
-            else:
+            verdict = self._lockstep.classify(robot, named, current, command) if self._lockstep_on else None
+            if verdict is Answer.FUTURE:
+                refused = f'it names t={named * 1e-9:.3f} s, which the simulation has not reached (t=' \
+                          f'{self._sim.time:.3f} s): is the controller\'s use_sim_time off?'
+            elif verdict not in (Answer.REPEATED, Answer.CONFLICT):
                 try:
                     apply(robot, first, second)
-                except CommandError as error:   # still this step's answer: the robot keeps its last command
+                    applied = True
+                except CommandError as error:   # no answer: the robot keeps its last command, the step waits on
                     refused = str(error)
         if refused:
             self.get_logger().warning(f'{topic} refused: {refused}', throttle_duration_sec=WARN_PERIOD)
-        if verdict is Answer.BESIDE:
+        if verdict is Answer.CONFLICT:
+            self._report_conflict(robot, named, command)
+        elif not applied or verdict is None:
+            return
+        elif verdict is Answer.BESIDE:
             if not self._controls.settings.paused:   # paused, it drives nothing before whoever resumes
                 self._report.beside(robot, topic)
-        elif verdict is not None and verdict not in (Answer.REPEATED, Answer.FUTURE):
+        else:
             # The step's last answer may take the next step here, in this thread (`_lend_on_answers`): handing the
             # step to the loop thread was one more thread wake-up per lockstep round trip.
-            self._lockstep.answer(robot, verdict, named)
+            self._lockstep.answer(robot, verdict, named, command)
+
+    def _report_conflict(self, robot: int, named: int, command: tuple[str, float, float]) -> None:
+        if not self._report.integrity.reproducible:
+            return   # said already (the first reason stays): no look at the graph for each of an intruder's answers
+        last_named, last_command = self._lockstep.last_answer(robot)
+        said = f'[{command[1]!r}, {command[2]!r}] on {command[0]}'
+        if last_named == named:
+            topic, first, second = last_command
+            detail = f'[{first!r}, {second!r}] on {topic}, then {said}'
+        else:
+            detail = f'{said}, after an answer to t={last_named * 1e-9:.3f} s'
+        self._report.conflict(robot, named * 1e-9, detail, self.ports[robot].publishers())
+
+    def _on_declaration(self, controller: Controller, topics: list[str]) -> None:
+        """A controller's declaration (nodes/declaration.py): what lockstep expects of it before its first answer.
+        Topics of other simulators' robots are not ours to read."""
+        for topic in topics:
+            robot = self._robot_of_topic.get(topic)
+            if robot is not None:
+                self._declared[robot] = controller
+
+    def _on_leave(self, robot: int) -> None:
+        """Its controller left, saying goodbye: the goodbye is spent (a later controller of it declares anew)."""
+        self._declared.pop(robot, None)
+        self._report.leave(robot)
+
+    def _on_bad_declaration(self, why: str) -> None:
+        self.get_logger().warning(f'a declaration on {DECLARATION_TOPIC} refused: {why}',
+                                  throttle_duration_sec=WARN_PERIOD)
 
     def _on_swarm_command(self, robots: list[int], speeds: np.ndarray, named: int | None) -> None:
         """A swarm controller's answers (`SwarmPorts`): `_on_command`'s rule for each robot. When they answer the
@@ -307,9 +350,11 @@ class SimNode(Node):
             self._on_command(robot, topic, 'wheels', left, right, named)
 
     def _on_declare(self, robots: list[int]) -> None:
-        """A swarm controller answers these robots' steps by name (`SwarmPorts`): lockstep waits for them, however
-        long their first answer takes."""
-        self._lockstep.declare(robots)
+        """A swarm controller answers these robots' steps by name (`SwarmPorts`): declared in lockstep, as a
+        declaration on DECLARATION_TOPIC says of a robot's own controller, it is waited for however long its first
+        answer takes."""
+        for robot in robots:
+            self._declared[robot] = Controller.LOCKSTEP
 
     def _on_reset(self, request: Empty.Request, response: Empty.Response) -> Empty.Response:
         with self._lock:
@@ -444,6 +489,10 @@ class SimNode(Node):
         if self._swarm is None:
             return driven
         return sorted(self._swarm.driven().union(driven))
+
+    def _controller(self, robot: int) -> Controller:
+        """What lockstep may expect of a driven robot's controller before its first answer."""
+        return self.ports[robot].controller(self._declared.get(robot))
 
     def _stepping(self) -> bool:
         return self._running.is_set() and not self._controls.idle()

@@ -34,8 +34,10 @@ from sensor_msgs.msg import Image, Imu, JointState, Range
 from std_msgs.msg import Float64MultiArray, Int32MultiArray, String
 
 from epuck_ros.conversions import nanoseconds_from_stamp, stamp_from_nanoseconds
+from epuck_ros.lockstep import Controller
 from epuck_ros.model import CAMERA_HEIGHT, CAMERA_WIDTH
 from epuck_ros.nodes.ack_window import command_qos
+from epuck_ros.nodes.declaration import Declarer
 from epuck_ros.nodes.qos import LATCHED, LED_QOS, SCRIPT_READS
 from epuck_ros.nodes.robot_ports import JOINT_NAMES
 from epuck_ros.nodes.sense_ports import SENSE_TOPICS
@@ -151,6 +153,9 @@ class SimLink:
         self._stop_waiting = stop_waiting
         self._executor = SingleThreadedExecutor(context=self.node.context)
         self._executor.add_node(self.node)
+        # Declared before it is made: lockstep waits for its answers from the first step (epuck_ros/lockstep.py).
+        self._declarer = Declarer(self.node)
+        self._declarer.declare(Controller.LOCKSTEP, [self.node.resolve_topic_name(self._prefix + COMMAND_TOPIC)])
         self._publisher = self.node.create_publisher(Float64MultiArray, self._prefix + COMMAND_TOPIC, command_qos(1))
         self._joints = _Stream()
         self._ir_raw = _Stream()
@@ -373,7 +378,8 @@ class SimLink:
         """The node goes, once every reader has what it published (at most DELIVERY_WAIT): a reader that fell behind
         (a recorder, with `bringup` stopping the controller first) lost the last answers and LEDs with the process."""
         deadline = time.monotonic() + DELIVERY_WAIT
-        for publisher in (self._publisher, self._led_publisher):
+        self._declarer.goodbye([self._publisher.topic_name])   # a lockstep simulator goes on without it
+        for publisher in (self._publisher, self._led_publisher, self._declarer.publisher):
             if publisher is not None and \
                     not publisher.wait_for_all_acked(Duration(seconds=max(0.0, deadline - time.monotonic()))):
                 print(f'webots_controller: a reader of {publisher.topic_name} had not taken everything within '
