@@ -317,3 +317,20 @@ def test_a_headless_bag_has_the_interface_topics_a_recorder_gets_over_ros(tmp_pa
         assert all(light[(msg.header.stamp.sec, msg.header.stamp.nanosec)][5] == msg.illuminance for msg in ls5)
     for over_ros in ros:
         compare(over_ros, headless)
+
+
+def test_the_readme_node_on_the_interface_answers_by_name_and_repeats_its_run(launch: object) -> None:
+    """stamped_ranges_node.py, the README's node written on the e-puck's own topics (ps0..ps7 in, a TwistStamped on
+    cmd_vel stamped with the step it read out), through `bringup --controller`: lockstep, reproducible, it turns
+    away from what it meets (no contact in 30 s), and a second run ends at the same pose to the last printed digit."""
+    summaries = []
+    for _ in range(2):
+        run = launch('bringup', '--controller', str(EXAMPLES / 'stamped_ranges_node.py'), '-p', 'cmd_vel_stamped:=true',
+                     '--duration', '30', '--real-time-factor', '0', '--seed', '2')
+        assert run.proc.wait(timeout=300) == 0, run.output()
+        output = run.output()
+        assert '[bringup] reproducible:' in output and 'Traceback' not in output, output
+        summary = next(line for line in output.splitlines() if 'final pose' in line)
+        assert ', 0 contacts' in summary and 'Straight line' not in output, output
+        summaries.append(summary)
+    assert summaries[0] == summaries[1]
