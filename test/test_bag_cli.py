@@ -23,7 +23,8 @@ from std_msgs.msg import String
 from epuck_ros.bag.export import export_csv
 from epuck_ros.bag.qos import QosProfile
 from epuck_ros.bag.reader import Bag
-from epuck_ros.bag.run_summary import RunTally, format_figures, load_run, load_runs, summarise, summarise_runs
+from epuck_ros.bag.run_summary import RunTally, load_run, load_runs, summarise, summarise_runs
+from epuck_ros.bag.summary_text import format_figures
 from epuck_ros.bag.writer import BagWriter
 from epuck_ros.kinematics import integrate_arc, twist_from_wheels
 from epuck_ros.model import MAX_WHEEL_SPEED, RobotModel

@@ -53,3 +53,75 @@ def test_no_part_of_the_package_is_in_an_import_circle():
     edges = package_imports()
     assert 'nodes' in edges['bag_cli'] and 'bag' in edges['nodes']
     assert [part for part in sorted(edges) if part in reachable(edges, part)] == []
+
+
+def module_name(path: Path) -> str:
+    """`epuck_ros/world/data.py` -> `epuck_ros.world.data`; a package's `__init__.py` -> the package."""
+    parts = path.relative_to(PACKAGE.parent).with_suffix('').parts
+    return '.'.join(parts[:-1] if parts[-1] == '__init__' else parts)
+
+
+def module_imports() -> dict[str, set[str]]:
+    """For each module of epuck_ros, the package's modules it imports anywhere in it: at module level, under
+    `if TYPE_CHECKING:` and inside functions (`from epuck_ros.world import data` imports the module `data`;
+    `from epuck_ros.world import World` the package's `__init__`)."""
+    paths = {module_name(path): path for path in PACKAGE.rglob('*.py')}
+    edges: dict[str, set[str]] = {}
+    for name, path in paths.items():
+        package = name if path.name == '__init__.py' else name.rpartition('.')[0]
+        for node in ast.walk(ast.parse(path.read_text(encoding='utf-8'))):
+            if isinstance(node, ast.ImportFrom):
+                base = node.module or ''
+                if node.level:   # relative: from the module's package, one level up per dot beyond the first
+                    up = package.rsplit('.', node.level - 1)[0] if node.level > 1 else package
+                    base = f'{up}.{base}' if base else up
+                targets = [f'{base}.{alias.name}' if f'{base}.{alias.name}' in paths else base for alias in node.names]
+            elif isinstance(node, ast.Import):
+                targets = [alias.name for alias in node.names]
+            else:
+                continue
+            edges.setdefault(name, set()).update(target for target in targets if target in paths and target != name)
+    return edges
+
+
+def circles(edges: dict[str, set[str]]) -> list[list[str]]:
+    """The strongly connected parts of more than one module (Tarjan), each sorted: every module of one reaches every
+    other, so each is an import circle."""
+    index: dict[str, int] = {}
+    low: dict[str, int] = {}
+    stack: list[str] = []
+    found: list[list[str]] = []
+
+    def visit(module: str) -> None:
+        index[module] = low[module] = len(index)
+        stack.append(module)
+        for nxt in sorted(edges.get(module, ())):
+            if nxt not in index:
+                visit(nxt)
+                low[module] = min(low[module], low[nxt])
+            elif nxt in stack:
+                low[module] = min(low[module], index[nxt])
+        if low[module] == index[module]:
+            part = []
+            while not part or part[-1] != module:
+                part.append(stack.pop())
+            if len(part) > 1:
+                found.append(sorted(part))
+
+    for module in sorted(edges):
+        if module not in index:
+            visit(module)
+    return sorted(found)
+
+
+def test_no_module_is_in_an_import_circle():
+    """Inside a sub-package too: `bag.run_summary` and `bag.summary_text` imported each other, and `world.data`,
+    `geometry`, `cells`, `raycast` and `collisions` went round (some under TYPE_CHECKING, which counts: the circle
+    is in the design, whether or not Python runs it). The shared thing moves down, not into a function."""
+    edges = module_imports()
+    assert 'epuck_ros.world.data' in edges['epuck_ros.world']   # the package re-exports its modules' names
+    assert circles(edges) == []
+
+
+def test_circles_finds_a_circle_and_only_one():
+    assert circles({'a': {'b'}, 'b': {'c'}, 'c': {'a', 'd'}, 'd': set(), 'e': {'d'}}) == [['a', 'b', 'c']]

@@ -24,8 +24,7 @@ from visualization_msgs.msg import MarkerArray
 from epuck_ros.conversions import stamp_label
 from epuck_ros.lockstep import DECLARATION_TOPIC, Controller, declaration
 from epuck_ros.model import MAX_WHEEL_SPEED, SENSOR_NAMES
-from epuck_ros.nodes.declaration import DECLARATIONS_READ
-from epuck_ros.nodes.qos import LATCHED
+from epuck_ros.nodes.qos import DECLARATIONS_READ, LATCHED
 from epuck_ros.nodes.robot_ports import WARN_PERIOD
 from epuck_ros.nodes.sim_node import publication_mode
 from epuck_ros.webots.link import SimLink

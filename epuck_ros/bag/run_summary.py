@@ -3,8 +3,8 @@
 Duration, distance travelled, mean speed, the closest approach the IR sensors saw, contacts with walls
 and obstacles and with other robots, where each robot ended (its final pose), and what kind of run it was with
 that shape's figures only. The parts: `runs` (reading a bag), `tally` (distance, contacts and final pose, shared
-with `bringup`), `shapes` (what the run was)
-and `summary_text` (the text); their names stay importable from here.
+with `bringup`), `shapes` (what the run was) and `summary_text` (the text, above this module: it formats these
+summaries); the names of all but the text stay importable from here.
 """
 from __future__ import annotations
 
@@ -18,8 +18,6 @@ from epuck_ros.bag.runs import (ODOMETRY, RANGE, STRING, TRAJECTORY_TOPICS, RunD
 from epuck_ros.bag.shapes import (CIRCLE_RMS_RATIO, CORNER_RANGE_DEG, MIN_CORNER_DEG, MIN_SEGMENT_TIME, MIN_SIDE_RATIO,
                                   MOVING_SPEED, STILL_DISTANCE, STRAIGHT_YAW_RATE, CircleFit, Corners, Motion, Spin,
                                   StraightLine, classify, classify_recorded, fit_circle, straight_segments)
-from epuck_ros.bag.summary_text import (format_bag_summary, format_figures, format_summary, shape_lines,
-                                        turn_direction)
 from epuck_ros.bag.tally import (CONTACT_MARGIN, SLIP_RATIO, Contact, RobotFigures, RunTally, contacts_from_slip,
                                  tally_runs)
 from epuck_ros.model import RobotModel
@@ -28,9 +26,8 @@ __all__ = ['CIRCLE_RMS_RATIO', 'CONTACT_MARGIN', 'CORNER_RANGE_DEG', 'MIN_CORNER
            'MIN_SIDE_RATIO', 'MOVING_SPEED', 'ODOMETRY', 'RANGE', 'SLIP_RATIO', 'STILL_DISTANCE', 'STRAIGHT_YAW_RATE',
            'STRING', 'TRAJECTORY_TOPICS', 'BagSummary', 'CircleFit', 'Contact',
            'Corners', 'Motion', 'RobotFigures', 'RunData', 'RunSummary', 'RunTally', 'Spin', 'StraightLine',
-           'Trajectory', 'classify', 'contacts_from_slip', 'fit_circle', 'format_bag_summary', 'format_figures',
-           'format_summary', 'load_run', 'load_runs', 'robot_namespaces', 'shape_lines', 'start_pose',
-           'straight_segments', 'summarise', 'summarise_runs', 'tally_runs', 'turn_direction']
+           'Trajectory', 'classify', 'contacts_from_slip', 'fit_circle', 'load_run', 'load_runs',
+           'robot_namespaces', 'start_pose', 'straight_segments', 'summarise', 'summarise_runs', 'tally_runs']
 
 
 @dataclass

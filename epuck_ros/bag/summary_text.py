@@ -3,13 +3,10 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from typing import TYPE_CHECKING
 
+from epuck_ros.bag.run_summary import BagSummary, RunSummary
 from epuck_ros.bag.shapes import Motion
 from epuck_ros.bag.tally import RobotFigures
-
-if TYPE_CHECKING:
-    from epuck_ros.bag.run_summary import BagSummary, RunSummary
 
 
 def contacts(count: int) -> str:

@@ -73,6 +73,14 @@ def build_parser() -> argparse.ArgumentParser:
                '  bringup --controller my_controller.py --duration 20   # a Webots-style or rclpy script\n'
                '  bringup avoid --view                                  # and watch it on http://127.0.0.1:8765/\n'
                '  bringup avoid --foxglove                              # in Foxglove: ws://127.0.0.1:8765')
+    _add_what_runs(parser)
+    _add_how_it_runs(parser)
+    _add_what_else_starts(parser)
+    return parser
+
+
+def _add_what_runs(parser: argparse.ArgumentParser) -> None:
+    """The controller and the robots it drives."""
     parser.add_argument('behaviour', nargs='?', choices=tuple(BEHAVIOURS),
                         help='the course behaviour to run (default: avoid, unless --controller is given)')
     parser.add_argument('--controller', metavar='SCRIPT.py',
@@ -84,6 +92,10 @@ def build_parser() -> argparse.ArgumentParser:
                              'runs once per robot, as in Webots')
     parser.add_argument('--robots', type=int, metavar='N',
                         help='simulate N robots placed clear of everything (seeded); the behaviour drives them all')
+
+
+def _add_how_it_runs(parser: argparse.ArgumentParser) -> None:
+    """The run's length, world, randomness and pace, and the nodes' parameters."""
     parser.add_argument('--duration', type=float, default=0.0,
                         help='simulated seconds after which the run ends by itself, on the first 32 ms step at or '
                              'after it (10 ends at 10.016 s; default: until Ctrl-C)')
@@ -99,6 +111,10 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument('-p', '--param', action='append', default=[], metavar='[NODE.]NAME:=VALUE',
                         help='a parameter for the node that declares it (sim parameters go to sim, the rest to the '
                              'behaviour; view.NAME to the view); repeatable')
+
+
+def _add_what_else_starts(parser: argparse.ArgumentParser) -> None:
+    """The recorder, the view, the Foxglove bridge, and the run's namespace and logs."""
     parser.add_argument('--record', nargs='?', const='', default=None, metavar='DIR',
                         help='record all topics to an MCAP bag (default folder: bags/rosbag2_<date>); the camera, '
                              'ground, light and IMU topics are in it while the controller (or the view) reads them: '
@@ -114,7 +130,6 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument('--namespace', default='', help='ROS namespace of the simulation (e.g. class1)')
     parser.add_argument('--verbose', action='store_true',
                         help='also show the behaviour\'s state changes (cruising, turning, ...: its DEBUG lines)')
-    return parser
 
 
 def parse_args(argv: list[str]) -> tuple[argparse.Namespace, Plan]:

@@ -29,9 +29,9 @@ from epuck_ros.bag.tally import RunTally
 from epuck_ros.bringup.swarm_follow import SwarmFollower
 from epuck_ros.conversions import nanoseconds_from_seconds, seconds_from_stamp
 from epuck_ros.integrity import STATUS_TOPIC, Integrity, integrity_from
-from epuck_ros.nodes.announcements import ANNOUNCEMENT_QOS, SIMULATORS_TOPIC, Announcement, parse_announcement
+from epuck_ros.nodes.announcements import SIMULATORS_TOPIC, Announcement, parse_announcement
 from epuck_ros.nodes.dds_profile import use_package_profile, warn_if_not_fast_dds
-from epuck_ros.nodes.qos import CLOCK_KEPT, EVERY_STEP, LATCHED
+from epuck_ros.nodes.qos import ANNOUNCEMENT_QOS, CLOCK_KEPT, EVERY_STEP, LATCHED
 from epuck_ros.nodes.robot_ports import topic_prefix
 from epuck_ros.nodes.sense_ports import RECORDER_NODE
 from epuck_ros.nodes.swarm_messages import COMMAND_TOPIC as SWARM_COMMAND_TOPIC
@@ -120,11 +120,15 @@ class RunMonitor:
         self._recorded: set[str] = set()
         """The topics the recorder was seen subscribed to (asked again only about the others, as above)."""
         self._parameters = AsyncParameterClient(self.node, SIM_NODE)
+        self._subscribe()
+        self._swarm = SwarmFollower(self.node)
+
+    def _subscribe(self) -> None:
+        """What every run is followed by: /clock, the simulator's world and lockstep status, the announcements."""
         self.node.create_subscription(Clock, '/clock', self._on_clock, CLOCK_KEPT)
         self.node.create_subscription(String, 'world', self._on_world, LATCHED)
         self.node.create_subscription(DiagnosticStatus, STATUS_TOPIC, self._on_status, LATCHED)
         self.node.create_subscription(String, SIMULATORS_TOPIC, self._on_announcement, ANNOUNCEMENT_QOS)
-        self._swarm = SwarmFollower(self.node)
 
     # --- what the run did -------------------------------------------------------------------------------
     def _on_status(self, msg: DiagnosticStatus) -> None:

@@ -48,7 +48,7 @@ def default_workers() -> int:
 
 def max_workers() -> int:
     """Local workers at most: a trial keeps a core busy, so beyond a few per core workers only cost memory (each
-    is a process of about 100 MB) and start-up time."""
+    is a Python process with NumPy and Dask loaded) and start-up time."""
     return WORKERS_PER_CORE * default_workers()
 
 

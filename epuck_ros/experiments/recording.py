@@ -25,7 +25,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from rclpy.qos import QoSProfile, ReliabilityPolicy
+from rclpy.qos import QoSProfile
 from rosgraph_msgs.msg import Clock
 from std_msgs.msg import Float64MultiArray, Int32MultiArray
 
@@ -37,7 +37,7 @@ from epuck_ros.model import RobotModel
 from epuck_ros.nodes.ack_window import command_qos, history_steps
 from epuck_ros.nodes.interface_ports import INTERFACE_TOPICS, InterfacePorts
 from epuck_ros.nodes.lockstep_report import LockstepReport
-from epuck_ros.nodes.qos import LATCHED, LED_QOS, clock_kept
+from epuck_ros.nodes.qos import LATCHED, LED_QOS, clock_kept, step_stream
 from epuck_ros.nodes.robot_ports import WORLD_FRAME, RobotPorts, topic_prefix
 from epuck_ros.nodes.sense_ports import ON_DEMAND_TOPICS, SensePorts
 from epuck_ros.nodes.serialized import Patch, array_bytes, exact_cdr
@@ -149,7 +149,7 @@ class TrialRecorder:
     def _start(self, sim: Simulation) -> None:
         """The simulator's ports, as the sim node makes them (their latched messages go out at once)."""
         node, several = self._node, len(sim.names) > 1
-        stream = QoSProfile(depth=history_steps(len(sim.names)), reliability=ReliabilityPolicy.RELIABLE)
+        stream = step_stream(history_steps(len(sim.names)))
         self._ports = [RobotPorts(node, index, name, several, stream, LATCHED, lambda *_: None, model=self._model)
                        for index, name in enumerate(sim.names)]
         self._senses = [SensePorts(node, index, name, several, stream, sim) for index, name in enumerate(sim.names)]

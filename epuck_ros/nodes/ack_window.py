@@ -60,8 +60,8 @@ def command_qos(robots: int) -> QoSProfile:
     recorder may read it as far behind as it reads the simulator (a shorter history lost commands at
     real_time_factor 0). Transient local, so that a recorder whose reader the controller's writer matched only after
     its first answers (DDS discovery between two other processes, under load) still gets them: a loaded
-    `bringup --record` bag lacked one robot's first 88 commands. What is kept costs about 0.4 KB a command (measured:
-    20 writers x 3000 commands, 25 MB), bounded by the history per robot."""
+    `bringup --record` bag lacked one robot's first 88 commands. What is kept is bounded by the history per robot
+    (its memory: benchmarks/bench_command_history.py)."""
     return QoSProfile(depth=history_steps(robots), reliability=ReliabilityPolicy.RELIABLE,
                       durability=DurabilityPolicy.TRANSIENT_LOCAL)
 

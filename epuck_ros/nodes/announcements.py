@@ -7,12 +7,9 @@ import socket
 import time
 from typing import NamedTuple
 
-from rclpy.qos import DurabilityPolicy, QoSProfile
 
 SIMULATORS_TOPIC = '/simulators'
 """Latched: every simulator publishes one announcement there when it starts."""
-ANNOUNCEMENT_QOS = QoSProfile(depth=10, durability=DurabilityPolicy.TRANSIENT_LOCAL)
-"""Transient local, so a later reader gets every simulator's announcement; depth for a few sims per process."""
 
 
 class Announcement(NamedTuple):

@@ -45,7 +45,6 @@ from rclpy.logging import LoggingSeverity
 from rclpy.experimental import EventsExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
-from rclpy.qos import QoSProfile, ReliabilityPolicy
 from rclpy.signals import SignalHandlerOptions
 from rclpy.validate_namespace import validate_namespace
 from sensor_msgs.msg import Range
@@ -61,7 +60,7 @@ from epuck_ros.nodes.ack_window import command_qos
 from epuck_ros.nodes.declaration import Declarer
 from epuck_ros.nodes.dds_profile import use_no_local_profile, use_package_profile, warn_if_not_fast_dds
 from epuck_ros.nodes.params import ParamSpec, Usage, declare_parameters, prepare_arguments, user_arguments
-from epuck_ros.nodes.qos import LATCHED
+from epuck_ros.nodes.qos import CONTROLLER_READS, LATCHED
 from epuck_ros.nodes.serialized import array_bytes, array_values
 from epuck_ros.nodes.spinning import end_process, handle_shutdown_signals, shutdown_requested, spin_until_shutdown
 from epuck_ros.nodes.swarm_messages import (COMMAND_FIELDS, COMMAND_TOPIC, OBSERVATION_FIELDS, OBSERVATION_TOPIC,
@@ -73,7 +72,7 @@ CONTROL_PERIOD = TIME_STEP
 STEP_SLACK_NS = 1_000
 """Nanoseconds a step may fall short of a whole control period and still be the next decision's (stamps are whole
 nanoseconds of a float time)."""
-QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
+QOS = CONTROLLER_READS
 GRAPH_POLL_PERIOD = 0.1
 """Wall seconds between two looks at the graph for an `ir_raw` publisher (until there is one)."""
 FALLBACK_DELAY = 1.0

@@ -7,14 +7,10 @@ from collections.abc import Callable, Sequence
 
 from rclpy.duration import Duration
 from rclpy.node import Node
-from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from std_msgs.msg import String
 
 from epuck_ros.lockstep import DECLARATION_TOPIC, Controller, declaration, read_declaration
-
-DECLARATIONS_READ = QoSProfile(history=HistoryPolicy.KEEP_ALL, reliability=ReliabilityPolicy.RELIABLE,
-                               durability=DurabilityPolicy.TRANSIENT_LOCAL)
-"""The simulator's reader: every process's latched declaration, however many come at once (a swarm's)."""
+from epuck_ros.nodes.qos import DECLARATIONS_READ, declarations_kept
 
 
 class Declarer:
@@ -24,8 +20,7 @@ class Declarer:
     def __init__(self, node: Node, robots: int = 1) -> None:
         """`node`: any of the process's nodes, that lives as long as its controllers publish (the declarations go
         with its publisher)."""
-        self.publisher = node.create_publisher(String, DECLARATION_TOPIC, QoSProfile(
-            depth=max(1, robots), reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL))
+        self.publisher = node.create_publisher(String, DECLARATION_TOPIC, declarations_kept(robots))
 
     def declare(self, controller: Controller, topics: Sequence[str]) -> None:
         """The publishers on `topics` (fully qualified) are `controller`: said before they are made."""

@@ -13,7 +13,8 @@ from collections.abc import Callable
 from rclpy.node import Node
 from std_msgs.msg import String
 
-from epuck_ros.nodes.announcements import ANNOUNCEMENT_QOS, SIMULATORS_TOPIC, announcement, parse_announcement
+from epuck_ros.nodes.announcements import SIMULATORS_TOPIC, announcement, parse_announcement
+from epuck_ros.nodes.qos import ANNOUNCEMENT_QOS
 from epuck_ros.nodes.robot_ports import quiet_publisher
 
 DISCOVERY_WINDOW = 1.0

@@ -33,7 +33,7 @@ import rclpy
 from rclpy.clock import Clock, ClockType
 from rclpy.experimental import EventsExecutor
 from rclpy.node import Node
-from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.qos import DurabilityPolicy, QoSProfile
 from rclpy.serialization import deserialize_message
 from rclpy.signals import SignalHandlerOptions
 from rclpy.subscription import Subscription
@@ -46,6 +46,7 @@ from epuck_ros.conversions import nanoseconds_from_stamp
 from epuck_ros.exit_codes import refuse
 from epuck_ros.foxglove.address import DEFAULT_HOST, DEFAULT_PORT, NODE_NAME, address_error, is_loopback, websocket_url
 from epuck_ros.nodes.dds_profile import use_package_profile, warn_if_not_fast_dds
+from epuck_ros.nodes.qos import NEWEST_ONLY, matching
 from epuck_ros.nodes.record_node import message_class
 from epuck_ros.nodes.sense_ports import SENSE_TOPICS
 from epuck_ros.nodes.spinning import spin_until_shutdown
@@ -67,8 +68,6 @@ whose queue, once full, disconnects the client, and a run at real_time_factor 0 
 The newest time not yet sent goes out on the next look (`REQUEST_PERIOD`), so the last tick always arrives."""
 MAX_DEPTH = 25
 """History a subscription keeps at most, as foxglove_bridge's `max_qos_depth` default."""
-CLOCK_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.BEST_EFFORT)
-"""As foxglove_bridge reads /clock: the newest tick, never waited for."""
 SERVER_NAME = 'epuck_ros'
 
 
@@ -76,12 +75,7 @@ def reading_qos(offered: list[QoSProfile]) -> QoSProfile:
     """The QoS that matches every publisher: reliable, transient local only if all of them offer it; KEEP_LAST as
     deep as their histories together, within [1, MAX_DEPTH] (ros2 topic echo's rule, and foxglove_bridge's).
     A KEEP_LAST reader acknowledges on arrival, so the simulator's acknowledgement window never waits for it."""
-    reliable = bool(offered) and all(q.reliability == ReliabilityPolicy.RELIABLE for q in offered)
-    latched = bool(offered) and all(q.durability == DurabilityPolicy.TRANSIENT_LOCAL for q in offered)
-    depth = min(MAX_DEPTH, max(1, sum(max(1, q.depth) for q in offered)))
-    return QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=depth,
-                      reliability=ReliabilityPolicy.RELIABLE if reliable else ReliabilityPolicy.BEST_EFFORT,
-                      durability=DurabilityPolicy.TRANSIENT_LOCAL if latched else DurabilityPolicy.VOLATILE)
+    return matching(offered, min(MAX_DEPTH, max(1, sum(max(1, q.depth) for q in offered))))
 
 
 @lru_cache(maxsize=None)
@@ -136,7 +130,7 @@ class FoxgloveBridge(Node):
         """The simulation's newest /clock tick: each message's log time, and the server's time."""
         self._sent_time_ns = 0   # nothing to send before the first tick
         self._sent_at = 0.0
-        self.create_subscription(ClockMessage, CLOCK_TOPIC, self._on_clock, CLOCK_QOS, raw=True)
+        self.create_subscription(ClockMessage, CLOCK_TOPIC, self._on_clock, NEWEST_ONLY, raw=True)
         steady = Clock(clock_type=ClockType.STEADY_TIME)   # the graph and the clients, also while /clock stands
         self.create_timer(DISCOVERY_PERIOD, self._discover, clock=steady)
         self.create_timer(REQUEST_PERIOD, self._follow_clients, clock=steady)

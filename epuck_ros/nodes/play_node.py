@@ -18,15 +18,15 @@ import rclpy
 from rclpy.duration import Duration
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
-from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rosgraph_msgs.msg import Clock
 from std_srvs.srv import Trigger
 
 from epuck_ros.bag.play import CLOCK_TOPIC, PlaybackClock, replay_profile
-from epuck_ros.bag.reader import Bag, BagError, Topic
+from epuck_ros.bag.reader import Bag, BagError
 from epuck_ros.conversions import stamp_from_nanoseconds
 from epuck_ros.nodes.dds_profile import use_package_profile
 from epuck_ros.nodes.matching import FOREIGN_DISCOVERY_WINDOW, wait_until_matched
+from epuck_ros.nodes.qos import replayed
 from epuck_ros.nodes.record_node import message_class
 
 MATCH_TIMEOUT = 10.0
@@ -38,15 +38,6 @@ ACK_TIMEOUT = 5.0
 """s to wait at the end for reliable subscribers to acknowledge everything (exiting earlier would lose it)."""
 PAUSED_POLL = 0.1
 """s between looks at the context while nothing is due (a shutdown by SIGTERM sets no event)."""
-
-
-def rclpy_qos(topic: Topic) -> QoSProfile:
-    profile = replay_profile(topic.offered_qos_profiles)
-    return QoSProfile(
-        history=HistoryPolicy.KEEP_LAST, depth=profile.depth,
-        reliability=ReliabilityPolicy.RELIABLE if profile.reliability == 'reliable' else ReliabilityPolicy.BEST_EFFORT,
-        durability=(DurabilityPolicy.TRANSIENT_LOCAL if profile.durability == 'transient_local'
-                    else DurabilityPolicy.VOLATILE))
 
 
 class Player(Node):
@@ -69,7 +60,8 @@ class Player(Node):
             except (ImportError, AttributeError, ValueError):
                 self.get_logger().warning(f'{name}: type {topic.type_name} is not installed: not played')
                 continue
-            self._outputs[name] = self.create_publisher(msg_class, name, rclpy_qos(topic))
+            profile = replay_profile(topic.offered_qos_profiles)
+            self._outputs[name] = self.create_publisher(msg_class, name, replayed(profile))
         if wanted is not None and wanted - set(bag.topics):
             missing = ', '.join(sorted(wanted - set(bag.topics)))
             raise BagError(f'{bag.path}: no topic {missing} (topics: {", ".join(sorted(bag.topics))})')

@@ -47,7 +47,7 @@ from rclpy.event_handler import QoSMessageLostInfo, SubscriptionEventCallbacks, 
 from rclpy.node import Node
 from rclpy.signals import SignalHandlerOptions
 from rclpy.subscription import Subscription
-from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.qos import QoSProfile
 from rclpy.topic_or_service_is_hidden import topic_or_service_is_hidden
 from rclpy.utilities import remove_ros_args
 from rclpy.validate_topic_name import validate_topic_name
@@ -61,6 +61,7 @@ from epuck_ros.bag.writer import COMPRESSIONS, BackgroundWriter, BagExistsError,
 from epuck_ros.exit_codes import EXIT_FAILED, refuse
 from epuck_ros.nodes.dds_profile import use_package_profile, warn_if_not_fast_dds
 from epuck_ros.nodes.interface_ports import INTERFACE_TOPICS
+from epuck_ros.nodes.qos import matching
 from epuck_ros.nodes.sense_ports import ON_DEMAND_TOPICS, RECORDER_NODE, SENSE_TOPICS
 
 DISCOVERY_PERIOD = 0.2
@@ -116,12 +117,7 @@ def subscription_qos(offered: list[QoSProfile]) -> QoSProfile:
     a publisher that waits for acknowledgements (the simulator, see `epuck_ros.nodes.ack_window`) waits for the
     recorder instead of the recorder's queue overwriting what it has not written yet (KEEP_LAST lost much of
     `proximity` at `real_time_factor` 0)."""
-    reliable = all(q.reliability == ReliabilityPolicy.RELIABLE for q in offered)
-    latched = all(q.durability == DurabilityPolicy.TRANSIENT_LOCAL for q in offered)
-    return QoSProfile(
-        history=HistoryPolicy.KEEP_ALL if reliable else HistoryPolicy.KEEP_LAST, depth=SUBSCRIPTION_DEPTH,
-        reliability=ReliabilityPolicy.RELIABLE if reliable else ReliabilityPolicy.BEST_EFFORT,
-        durability=DurabilityPolicy.TRANSIENT_LOCAL if latched else DurabilityPolicy.VOLATILE)
+    return matching(offered, SUBSCRIPTION_DEPTH, keep_all=True)
 
 
 def sense_of(topic: str) -> str | None:
@@ -152,10 +148,7 @@ class Recorder(Node):
         self._bag = BackgroundWriter(writer)
         self._wanted = {self.resolve_topic_name(t) for t in topics} or None
         self._senses = senses
-        asks = senses or any(sense_of(topic) for topic in self._wanted or ())
-        self.asker = Node(SENSE_ASKER_NODE, context=self.context, enable_rosout=False,
-                          start_parameter_services=False) if asks else None
-        """The node of the sense subscriptions that ask for their sense (see the module)."""
+        self.asker = self._sense_asker()
         self._unregistered: dict[str, tuple[str, list[QosProfile]]] = {}
         """Sense topics recorded without asking, not in the bag until their first message: (type, offered QoS)."""
         self._max_duration_ns = None if max_duration is None else int(max_duration * 1e9)
@@ -190,10 +183,20 @@ class Recorder(Node):
         """True once --max-duration of the node's clock has been recorded. A plain flag, not a Future:
         rclpy 7.1's spin_until_future_complete adds a callback to the future on every spin, so a
         recording of N messages would keep N callbacks alive (ros2/rclpy#1371)."""
+        self._start_discovery(writer.path)
+
+    def _sense_asker(self) -> Node | None:
+        """The node of the sense subscriptions that ask for their sense (see the module), when there will be any."""
+        if not (self._senses or any(sense_of(topic) for topic in self._wanted or ())):
+            return None
+        return Node(SENSE_ASKER_NODE, context=self.context, enable_rosout=False, start_parameter_services=False)
+
+    def _start_discovery(self, path: Path) -> None:
+        """Look at the graph now and every DISCOVERY_PERIOD, and say where the recording goes."""
         # A steady-clock timer: discovery must run before /clock ticks under use_sim_time.
         self.create_timer(DISCOVERY_PERIOD, self._discover, clock=Clock(clock_type=ClockType.STEADY_TIME))
         self._discover()
-        self.get_logger().info(f'Recording to {writer.path} on ROS_DOMAIN_ID={self.domain_id}: '
+        self.get_logger().info(f'Recording to {path} on ROS_DOMAIN_ID={self.domain_id}: '
                                f'{"all topics" if self._wanted is None else ", ".join(sorted(self._wanted))}')
 
     def _discover(self) -> None:

@@ -24,6 +24,7 @@ from epuck_ros.conversions import nanoseconds_from_stamp, quaternion_from_yaw
 from epuck_ros.description import JOINT_NAMES
 from epuck_ros.lockstep import Controller
 from epuck_ros.model import SENSOR_NAMES, RobotModel
+from epuck_ros.nodes.qos import deeper
 from epuck_ros.nodes.serialized import PatchCache, array_bytes, array_values
 from epuck_ros.simulation import Simulation
 
@@ -113,7 +114,7 @@ class RobotPorts:
         odom, truth, raw, ranges, joints, wheels, twist = self._matched
         self._odom_pub = quiet_publisher(node, Odometry, topics + 'odom', stream_qos, odom)
         self._truth_pub = quiet_publisher(node, Odometry, topics + 'ground_truth', stream_qos, truth)
-        self._range_pub = quiet_publisher(node, Range, topics + 'proximity', _deeper(stream_qos, len(SENSOR_NAMES)),
+        self._range_pub = quiet_publisher(node, Range, topics + 'proximity', deeper(stream_qos, len(SENSOR_NAMES)),
                                           ranges)
         self._joints_pub = quiet_publisher(node, JointState, topics + 'joint_states', stream_qos, joints)
         self._raw_pub = quiet_publisher(node, Float64MultiArray, topics + 'ir_raw', stream_qos, raw)
@@ -246,12 +247,6 @@ def quiet_publisher(node: Node, msg_type: type, topic: str, qos: QoSProfile, mat
     if matched is not None:
         matched.bind(publisher.get_subscription_count)
     return publisher
-
-
-def _deeper(qos: QoSProfile, factor: int) -> QoSProfile:
-    """The same profile with `factor` times the history: proximity sends eight messages per step."""
-    return QoSProfile(history=qos.history, depth=qos.depth * factor, reliability=qos.reliability,
-                      durability=qos.durability)
 
 
 def _diagonal(values: list[float]) -> list[float]:

@@ -23,13 +23,14 @@ from functools import partial
 
 from rclpy.node import Node
 from rclpy.publisher import Publisher
-from rclpy.qos import DurabilityPolicy, QoSProfile
+from rclpy.qos import QoSProfile
 from sensor_msgs.msg import CameraInfo, Image, Imu, Range
 from std_msgs.msg import Float64MultiArray, String
 
 from epuck_ros.bag.steps import SENSES_ON_TOPIC, senses_on_text
 from epuck_ros.description import IMU_FRAME
 from epuck_ros.model import CAMERA_FOV, TOF_APERTURE, TOF_NAME
+from epuck_ros.nodes.qos import SENSES_ON_QOS
 from epuck_ros.nodes.robot_ports import STAMP_FIELDS, frame_prefix, quiet_publisher, topic_prefix
 from epuck_ros.conversions import stamp_from_seconds
 from epuck_ros.nodes.serialized import Patch, array_bytes, exact_cdr
@@ -56,8 +57,6 @@ ON_DEMAND_TOPICS = {**SENSE_TOPICS, _CAMERA_INFO: 'camera/camera_info'}
 """Every sense topic of a robot by kind (the camera has two); `_TYPES`: their message types."""
 _TYPES = {'camera': Image, _CAMERA_INFO: CameraInfo, 'ground': Float64MultiArray, 'light': Float64MultiArray,
           'imu': Imu, 'tof': Range}
-SENSES_ON_QOS = QoSProfile(depth=100, durability=DurabilityPolicy.TRANSIENT_LOCAL)
-"""`senses_on` is latched with its last changes: a recorder that subscribes late still learns when each began."""
 RECORDER_NODE = 'recorder'
 """The node name of `record` (nodes/record_node.py): its subscribers record a sense topic without asking for it."""
 _UNKNOWN_NODE = '_NODE_NAME_UNKNOWN_'

@@ -24,7 +24,7 @@ from rclpy.exceptions import ParameterException
 from rclpy.experimental import EventsExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
-from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.qos import HistoryPolicy, QoSProfile
 from rclpy.signals import SignalHandlerOptions
 from rosgraph_msgs.msg import Clock
 from std_msgs.msg import String
@@ -45,7 +45,7 @@ from epuck_ros.nodes.interface_ports import InterfacePorts
 from epuck_ros.nodes.lockstep_report import LockstepReport
 from epuck_ros.nodes.pacing import Controls, Pacer, Settings
 from epuck_ros.nodes.params import ParamSpec, Usage, command_line_value, declare_parameters, prepare_arguments
-from epuck_ros.nodes.qos import LATCHED, clock_kept
+from epuck_ros.nodes.qos import LATCHED, clock_kept, step_stream
 from epuck_ros.nodes.repeated import RepeatedCondition
 from epuck_ros.nodes.robot_ports import (CONTROLLERS, JOINT_NAMES, MATCH_COLUMNS, READERS, WARN_PERIOD, WORLD_FRAME,
                                          RobotPorts, quiet_publisher)
@@ -153,7 +153,7 @@ class SimNode(Node):
         self.add_on_set_parameters_callback(self._check_parameters)
         self.add_post_set_parameters_callback(self._apply_parameters)
         history = history_steps(len(world.robots))
-        stream = QoSProfile(depth=history, reliability=ReliabilityPolicy.RELIABLE)
+        stream = step_stream(history)
         self.ports = self._make_ports(values, stream)
         self._swarm = SwarmPorts(self, self._sim.names, stream, self._on_swarm_command, self._on_declare) \
             if len(self.ports) > 1 else None

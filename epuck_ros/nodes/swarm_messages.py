@@ -2,7 +2,8 @@
 
 Why: a process that drives many robots (`avoid --robots all`) paid, per robot and step, an `ir_raw` and an answer
 over DDS, each a synchronous send of tens of microseconds in both processes, plus a `/clock` reader per node: with
-50 robots py-spy put 44 % of the simulator's and 43 % of the controller's time in `Publisher.publish` (README).
+50 robots py-spy found both processes spending much of their time in `Publisher.publish` (its figures: the
+benchmarks page).
 One message per step in each direction carries the same numbers.
 
 The type is std_msgs/Float64MultiArray, as `ir_raw` and `wheel_cmd` (so `ros2 topic echo`, bags, the bag reader and

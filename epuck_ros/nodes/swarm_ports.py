@@ -18,10 +18,11 @@ from collections.abc import Callable, Sequence
 
 import numpy as np
 from rclpy.node import Node
-from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.qos import QoSProfile
 from std_msgs.msg import Float64MultiArray
 
 from epuck_ros.conversions import nanoseconds_from_stamp
+from epuck_ros.nodes.qos import COMMAND_READER_QOS
 from epuck_ros.nodes.robot_ports import WARN_PERIOD, quiet_publisher
 from epuck_ros.nodes.swarm_messages import (COMMAND_FIELDS, COMMAND_TOPIC, OBSERVATION_FIELDS, OBSERVATION_TOPIC,
                                             SwarmLayout, SwarmReader, observation_values)
@@ -30,10 +31,6 @@ from epuck_ros.simulation import Simulation
 CommandsHandler = Callable[[list[int], np.ndarray, 'int | None'], None]
 """(robots, their wheel speeds (robots x 2, rad/s), the step they answer in ns or None): what the node does with a
 swarm command."""
-COMMAND_READER_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE,
-                                durability=DurabilityPolicy.TRANSIENT_LOCAL)
-"""How the simulator reads `swarm/command`: transient local, so a controller's declaration, sent before the
-simulator may have matched it, arrives once it does."""
 
 
 class SwarmPorts:

@@ -13,14 +13,14 @@ from __future__ import annotations
 
 from geometry_msgs.msg import TransformStamped
 from rclpy.node import Node
-from rclpy.qos import QoSProfile, ReliabilityPolicy
+from rclpy.qos import QoSProfile
 from std_msgs.msg import String
 
 from epuck_ros.conversions import quaternion_from_yaw
 from epuck_ros.description import WHEEL_LINKS, sensor_frames, urdf, wheel_offsets
 from epuck_ros.epuck_interface import SCAN_FRAME, SCAN_FRAME_HEIGHT
 from epuck_ros.model import RobotModel
-from epuck_ros.nodes.qos import LATCHED
+from epuck_ros.nodes.qos import LATCHED, deeper
 from epuck_ros.nodes.robot_ports import RobotPorts, quiet_publisher, topic_prefix
 from epuck_ros.nodes.serialized import Patch
 from epuck_ros.simulation import Simulation
@@ -69,8 +69,7 @@ class TfPorts:
                                      _yaw(0.0)))   # the e-puck interface's `scan` (epuck_interface)
         # LATCHED is tf2_ros's StaticBroadcasterQoS (depth 1, reliable, transient local): late joiners get the tree
         quiet_publisher(node, TFMessage, '/tf_static', LATCHED).publish(TFMessage(transforms=static))
-        tf_qos = QoSProfile(depth=stream_qos.depth * len(ports), reliability=ReliabilityPolicy.RELIABLE)
-        self._tf_pub = quiet_publisher(node, TFMessage, '/tf', tf_qos)
+        self._tf_pub = quiet_publisher(node, TFMessage, '/tf', deeper(stream_qos, len(ports)))
         self.stream_publishers = [self._tf_pub]
         self._steps = []
         alike: dict[int, Patch] = {}   # frame ids as long, fields at the same offsets: one Patch built per length

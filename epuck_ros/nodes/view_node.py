@@ -36,7 +36,6 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter, parameter_value_to_python
 from rclpy.parameter_client import AsyncParameterClient
 from rclpy.publisher import Publisher
-from rclpy.qos import QoSProfile, qos_profile_sensor_data
 from rclpy.subscription import Subscription
 from rclpy.task import Future
 from sensor_msgs.msg import Image, JointState, Range
@@ -48,7 +47,7 @@ from epuck_ros.exit_codes import EXIT_BAD_INPUT
 from epuck_ros.model import SENSOR_NAMES
 from epuck_ros.nodes.dds_profile import use_package_profile
 from epuck_ros.nodes.params import ParamSpec, Usage, declare_parameters, prepare_arguments
-from epuck_ros.nodes.qos import LATCHED
+from epuck_ros.nodes.qos import LATCHED, NEWEST_ONLY, newest
 from epuck_ros.nodes.sim_node import JOINT_NAMES
 from epuck_ros.sensors.png import png_bytes
 from epuck_ros.view.server import Action, ActionError, ViewServer, is_loopback
@@ -81,8 +80,6 @@ USAGE = Usage(
 
 SETTINGS = ('paused', 'real_time_factor')
 """The simulator's parameters the page shows (and sets)."""
-NEWEST_ONLY = QoSProfile(depth=1, reliability=qos_profile_sensor_data.reliability)
-"""Best-effort, depth 1: the simulator never waits for the view, which sees each topic's newest sample."""
 
 
 class CannotServe(Exception):
@@ -171,7 +168,7 @@ class ViewNode(Node):
                 # dropped once ir_raw arrives.
                 self._proximity[robot] = self.create_subscription(
                     Range, topic('proximity'), partial(self._on_range, robot),
-                    QoSProfile(depth=len(SENSOR_NAMES), reliability=NEWEST_ONLY.reliability))
+                    newest(len(SENSOR_NAMES)))
 
     def _watch(self, robots: set[str]) -> None:
         """Odometry and wheel speeds only of the robots a page shows in detail: every subscription costs the

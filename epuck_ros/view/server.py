@@ -50,11 +50,11 @@ CONTENT_TYPES = {'.html': 'text/html; charset=utf-8', '.js': 'text/javascript; c
                  '.css': 'text/css; charset=utf-8', '.png': 'image/png', '.svg': 'image/svg+xml'}
 LOOPBACK_NAMES = {'localhost', '127.0.0.1', '::1'}
 MAX_STREAMS = 16
-"""Event streams open at once at most (each a thread sending up to 30 frames a second; 800 halved the simulator's
-speed); one more is answered 503."""
+"""Event streams open at once at most (each a thread sending up to 30 frames a second: hundreds of them took the
+cores from the simulator); one more is answered 503."""
 MAX_POLLED = 64
-"""Robot names remembered from GET /state at most (each distinct name was kept for ever: 3,000 made up names
-took the view from 75 to 146 MiB)."""
+"""Robot names remembered from GET /state at most (each distinct name was kept for ever: a client making names up
+grew the view's memory without bound)."""
 IDLE_TIMEOUT = 10.0
 """Wall seconds a connection may stay silent (no request, or a request's body not coming) before it is closed."""
 LISTEN_BACKLOG = 64

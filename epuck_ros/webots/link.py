@@ -29,7 +29,6 @@ from rclpy.duration import Duration
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter_client import AsyncParameterClient
-from rclpy.qos import QoSProfile, ReliabilityPolicy
 import numpy as np
 from sensor_msgs.msg import Image, Imu, JointState, Range
 from std_msgs.msg import Float64MultiArray, Int32MultiArray, String
@@ -39,7 +38,7 @@ from epuck_ros.lockstep import Controller
 from epuck_ros.model import CAMERA_HEIGHT, CAMERA_WIDTH
 from epuck_ros.nodes.ack_window import command_qos
 from epuck_ros.nodes.declaration import Declarer
-from epuck_ros.nodes.qos import LATCHED, LED_QOS
+from epuck_ros.nodes.qos import LATCHED, LED_QOS, SCRIPT_READS
 from epuck_ros.nodes.robot_ports import JOINT_NAMES
 from epuck_ros.nodes.sense_ports import SENSE_TOPICS
 from epuck_ros.nodes.serialized import array_bytes, array_values
@@ -48,7 +47,7 @@ from epuck_ros.sensors.tof import value_from_range
 from epuck_ros.sensors.turret import Truth
 from epuck_ros.world import TurretDevice, WorldError, world_from_yaml
 
-QOS = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
+QOS = SCRIPT_READS
 COMMAND_TOPIC = 'wheel_cmd'
 SPIN_PERIOD = 0.1
 """Seconds one wait on the executor lasts at most, so that Ctrl-C and a vanished simulator are noticed."""

@@ -6,12 +6,28 @@ everything: one lookup in the `ClearanceMap` says so before any per-obstacle wor
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING
+from typing import Protocol
 
 import numpy as np
 
-if TYPE_CHECKING:
-    from epuck_ros.world.geometry import Geometry
+
+class Obstacles(Protocol):
+    """What the grids read of the prepared walls and obstacles (`geometry.Geometry`, which builds the grids, so
+    it is named here by what it offers, not imported)."""
+
+    half_x: float
+    half_y: float
+    boxes: list[tuple[float, float, float, float, float, float, float]]
+    """x, y, cos, sin of yaw, half sizes, bounding radius."""
+    cylinders: list[tuple[float, float, float]]
+    edge_total: int
+
+    def grid(self, reach: float) -> ObstacleGrid:
+        """The obstacle grid for queries that reach `reach`."""
+
+    def surfaces(self, x: np.ndarray, y: np.ndarray, box_ids: np.ndarray,
+                 cylinder_ids: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Signed distances and outward normals from points to the walls and the listed obstacles."""
 
 
 class ObstacleGrid:
@@ -21,7 +37,7 @@ class ObstacleGrid:
     world grows to thousands of obstacles. Rows are padded with the dummy obstacle (index B or C).
     """
 
-    def __init__(self, geometry: Geometry, reach: float) -> None:
+    def __init__(self, geometry: Obstacles, reach: float) -> None:
         # Cells at least `reach` wide (neighbours need not be looked at) and at most ~250,000 of them (a
         # 10 km arena allowed by MAX_MAGNITUDE must not take gigabytes; its cells then list more obstacles).
         self.cell = max(reach, 0.05, math.sqrt(4.0 * geometry.half_x * geometry.half_y / 250_000))
@@ -82,7 +98,7 @@ class ClearanceMap:
     CAP = 0.25
     """m; queries ask about less than this (a robot's sensing reach is about 0.14 m)."""
 
-    def __init__(self, geometry: Geometry) -> None:
+    def __init__(self, geometry: Obstacles) -> None:
         self.half_x, self.half_y = geometry.half_x, geometry.half_y
         self.cell = max(0.005, math.sqrt(4.0 * self.half_x * self.half_y / 250_000))
         self.columns = max(1, math.ceil(2.0 * self.half_x / self.cell))

@@ -7,7 +7,6 @@ prepares its obstacles once (`geometry.Geometry`); its query methods hand them t
 """
 from __future__ import annotations
 
-import math
 import re
 from collections.abc import Iterable
 from dataclasses import dataclass, field
@@ -19,37 +18,11 @@ from epuck_ros import untrusted_yaml
 from epuck_ros.world import collisions, raycast
 from epuck_ros.world.appearance import Appearance, appearance_dict
 from epuck_ros.world.geometry import Geometry
+from epuck_ros.world.obstacles import Box, Cylinder
 
 
 class WorldError(ValueError):
     """A world that cannot be used; the message names the file, the field and what is wrong."""
-
-
-@dataclass(frozen=True)
-class Box:
-    """A rectangular obstacle centred at (x, y), rotated by yaw (rad)."""
-
-    x: float
-    y: float
-    size_x: float
-    size_y: float
-    yaw: float = 0.0
-
-    def corners(self) -> list[tuple[float, float]]:
-        """The four corners in the world frame, counter-clockwise from (+x, +y) in the box's own frame."""
-        cos, sin = math.cos(self.yaw), math.sin(self.yaw)
-        hx, hy = self.size_x / 2.0, self.size_y / 2.0
-        return [(self.x + cos * lx - sin * ly, self.y + sin * lx + cos * ly)
-                for lx, ly in ((hx, hy), (-hx, hy), (-hx, -hy), (hx, -hy))]
-
-
-@dataclass(frozen=True)
-class Cylinder:
-    """A round obstacle centred at (x, y)."""
-
-    x: float
-    y: float
-    radius: float
 
 
 ROBOT_NAME = re.compile(r'[A-Za-z_][A-Za-z0-9_]*\Z')

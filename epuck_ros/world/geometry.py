@@ -8,14 +8,11 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from typing import TYPE_CHECKING
 
 import numpy as np
 
 from epuck_ros.world.cells import ClearanceMap, ObstacleGrid
-
-if TYPE_CHECKING:
-    from epuck_ros.world.data import Box, Cylinder
+from epuck_ros.world.obstacles import Box, Cylinder
 
 CONTACT_TOLERANCE = 1e-6
 """m; a disc this close to an obstacle touches it (a pushed-out disc sits at exactly its radius)."""
