@@ -27,9 +27,10 @@ from epuck_ros.conversions import stamp_from_label
 
 REPO = Path(__file__).resolve().parents[1]
 LEDS_EVERY_STEP = REPO / 'test' / 'data' / 'webots' / 'leds_every_step.py'
-ROS_ONLY = {'/rosout', '/parameter_events', '/simulators'}
+ROS_ONLY = {'/rosout', '/parameter_events', '/simulators', '/lockstep_declarations'}
 """Topics of a run over ROS that are not the run: the processes' log lines, bringup's resume and pause (parameter
-events), the simulators' announcements."""
+events), the simulators' announcements, the controllers' lockstep declarations (how the processes tell the
+simulator what to wait for; in one process there is nothing to tell)."""
 TYPES = get_typestore(Stores.ROS2_JAZZY)
 
 

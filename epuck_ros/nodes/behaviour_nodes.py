@@ -247,8 +247,9 @@ class BehaviourNode(Node):
         # Last: a lockstep simulator waits for the answers of a robot whose wheel_cmd has a publisher; declared
         # before it is made, lockstep knows from its first step how to wait for it (epuck_ros/lockstep.py).
         self.declarer = declarer or Declarer(self, process_robots)
-        self.command_topic = self.resolve_topic_name('wheel_cmd')
-        self.declarer.declare(Controller.LOCKSTEP if self._stepped else Controller.OWN_RATE, [self.command_topic])
+        self.command_topics = [self.resolve_topic_name('wheel_cmd')]
+        """The robot's command topic, fully qualified (what its declaration and its goodbye name)."""
+        self.declarer.declare(Controller.LOCKSTEP if self._stepped else Controller.OWN_RATE, self.command_topics)
         self._publisher = self.create_publisher(Float64MultiArray, 'wheel_cmd', command_qos(process_robots))
         summary = ', '.join(f'{setting}={value}' for setting, value in settings.items())
         line = f'{spec.summary}; {summary}, control_period={period}'
@@ -385,6 +386,10 @@ class SwarmController(Node):
         self._speeds = np.zeros((len(self._robots), len(COMMAND_FIELDS)))
         self.create_subscription(Float64MultiArray, OBSERVATION_TOPIC, self._on_observation, QOS, raw=True)
         self._publisher = self.create_publisher(Float64MultiArray, COMMAND_TOPIC, command_qos(len(self._robots)))
+        self.declarer = Declarer(self, len(self._robots))
+        """For its goodbye only: its robots are declared in lockstep by the swarm command's declaration."""
+        self.command_topics = [self.resolve_topic_name(f'{robot}/wheel_cmd') for robot in self._robots]
+        """Each robot's own command topic, fully qualified: what the simulator knows a robot's controller by."""
         self._publisher.publish(SwarmLayout(self._robots, ()).to_bytes(np.zeros((len(self._robots), 0)), None))
         summary = ', '.join(f'{setting}={value}' for setting, value in settings.items())
         self.get_logger().info(f'{spec.summary}; {summary}, control_period={period}; {len(robots)} robots through '
@@ -433,7 +438,8 @@ class SwarmController(Node):
         self._publisher.publish(self._commands.to_bytes(np.zeros_like(self._speeds), None))
 
     def stopped(self) -> bool:
-        return self._publisher.wait_for_all_acked(Duration(seconds=0))
+        """Whether every reader acknowledged the zero commands and the goodbye (`BehaviourNode.stopped`)."""
+        return self._publisher.wait_for_all_acked(Duration(seconds=0)) and self.declarer.delivered()
 
 
 def wait_until_stopped(nodes: Sequence[BehaviourNode], timeout: float) -> None:
@@ -550,7 +556,7 @@ def main(name: str, args: list[str] | None = None) -> None:
     finally:
         stopping = [node for node in nodes if node.context.ok()]
         if stopping:   # a lockstep simulator that still runs goes on without them (epuck_ros/lockstep.py)
-            stopping[0].declarer.goodbye([node.command_topic for node in stopping])
+            stopping[0].declarer.goodbye([topic for node in stopping for topic in node.command_topics])
         for node in stopping:
             node.stop_robot()
         wait_until_stopped(stopping, STOP_ACK_TIMEOUT)
