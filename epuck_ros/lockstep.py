@@ -173,6 +173,21 @@ class Lockstep:
         """The thread (ident) that may step now."""
         self._changed = threading.Condition()
         """Guards everything below; notified when the answers the holder waits for are in."""
+        self._init_answers(robots)
+        self._parked = False
+        """The holder waits for the current step's answers (`await_answers`)."""
+        self._started = self._deadline = self._own_rate_deadline = 0.0
+        """When the step was last sent (again), its time-out, and how long free controllers are waited for."""
+        self._sent = 0.0
+        """When the current step first went out (monotonic s): a stall is measured from it."""
+        self._stall_reports = 0
+        """Stall lines said for the current step."""
+        self._required = 0
+        """Controllers to be connected before the next step (`require_controllers`); 0 once they were."""
+        self._closed = False
+
+    def _init_answers(self, robots: int) -> None:
+        """What is known of each robot's answers and controller: none answered, nobody in lockstep yet."""
         self._answered = [False] * robots
         """An answer to the current step arrived."""
         self._answered_once = [False] * robots
@@ -196,17 +211,6 @@ class Lockstep:
         """Robots in lockstep (or not yet answered) whose answer to the current step is still awaited."""
         self._free_awaited: set[int] = set()
         """Free robots that have not answered the current step: waited for until `_own_rate_deadline`."""
-        self._parked = False
-        """The holder waits for the current step's answers (`await_answers`)."""
-        self._started = self._deadline = self._own_rate_deadline = 0.0
-        """When the step was last sent (again), its time-out, and how long free controllers are waited for."""
-        self._sent = 0.0
-        """When the current step first went out (monotonic s): a stall is measured from it."""
-        self._stall_reports = 0
-        """Stall lines said for the current step."""
-        self._required = 0
-        """Controllers to be connected before the next step (`require_controllers`); 0 once they were."""
-        self._closed = False
 
     # --- the holder's side ------------------------------------------------------------------------------
 

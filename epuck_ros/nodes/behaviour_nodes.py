@@ -233,17 +233,7 @@ class BehaviourNode(Node):
         """Looks at the graph that showed a `proximity` publisher and no `ir_raw` one."""
         self._stepped = self.get_parameter('use_sim_time').value
         """Answers each simulator step (see the class); else commands every control_period of its own clock."""
-        if self.behaviour.needs_odom:
-            self.create_subscription(Odometry, 'odom', self._on_odom, QOS)
-        if self.behaviour.needs_proximity:
-            self.create_subscription(Float64MultiArray, 'ir_raw', self._on_ir_raw, QOS, raw=True)
-            if not ir_raw_only:
-                self._graph_timer = self.create_timer(GRAPH_POLL_PERIOD, self._choose_ir_topic,
-                                                      clock=Clock(clock_type=ClockType.STEADY_TIME))
-        if not self._stepped:
-            self.create_timer(period, self._on_tick)
-        elif not (self.behaviour.needs_odom or self.behaviour.needs_proximity):
-            self.create_subscription(RosClock, '/clock', self._on_clock, QOS)
+        self._read_inputs(period, ir_raw_only)
         # Last: a lockstep simulator waits for the answers of a robot whose wheel_cmd has a publisher; declared
         # before it is made, lockstep knows from its first step how to wait for it (epuck_ros/lockstep.py).
         self.declarer = declarer or Declarer(self, process_robots)
@@ -257,6 +247,20 @@ class BehaviourNode(Node):
             self.get_logger().info(line)
         else:
             self.get_logger().debug(line)
+
+    def _read_inputs(self, period: float, ir_raw_only: bool) -> None:
+        """Subscribe to what the behaviour reads; without simulated time, act on a timer of `period` instead."""
+        if self.behaviour.needs_odom:
+            self.create_subscription(Odometry, 'odom', self._on_odom, QOS)
+        if self.behaviour.needs_proximity:
+            self.create_subscription(Float64MultiArray, 'ir_raw', self._on_ir_raw, QOS, raw=True)
+            if not ir_raw_only:
+                self._graph_timer = self.create_timer(GRAPH_POLL_PERIOD, self._choose_ir_topic,
+                                                      clock=Clock(clock_type=ClockType.STEADY_TIME))
+        if not self._stepped:
+            self.create_timer(period, self._on_tick)
+        elif not (self.behaviour.needs_odom or self.behaviour.needs_proximity):
+            self.create_subscription(RosClock, '/clock', self._on_clock, QOS)
 
     def _choose_ir_topic(self) -> None:
         """`ir_raw` once it has a publisher; until then `proximity` once that has had one for FALLBACK_DELAY (a

@@ -127,19 +127,10 @@ class SimNode(Node):
         super().__init__('sim')
         created = time.monotonic()
         values = declare_parameters(self, SIM_PARAMETERS)
-        try:   # `sim1` as `sim1/`: frames sim1/odom, not sim1odom
-            values['frame_prefix'] = frame_prefix(values['frame_prefix'])
-        except ValueError as error:
-            raise PrefixError(f'frame_prefix: {error}') from None
+        values['frame_prefix'] = _frame_prefix(values['frame_prefix'])
         self._stop_listening_to_own_clock()
         world = _world(values)
-        self._sim = Simulation(world, RobotModel(), time_step=values['time_step'], seed=values['seed'],
-                               noise=values['noise'], cmd_timeout=values['cmd_timeout'])
-        self._forced_senses = _senses(values['senses'])
-        if (values['camera_width'], values['camera_height']) != self._sim.senses.camera_size:
-            self._sim.senses.set_camera_size(values['camera_width'], values['camera_height'])
-        for kind in self._forced_senses:
-            self._sim.senses.want(kind, range(len(world.robots)))
+        self._sim = self._make_simulation(world, values)
         self._lock = threading.Lock()
         """Guards the simulation: the stepping thread steps it, the executor thread commands and resets it."""
         self._controls = Controls(Settings(values['real_time_factor'], values['paused'], values['pause_at']))
@@ -172,20 +163,37 @@ class SimNode(Node):
         self._acks = AckWindow(self._stream_publishers, window_steps(history), self._on_ack_stall, self._kept_all)
         self._report = LockstepReport(self, self._sim.names, HELD if self._lockstep_on else NOT_LOCKSTEP,
                                       self._lockstep_timeout, lambda: self._sim.time)
-        report = self._report
         self._declared: dict[int, Controller] = {}
         """What each robot's controller declared (`_on_declaration`)."""
         self._robot_of_topic = {topic: ports.index for ports in self.ports for topic in ports.command_topics}
-        self._lockstep = Lockstep(len(self.ports), self._take_step, self._lockstep_timeout, driven=self._driven,
-                                  lend=self._lend_on_answers, on_stall=report.stall, on_resend=report.resend,
-                                  on_free=report.free, on_timeout=report.timeout, controller=self._controller,
-                                  on_leave=self._on_leave)
-        if self._lockstep_on:
-            read_declarations(self, self._on_declaration, self._on_bad_declaration)
-        self._lockstep.require_controllers(values['lockstep_controllers'])
+        self._lockstep = self._make_lockstep(values['lockstep_controllers'])
         warn_if_not_fast_dds(self.get_logger())
         self._ready = self._ready_line(world, values)
         """Said once no other simulator was found before the first step (a second sim said it, then refused)."""
+
+    def _make_simulation(self, world: World, values: dict) -> Simulation:
+        """The core for `world`, with the senses the `senses` parameter asks for always computed."""
+        sim = Simulation(world, RobotModel(), time_step=values['time_step'], seed=values['seed'],
+                         noise=values['noise'], cmd_timeout=values['cmd_timeout'])
+        self._forced_senses = _senses(values['senses'])
+        if (values['camera_width'], values['camera_height']) != sim.senses.camera_size:
+            sim.senses.set_camera_size(values['camera_width'], values['camera_height'])
+        for kind in self._forced_senses:
+            sim.senses.want(kind, range(len(world.robots)))
+        return sim
+
+    def _make_lockstep(self, controllers: int) -> Lockstep:
+        """The step protocol's pairing, reporting through `_report`; in lockstep, the controllers' declarations
+        read; `controllers`: how many to wait for before the first step (`lockstep_controllers`)."""
+        report = self._report
+        lockstep = Lockstep(len(self.ports), self._take_step, self._lockstep_timeout, driven=self._driven,
+                            lend=self._lend_on_answers, on_stall=report.stall, on_resend=report.resend,
+                            on_free=report.free, on_timeout=report.timeout, controller=self._controller,
+                            on_leave=self._on_leave)
+        if self._lockstep_on:
+            read_declarations(self, self._on_declaration, self._on_bad_declaration)
+        lockstep.require_controllers(controllers)
+        return lockstep
 
     @property
     def refusal(self) -> str:
@@ -504,6 +512,14 @@ def publish_world(node: Node, world: World, frame_prefix: str) -> None:
         String(data=yaml.safe_dump(world.to_dict(), sort_keys=False)))
     quiet_publisher(node, MarkerArray, 'world_markers', LATCHED).publish(
         world_markers(world, frame_prefix + WORLD_FRAME))
+
+
+def _frame_prefix(value: str) -> str:
+    """The `frame_prefix` parameter as frames take it: `sim1` as `sim1/` (frames sim1/odom, not sim1odom)."""
+    try:
+        return frame_prefix(value)
+    except ValueError as error:
+        raise PrefixError(f'frame_prefix: {error}') from None
 
 
 def _world(values: dict) -> World:
