@@ -28,6 +28,7 @@ from std_msgs.msg import Float64MultiArray
 
 from epuck_ros.description import IMU_FRAME
 from epuck_ros.model import CAMERA_FOV, TOF_APERTURE, TOF_NAME
+from epuck_ros.nodes.on_demand import TOPICS_ON_DEMAND_FROM
 from epuck_ros.nodes.robot_ports import STAMP_FIELDS, frame_prefix, quiet_publisher, topic_prefix
 from epuck_ros.conversions import stamp_from_seconds
 from epuck_ros.nodes.serialized import Patch, array_bytes, exact_cdr
@@ -46,9 +47,9 @@ SENSE_POLL = 0.5
 SENSE_TOPICS = {'camera': 'camera/image_raw', 'ground': 'ground_raw', 'light': 'light_raw', 'imu': 'imu',
                 'tof': TOF_NAME}
 """Each sense and the topic whose subscribers want it."""
-SENSE_TOPICS_ON_DEMAND_FROM = 200
+SENSE_TOPICS_ON_DEMAND_FROM = TOPICS_ON_DEMAND_FROM
 """Robots from which the simulator makes a sense topic's publisher only once the topic has a reader
-(`SensePorts`' on_demand): below, their publishers cost little at start and every topic is in the graph."""
+(`SensePorts`' on_demand), as every per-robot topic (`on_demand`)."""
 _CAMERA_INFO = 'camera_info'
 ON_DEMAND_TOPICS = {**SENSE_TOPICS, _CAMERA_INFO: 'camera/camera_info'}
 """Every sense topic of a robot by kind (the camera has two); `_TYPES`: their message types."""
@@ -254,12 +255,12 @@ class SenseFeeds:
         for ports in self._publishing:
             ports.publish(self._sim, stamp)
 
-    def offer_read_topics(self) -> None:
-        """The publisher of each on-demand topic a reader has appeared on: one look at the graph's topics (a topic
-        with only a reader is in it) instead of one question per topic."""
+    def offer_read_topics(self, graph: Iterable[str]) -> None:
+        """The publisher of each on-demand topic a reader has appeared on: `graph` is the node's one look at the
+        graph's topics (a topic with only a reader is in it) instead of one question per topic."""
         if not self._unoffered:
             return
-        for topic, _ in self._node.get_topic_names_and_types():
+        for topic in graph:
             if topic in self._unoffered and self._node.count_subscribers(topic):
                 ports, kind = self._unoffered.pop(topic)
                 ports.offer(kind)
