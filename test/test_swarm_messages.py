@@ -1,4 +1,4 @@
-"""The swarm messages (nodes/swarm_messages.py) as bytes, the lockstep declaration they carry (without DDS), and what
+"""The swarm messages (epuck_ros/swarm_messages.py) as bytes, the lockstep declaration they carry (without DDS), and what
 the simulator does with bad ones (over DDS)."""
 from __future__ import annotations
 
@@ -15,7 +15,7 @@ from std_msgs.msg import Float64MultiArray
 from epuck_ros import lockstep
 from epuck_ros.lockstep import Answer, Lockstep
 from epuck_ros.nodes.serialized import _TYPESTORE
-from epuck_ros.nodes.swarm_messages import COMMAND_FIELDS, OBSERVATION_FIELDS, SwarmLayout, SwarmReader
+from epuck_ros.swarm_messages import COMMAND_FIELDS, OBSERVATION_FIELDS, SwarmLayout, SwarmReader
 
 FLOAT64_ARRAY = 'std_msgs/msg/Float64MultiArray'
 

@@ -36,7 +36,7 @@ from epuck_ros.nodes.dds_profile import use_package_profile, warn_if_not_fast_dd
 from epuck_ros.nodes.qos import CLOCK_KEPT, EVERY_STEP, LATCHED
 from epuck_ros.nodes.robot_ports import topic_prefix
 from epuck_ros.nodes.sense_ports import RECORDER_NODE
-from epuck_ros.nodes.swarm_messages import COMMAND_TOPIC as SWARM_COMMAND_TOPIC
+from epuck_ros.swarm_messages import COMMAND_TOPIC as SWARM_COMMAND_TOPIC
 from epuck_ros.world import World, WorldError, world_from_dict
 
 SIM_NODE = 'sim'

@@ -1,4 +1,4 @@
-"""What `bringup`'s monitor reads of the swarm topics (nodes/swarm_messages.py), with several robots.
+"""What `bringup`'s monitor reads of the swarm topics (epuck_ros/swarm_messages.py), with several robots.
 
 - Which robots a swarm controller drives (`swarm_ports.DeclaredRobots`); such a robot's controller is the node
   publishing `swarm/command` (the readiness `bringup` waits for, as it waits for a robot's `wheel_cmd` publisher).
@@ -16,7 +16,7 @@ from rclpy.qos import QoSProfile
 from std_msgs.msg import Float64MultiArray
 
 from epuck_ros.conversions import nanoseconds_from_stamp, quaternion_from_yaw, yaw_from_quaternion
-from epuck_ros.nodes.swarm_messages import OBSERVATION_FIELDS, OBSERVATION_TOPIC, SwarmReader
+from epuck_ros.swarm_messages import OBSERVATION_FIELDS, OBSERVATION_TOPIC, SwarmReader
 from epuck_ros.nodes.swarm_ports import DeclaredRobots
 
 _TRUTH = [OBSERVATION_FIELDS.index(field) for field in ('truth_x', 'truth_y', 'truth_yaw')]
