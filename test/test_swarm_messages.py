@@ -1,4 +1,4 @@
-"""The swarm messages (epuck_ros/swarm_messages.py) as bytes, the lockstep declaration they carry (without DDS), and what
+"""The swarm messages (swarm_messages.py) as bytes, the lockstep declaration they carry (without DDS), and what
 the simulator does with bad ones (over DDS)."""
 from __future__ import annotations
 

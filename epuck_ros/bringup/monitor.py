@@ -76,7 +76,7 @@ class RobotTrack:
 
     @property
     def stamps(self) -> set[int]:
-        """The stamps (ns) of its samples."""
+        """Each sample's stamp in ns."""
         return self._stamps if self._steps is None else self._stamps.union(self._steps.stamps)
 
     @property
