@@ -63,7 +63,7 @@ def plain(value: Any) -> Any:
 
 def step_of(msg: Any) -> tuple[int, int] | None:
     """The step a labelled array names (None: it names none)."""
-    dims = msg.layout.dim   # a robot's array: one dimension; a swarm's: the stamp's first (nodes/swarm_messages.py)
+    dims = msg.layout.dim   # a robot's array: one dimension; a swarm's: the stamp's first (epuck_ros/swarm_messages.py)
     return stamp_from_label(dims[0].label) if dims else None
 
 

@@ -110,7 +110,7 @@ def test_a_namespace_remap_drives_only_that_robot(launch: object, test_node: obj
 
 def test_robots_all_finds_every_robot_of_the_simulator(launch: object, test_node: object) -> None:
     """`avoid --robots all` waits for the simulator, reads its robots from the world topic, drives them all, through
-    the swarm topics (one message per step each way, nodes/swarm_messages.py)."""
+    the swarm topics (one message per step each way, epuck_ros/swarm_messages.py)."""
     robots = Robots(test_node, ['epuck0', 'epuck1', 'epuck2'])
     avoid = launch('avoid', '--robots', 'all', *ros_args({'use_sim_time': True, 'cruise_speed': 1}))
     test_node.spin_until(lambda: 'waiting for the simulator' in avoid.output(), timeout=TIMEOUT,

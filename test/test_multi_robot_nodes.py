@@ -18,12 +18,13 @@ from rcl_interfaces.srv import SetParameters
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import CameraInfo, Imu, JointState, Range
-from std_msgs.msg import Float64MultiArray, MultiArrayDimension, String
+from std_msgs.msg import Float64MultiArray, MultiArrayDimension, String, UInt32
 from std_srvs.srv import Trigger
 
 from epuck_ros.conversions import stamp_from_label, stamp_label
 from epuck_ros.lockstep import DECLARATION_TOPIC, Controller, declaration
 from epuck_ros.nodes.ack_window import history_steps
+from epuck_ros.nodes.on_demand import TOPICS_ON_DEMAND_FROM, OnDemand
 from epuck_ros.nodes.sense_ports import SENSE_TOPICS_ON_DEMAND_FROM
 
 STEP = 0.032
@@ -381,7 +382,6 @@ def test_a_swarm_offers_a_sense_topic_once_it_has_a_subscriber(launch, test_node
     launch('sim', *ros_args({'world': str(world), 'robots': robots, 'paused': True, 'noise': False}))
     test_node.wait_for_simulator(timeout=120)
     node = test_node.node
-    assert node.count_publishers('/epuck7/odom') == 1
     assert all(node.count_publishers(f'/epuck7/{topic}') == 0
                for topic in ('imu', 'camera/image_raw', 'camera/camera_info', 'ground_raw', 'light_raw'))
     imus, imu_sub = subscribe(test_node, Imu, '/epuck7/imu')
@@ -398,3 +398,56 @@ def test_a_swarm_offers_a_sense_topic_once_it_has_a_subscriber(launch, test_node
     assert imus[0].linear_acceleration.z == pytest.approx(9.81)
     assert infos[0].header.frame_id == 'epuck7/camera'
     assert node.count_publishers('/epuck8/imu') == 0 and node.count_publishers('/epuck7/ground_raw') == 0
+
+
+def test_on_demand_makes_a_topic_once_its_reader_or_writer_is_in_the_graph():
+    """`OnDemand`, without DDS: a publisher's topic is made once it has a reader, a subscription's once it has a
+    writer; only the graph's topics are looked at, and a topic is made once."""
+    made: list[str] = []
+    demand = OnDemand()
+    demand.add('/a/odom', lambda: made.append('odom'))
+    demand.add('/a/wheel_cmd', lambda: made.append('wheel_cmd'), by_writer=True)
+    demand.add('/b/odom', lambda: made.append('b'))
+    readers, writers = {'/a/odom': 1, '/a/wheel_cmd': 1}, {'/a/odom': 0, '/a/wheel_cmd': 0}
+    graph = ['/clock', '/a/odom', '/a/wheel_cmd']   # /b/odom: not in the graph, not asked about
+    for make in demand.due(graph, readers.__getitem__, writers.__getitem__):
+        make()
+    assert made == ['odom'] and len(demand) == 2   # wheel_cmd has a reader (a recorder), no writer yet
+    writers['/a/wheel_cmd'] = 1
+    for make in demand.due(graph, readers.__getitem__, writers.__getitem__):
+        make()
+    assert made == ['odom', 'wheel_cmd'] and len(demand) == 1
+    assert demand.due(graph, readers.__getitem__, writers.__getitem__) == []
+
+
+def test_a_swarm_makes_a_robots_topics_once_someone_reads_or_drives_them(launch, test_node, tmp_path):
+    """From TOPICS_ON_DEMAND_FROM robots no robot has its own topics at start; a controller that reads a robot's
+    ir_raw and ground_truth and drives it by wheel_cmd (another by a stamped cmd_vel) gets them, in lockstep, step by
+    step, and the latched collisions and robot_description arrive; every other robot stays without topics."""
+    world = tmp_path / 'big.yaml'
+    world.write_text('arena: {size: [10.0, 10.0]}\n')
+    start_lockstep_sim(launch, test_node, str(world), robots=TOPICS_ON_DEMAND_FROM)
+    node = test_node.node
+    made = (('odom', 'ground_truth', 'ir_raw', 'proximity', 'joint_states', 'collisions', 'robot_description'),
+            ('wheel_cmd', 'cmd_vel'))
+    for name in ('epuck7', 'epuck9'):
+        assert not any(node.count_publishers(f'/{name}/{topic}') for topic in made[0])
+        assert not any(node.count_subscribers(f'/{name}/{topic}') for topic in made[1])
+
+    def command(name: str, step: int, raw: list[float]) -> object:
+        return Float64MultiArray(data=[HALF_SPEED, HALF_SPEED]) if name == 'epuck7' else Twist(angular=Vector3(z=1.0))
+
+    clients = LockstepClients(test_node, ['epuck7', 'epuck9'], {'epuck7': (Float64MultiArray, 'wheel_cmd'),
+                                                                'epuck9': (Twist, 'cmd_vel')}, command)
+    collisions = test_node.collect(UInt32, '/epuck7/collisions', LATCHED)
+    descriptions = test_node.collect(String, '/epuck7/robot_description', LATCHED)
+    run(test_node, clients, 20)
+    test_node.spin_until(lambda: collisions and descriptions, what='the latched collisions and robot_description')
+    assert collisions[0].data == 0 and 'epuck7/base_link' in descriptions[0].data
+    truth = clients.truth['epuck7'][:20]
+    assert [seconds(m.header.stamp) for m in truth] == pytest.approx([STEP * (k + 1) for k in range(20)])
+    steps = np.hypot(*np.diff([pose(m)[:2] for m in truth], axis=0).T)
+    assert steps == pytest.approx(HALF_SPEED * WHEEL_RADIUS * STEP, abs=1e-9)
+    assert clients.truth['epuck9'][19].twist.twist.angular.z == pytest.approx(1.0)
+    assert not any(node.count_publishers(f'/epuck8/{topic}') for topic in made[0])
+    assert not any(node.count_subscribers(f'/epuck8/{topic}') for topic in made[1])

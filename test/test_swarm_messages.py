@@ -1,4 +1,4 @@
-"""The swarm messages (nodes/swarm_messages.py) as bytes (without DDS), and what the simulator does with bad ones (over
+"""The swarm messages (swarm_messages.py) as bytes (without DDS), and what the simulator does with bad ones (over
 DDS). A swarm controller's declaration is a lockstep declaration of its robots (test_lockstep)."""
 from __future__ import annotations
 
@@ -11,7 +11,7 @@ from rosgraph_msgs.msg import Clock
 from std_msgs.msg import Float64MultiArray
 
 from epuck_ros.nodes.serialized import _TYPESTORE
-from epuck_ros.nodes.swarm_messages import COMMAND_FIELDS, OBSERVATION_FIELDS, SwarmLayout, SwarmReader
+from epuck_ros.swarm_messages import COMMAND_FIELDS, OBSERVATION_FIELDS, SwarmLayout, SwarmReader
 
 FLOAT64_ARRAY = 'std_msgs/msg/Float64MultiArray'
 

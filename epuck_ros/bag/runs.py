@@ -15,11 +15,14 @@ import numpy as np
 
 from epuck_ros.bag.cdr import CdrDecoder, odometry_fields, range_fields
 from epuck_ros.bag.reader import Bag, BagError
+from epuck_ros.conversions import nanoseconds_from_stamp, quaternion_from_yaw, yaw_from_quaternion
+from epuck_ros.swarm_messages import OBSERVATION_FIELDS, OBSERVATION_TOPIC, SwarmReader
 from epuck_ros.world import World, world_from_yaml
 
 ODOMETRY = 'nav_msgs/msg/Odometry'
 RANGE = 'sensor_msgs/msg/Range'
 STRING = 'std_msgs/msg/String'
+FLOAT64_ARRAY = 'std_msgs/msg/Float64MultiArray'
 TRAJECTORY_TOPICS = ('ground_truth', 'odom')
 """Basenames of the trajectory topics, the preferred one first (the true pose over the odometry)."""
 
@@ -102,10 +105,32 @@ class RunData:
 
 
 def robot_namespaces(bag: Bag) -> list[str]:
-    """Namespaces holding an ``odom`` or ``ground_truth`` Odometry topic: one per recorded robot."""
+    """Namespaces holding an ``odom`` or ``ground_truth`` Odometry topic: one per recorded robot; without any, the
+    robots of the swarm observation (`<namespace><robot>` as their own topics would be named)."""
+    found = _robot_topics_namespaces(bag)
+    if found:
+        return found
+    swarm = _swarm_topic(bag)
+    if swarm is None:
+        return []
+    prefix = swarm[:-len(OBSERVATION_TOPIC)]
+    for _, _, _, buffer, start, end in bag.iter_raw([swarm]):
+        read = SwarmReader().read(bytes(buffer[start:end]))
+        if read is not None and read.fields == OBSERVATION_FIELDS:
+            return [prefix + robot for robot in read.robots]
+    return []
+
+
+def _robot_topics_namespaces(bag: Bag) -> list[str]:
     found = {t.name.rsplit('/', 1)[0] or '/' for t in bag.topics_of_type(ODOMETRY)
              if t.name.rsplit('/', 1)[-1] in TRAJECTORY_TOPICS}
     return sorted(found, key=_natural_key)
+
+
+def _swarm_topic(bag: Bag) -> str | None:
+    """The swarm observation's topic (the shortest name, if several), or None."""
+    names = [t.name for t in bag.topics_of_type(FLOAT64_ARRAY) if t.name.endswith('/' + OBSERVATION_TOPIC)]
+    return min(names, key=len) if names else None
 
 
 def _natural_key(name: str) -> tuple:
@@ -124,7 +149,11 @@ def load_run(bag: Bag, namespace: str | None = None) -> RunData:
 
 
 def load_runs(bag: Bag, namespaces: Sequence[str] | None = None) -> list[RunData]:
-    """Each robot's trajectories, proximity ranges, the world and start poses, in a single pass over the bag."""
+    """Each robot's trajectories, proximity ranges, the world and start poses, in a single pass over the bag. A
+    swarm's bag (robots without their own odometry topics: the simulator made them only for whoever read them) is
+    read from its swarm observation (`_load_swarm_runs`)."""
+    if not _robot_topics_namespaces(bag) and _swarm_topic(bag) is not None:
+        return _load_swarm_runs(bag, _swarm_topic(bag), namespaces)
     namespaces = _checked_namespaces(bag, namespaces)
     odometry = {ns: {name: _join(ns, name) for name in TRAJECTORY_TOPICS
                      if _join(ns, name) in bag.topics and bag.topics[_join(ns, name)].type_name == ODOMETRY}
@@ -153,6 +182,59 @@ def load_runs(bag: Bag, namespaces: Sequence[str] | None = None) -> list[RunData
         run.start_pose = start_pose(world, run.name, len(namespaces)) if world is not None else None
         runs.append(run)
     return runs
+
+
+def _load_swarm_runs(bag: Bag, topic: str, namespaces: Sequence[str] | None) -> list[RunData]:
+    """Each robot's ground truth and odometry from the swarm observation `topic` (`swarm_messages`): one message per
+    step for all robots, read into one (steps, robots, fields) array; a yaw as a ground_truth or odom message would
+    carry it (through its quaternion), so the figures are those of the robots' own topics."""
+    prefix = topic[:-len(OBSERVATION_TOPIC)]
+    world_topic = _find_world_topic(bag, prefix)
+    reader, robots = SwarmReader(), None
+    stamps, steps, world_messages = [], [], []
+    with _cyclic_gc_paused():
+        for name, _, _, buffer, start, end in bag.iter_raw([topic, *([world_topic] if world_topic else [])]):
+            if name != topic:
+                world_messages.append(bytes(buffer[start:end]))
+                continue
+            read = reader.read(bytes(buffer[start:end]))
+            if read is None or read.stamp is None or read.fields != OBSERVATION_FIELDS:
+                continue
+            robots = read.robots if robots is None else robots
+            if read.robots == robots:   # one simulator's robots
+                stamps.append(nanoseconds_from_stamp(*read.stamp))
+                steps.append(read.data)
+    if not steps:
+        raise BagError(f'{bag.path}: no odometry: {topic} has no step of the swarm observation')
+    found = [prefix + robot for robot in robots]
+    for namespace in namespaces or ():
+        if namespace not in found:
+            raise BagError(f'{bag.path}: no odometry under namespace {namespace} (robots: {", ".join(found)})')
+    order = np.argsort(stamps, kind='stable')
+    stamps_ns = np.array(stamps, dtype=np.int64)[order]
+    keep = np.concatenate(([True], np.diff(stamps_ns) != 0))   # a step sent again (see `_trajectory`)
+    stamps_ns, data = stamps_ns[keep], np.stack(steps)[order[keep]]
+    t = (stamps_ns - stamps_ns[0]) * 1e-9
+    world, world_problem = _world(bag, world_topic, world_messages[-1]) if world_messages else (None, None)
+    columns = {field: OBSERVATION_FIELDS.index(field) for field in OBSERVATION_FIELDS}
+    runs = []
+    for row, namespace in enumerate(found):
+        if namespaces and namespace not in namespaces:
+            continue
+        truth, odom = (Trajectory(f'{topic} {robots[row]} {kind}', t, data[:, row, columns[f'{kind}_x']],
+                                  data[:, row, columns[f'{kind}_y']],
+                                  np.unwrap(_as_sent(data[:, row, columns[f'{kind}_yaw']])), stamps_ns)
+                       for kind in ('truth', 'odom'))
+        run = RunData(str(bag.path), namespace, truth, truth, odom, None, world, bag.closed_properly,
+                      world_problem=world_problem)
+        run.start_pose = start_pose(world, run.name, len(found)) if world is not None else None
+        runs.append(run)
+    return runs
+
+
+def _as_sent(yaw: np.ndarray) -> np.ndarray:
+    """Yaws as an Odometry message carries them (its quaternion's heading, `odometry_fields`)."""
+    return np.array([yaw_from_quaternion(0.0, 0.0, *quaternion_from_yaw(value)) for value in yaw.tolist()])
 
 
 def _checked_namespaces(bag: Bag, namespaces: Sequence[str] | None) -> list[str]:

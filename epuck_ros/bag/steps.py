@@ -14,6 +14,7 @@ from collections.abc import Callable
 
 from epuck_ros.bag.cdr import CDR_LE, ENCAPSULATION
 from epuck_ros.conversions import nanoseconds_from_stamp, stamp_from_label
+from epuck_ros.swarm_messages import COMMAND_TOPIC as SWARM_COMMAND_TOPIC
 
 StepReader = Callable[[bytes], 'int | None']
 """The step (ns of simulated time) a message's bytes name, None if they name none. A stamp of 0 names none: the
@@ -69,13 +70,11 @@ def _labelled_array(data: bytes) -> int | None:
 
 ANSWER_TOPICS = ('wheel_cmd', 'cmd_vel')
 """The topics (last name) a robot's lockstep controller answers each step on, naming it."""
-SWARM_ANSWER_TOPIC = 'swarm/command'
-"""The topic a process driving many robots answers each step on for all of them (nodes/swarm_messages.py)."""
 
 
 def is_answer_topic(topic: str) -> bool:
     """Whether a topic carries controllers' answers (a robot's or a swarm's)."""
-    return topic.rsplit('/', 1)[-1] in ANSWER_TOPICS or topic.endswith('/' + SWARM_ANSWER_TOPIC)
+    return topic.rsplit('/', 1)[-1] in ANSWER_TOPICS or topic.endswith('/' + SWARM_COMMAND_TOPIC)
 
 
 def step_reader(type_name: str, schema_text: str) -> StepReader | None:

@@ -9,8 +9,10 @@ from __future__ import annotations
 import math
 import os
 import time
+from functools import partial
 from pathlib import Path
 
+import numpy as np
 import rclpy
 import yaml
 from diagnostic_msgs.msg import DiagnosticStatus
@@ -34,7 +36,7 @@ from epuck_ros.nodes.dds_profile import use_package_profile, warn_if_not_fast_dd
 from epuck_ros.nodes.qos import ANNOUNCEMENT_QOS, CLOCK_KEPT, EVERY_STEP, LATCHED
 from epuck_ros.nodes.robot_ports import topic_prefix
 from epuck_ros.nodes.sense_ports import RECORDER_NODE
-from epuck_ros.nodes.swarm_messages import COMMAND_TOPIC as SWARM_COMMAND_TOPIC
+from epuck_ros.swarm_messages import COMMAND_TOPIC as SWARM_COMMAND_TOPIC
 from epuck_ros.world import World, WorldError, world_from_dict
 
 SIM_NODE = 'sim'
@@ -51,23 +53,47 @@ def robot_topic(world: World, robot: str, topic: str) -> str:
     return topic_prefix(robot, len(world.robots) > 1) + topic
 
 
-class RobotTrack:
-    """Feeds one robot's ground-truth samples to the run's tally, decoded from the raw CDR as the bag reader does."""
+class SwarmSteps:
+    """Every robot's ground truth of each whole step a swarm's observation brought, kept as it came (one array a
+    step): a robot's samples are read out of it at the end, not appended robot by robot at every step."""
 
-    def __init__(self, tally: RunTally, name: str, label: str) -> None:
+    def __init__(self) -> None:
+        self.stamps: list[int] = []
+        self.truth: list[np.ndarray] = []
+        """Per step, (N, 3) x, y, yaw."""
+
+
+class RobotTrack:
+    """Feeds one robot's ground-truth samples to the run's tally, decoded from the raw CDR as the bag reader does;
+    with several robots they come mostly as whole steps (`steps`, row `row`), fed by the monitor."""
+
+    def __init__(self, tally: RunTally, name: str, label: str, steps: SwarmSteps | None = None, row: int = 0) -> None:
         self._add, self.label = tally.add, label
         self.name = name
-        self.stamps: set[int] = set()
-        self.samples: list[tuple[int, float, float, float]] = []
+        self._steps, self._row = steps, row
+        self._stamps: set[int] = set()
+        self._samples: list[tuple[int, float, float, float]] = []
+
+    @property
+    def stamps(self) -> set[int]:
+        """Each sample's stamp in ns."""
+        return self._stamps if self._steps is None else self._stamps.union(self._steps.stamps)
+
+    @property
+    def samples(self) -> list[tuple[int, float, float, float]]:
         """(stamp ns, x, y, yaw) as received: the shape driven, classified at the end as `bag summary` does."""
+        if self._steps is None:
+            return self._samples
+        row, steps = self._row, self._steps
+        return self._samples + [(stamp, *truth[row].tolist()) for stamp, truth in zip(steps.stamps, steps.truth)]
 
     def add(self, data: bytes) -> None:
         stamp, x, y, yaw, _, _ = odometry_fields(data, 0)
         self.add_sample(stamp, x, y, yaw)
 
     def add_sample(self, stamp: int, x: float, y: float, yaw: float) -> None:
-        self.stamps.add(stamp)
-        self.samples.append((stamp, x, y, yaw))
+        self._stamps.add(stamp)
+        self._samples.append((stamp, x, y, yaw))
         self._add(self.label, stamp, x, y, yaw)
 
 
@@ -176,14 +202,28 @@ class RunMonitor:
         # Labelled as a bag names its robots: by namespace, '' for a lone robot's topics.
         labels = [name if several else '' for name in self.world.names]
         self.tally = RunTally(labels, self.world)
-        for name, label in zip(self.world.names, labels):
-            track = self.tracks[name] = RobotTrack(self.tally, name, label)
+        steps = SwarmSteps() if several else None
+        for row, (name, label) in enumerate(zip(self.world.names, labels)):
+            track = self.tracks[name] = RobotTrack(self.tally, name, label, steps, row)
             # Every step, the simulator waiting for this reader (EVERY_STEP): the summary is the run's.
             if not several:   # several: all in one message per step
                 self.node.create_subscription(Odometry, robot_topic(self.world, name, 'ground_truth'), track.add,
                                               EVERY_STEP, raw=True)
         if several:
-            self._swarm.follow({name: track.add_sample for name, track in self.tracks.items()}, EVERY_STEP)
+            self._swarm.follow(self.world.names, partial(self._on_swarm_step, steps), EVERY_STEP)
+
+    def _on_swarm_step(self, steps: SwarmSteps, stamp: int, truth: np.ndarray) -> None:
+        """Every robot's ground truth of a step, into the tally at once (`RunTally.add_step`); robot by robot when
+        the step lacks some."""
+        present = ~np.isnan(truth[:, 0])
+        if present.all():
+            steps.stamps.append(stamp)
+            steps.truth.append(truth)
+            self.tally.add_step(stamp, truth[:, 0], truth[:, 1], truth[:, 2])
+            return
+        tracks = list(self.tracks.values())
+        for row in np.flatnonzero(present).tolist():
+            tracks[row].add_sample(stamp, *truth[row].tolist())
 
     def spin(self, timeout: float, until_sim_time: float = math.inf) -> None:
         """Take what arrives for `timeout` wall seconds, or until `/clock` reaches `until_sim_time`.

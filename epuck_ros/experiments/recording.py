@@ -41,9 +41,9 @@ from epuck_ros.nodes.qos import LATCHED, LED_QOS, clock_kept, step_stream
 from epuck_ros.nodes.robot_ports import WORLD_FRAME, RobotPorts, topic_prefix
 from epuck_ros.nodes.sense_ports import ON_DEMAND_TOPICS, SensePorts
 from epuck_ros.nodes.serialized import Patch, array_bytes, exact_cdr
-from epuck_ros.nodes.swarm_messages import (COMMAND_FIELDS, OBSERVATION_FIELDS, OBSERVATION_TOPIC, SwarmLayout,
-                                            observation_values)
-from epuck_ros.nodes.swarm_messages import COMMAND_TOPIC as SWARM_COMMAND_TOPIC
+from epuck_ros.swarm_messages import (COMMAND_FIELDS, OBSERVATION_FIELDS, OBSERVATION_TOPIC, SwarmLayout,
+                                      observation_values)
+from epuck_ros.swarm_messages import COMMAND_TOPIC as SWARM_COMMAND_TOPIC
 from epuck_ros.nodes.sim_node import publish_world
 from epuck_ros.nodes.tf_ports import TfPorts
 from epuck_ros.simulation import Simulation

@@ -185,7 +185,7 @@ def run(trial: Trial, policy: Policy | None = None, each_step: Callable[[Simulat
         sim.step()
         if recorder is not None:
             recorder.step(sim)
-        _published(sim, tally, labels, each_step)
+        _published(sim, tally, each_step)
 
     stage = trial.controller.stage(sim, over, recorder) if isinstance(trial.controller, Script) and policy is None \
         else None
@@ -242,15 +242,13 @@ def _answerer(controller: Behaviour | Policy | ScriptSeat) -> Callable[[Observat
     return controller.update if hasattr(controller, 'update') else controller
 
 
-def _published(sim: Simulation, tally: RunTally, labels: Sequence[str],
-               each_step: Callable[[Simulation], None] | None) -> None:
-    """A step as the simulator publishes it: its ground truth (stamped with the step) into the tally, each robot
-    under its `labels` entry."""
+def _published(sim: Simulation, tally: RunTally, each_step: Callable[[Simulation], None] | None) -> None:
+    """A step as the simulator publishes it: its ground truth (stamped with the step) into the tally, every robot's
+    at once (the tally names them in the simulation's order)."""
     if each_step is not None:
         each_step(sim)
     stamp = nanoseconds_from_seconds(sim.time)   # the integer of the step's stamp, without the (sec, nanosec) pair
-    for label, (x, y, yaw) in zip(labels, sim.true_pose.tolist()):
-        tally.add(label, stamp, x, y, yaw)
+    tally.add_step(stamp, *sim.true_pose.T)
 
 
 def _stamp_seconds(seconds: float) -> float:

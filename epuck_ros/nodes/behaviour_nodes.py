@@ -8,7 +8,7 @@ the step it answers (`BehaviourNode`). When it ends (Ctrl-C, SIGTERM) it command
 One robot: the node's namespace is the robot's (`avoid --ros-args -r __ns:=/epuck3`). Several robots in one
 process: `avoid --robots all` (every robot of the simulator's world) with use_sim_time is one node, a
 `SwarmController`, that takes every robot's step in one `swarm/observation` message and answers in one
-`swarm/command` (nodes/swarm_messages.py), as fast as the simulator publishes. `avoid --robots epuck0 epuck1`
+`swarm/command` (epuck_ros/swarm_messages.py), as fast as the simulator publishes. `avoid --robots epuck0 epuck1`
 (names that may be real robots', or without use_sim_time) makes one node per robot, named like the executable, in
 the namespace `<namespace>/<robot>`, all on one executor; `-p` parameters apply to every one of them. Beyond
 FULL_NODES_UP_TO robots the nodes have only their behaviour's topics, and the process ends without destroying them
@@ -63,8 +63,8 @@ from epuck_ros.nodes.params import ParamSpec, Usage, declare_parameters, prepare
 from epuck_ros.nodes.qos import CONTROLLER_READS, LATCHED
 from epuck_ros.nodes.serialized import array_bytes, array_values
 from epuck_ros.nodes.spinning import end_process, handle_shutdown_signals, shutdown_requested, spin_until_shutdown
-from epuck_ros.nodes.swarm_messages import (COMMAND_FIELDS, COMMAND_TOPIC, OBSERVATION_FIELDS, OBSERVATION_TOPIC,
-                                            SwarmLayout, SwarmReader)
+from epuck_ros.swarm_messages import (COMMAND_FIELDS, COMMAND_TOPIC, OBSERVATION_FIELDS, OBSERVATION_TOPIC,
+                                      SwarmLayout, SwarmReader)
 from epuck_ros.world import WorldError, world_from_yaml
 
 CONTROL_PERIOD = TIME_STEP
@@ -364,7 +364,7 @@ _IR_RAW = slice(OBSERVATION_FIELDS.index('ps0_raw'), OBSERVATION_FIELDS.index('p
 
 class SwarmController(Node):
     """Many robots of a simulator driven from one node: each step's `swarm/observation` in, one `swarm/command` out
-    naming the step, with every robot's answer (nodes/swarm_messages.py). Each robot has its own behaviour, asked as
+    naming the step, with every robot's answer (epuck_ros/swarm_messages.py). Each robot has its own behaviour, asked as
     a `BehaviourNode` would ask it (the same `Decisions`, the odometry's yaw as it travels in a quaternion, the IR
     values through `ranges_from_raw`), so the run is the one per-robot nodes drive, to the bit; one message each way
     per step instead of one per robot (and one `/clock` reader instead of one per robot).

@@ -9,6 +9,7 @@ are `epuck3/odom`, `epuck3/base_link`, `epuck3/ps0`... (stage_ros2's convention)
 from __future__ import annotations
 
 from collections.abc import Callable
+from functools import partial
 
 import numpy as np
 from geometry_msgs.msg import Twist, TwistStamped
@@ -17,6 +18,7 @@ from rclpy.event_handler import PublisherEventCallbacks, SubscriptionEventCallba
 from rclpy.node import Node
 from rclpy.publisher import Publisher
 from rclpy.qos import QoSProfile
+from rclpy.subscription import Subscription
 from sensor_msgs.msg import JointState, Range
 from std_msgs.msg import Float64MultiArray, UInt32
 
@@ -25,6 +27,7 @@ from epuck_ros.description import JOINT_NAMES
 from epuck_ros.lockstep import Controller
 from epuck_ros.model import SENSOR_NAMES, RobotModel
 from epuck_ros.nodes.qos import deeper
+from epuck_ros.nodes.on_demand import OnDemand
 from epuck_ros.nodes.serialized import PatchCache, array_bytes, array_values
 from epuck_ros.simulation import Simulation
 
@@ -54,6 +57,9 @@ MATCH_COLUMNS = 7
 """A robot's matched peers, by column: readers of odom, ground_truth, ir_raw, proximity, joint_states (READERS), then
 the controllers on wheel_cmd and cmd_vel (CONTROLLERS)."""
 READERS, CONTROLLERS = slice(0, 5), slice(5, 7)
+STEP_TOPICS = ('odom', 'ground_truth', 'ir_raw', 'proximity', 'joint_states')
+"""A robot's step topics, by READERS column; `_STEP_TYPES`: their message types."""
+_STEP_TYPES = (Odometry, Odometry, Float64MultiArray, Range, JointState)
 
 
 class Matched:
@@ -95,10 +101,12 @@ class RobotPorts:
     def __init__(self, node: Node, index: int, name: str, several: bool, stream_qos: QoSProfile,
                  latched_qos: QoSProfile, on_command: CommandHandler, frames_prefix: str = '',
                  cmd_vel_stamped: bool = False, model: RobotModel = RobotModel(),
-                 patches: PatchCache | None = None, matches: np.ndarray | None = None) -> None:
+                 patches: PatchCache | None = None, matches: np.ndarray | None = None,
+                 demand: OnDemand | None = None) -> None:
         """`patches`: shared by the robots of a node, so that each robot's messages are located from the first
         robot's of the same layout (`PatchCache`); `matches`: this robot's row of the node's matched counts
-        (MATCH_COLUMNS integers, see `Matched`)."""
+        (MATCH_COLUMNS integers, see `Matched`); `demand`: each topic is made only once someone reads it (a
+        publisher) or writes it (a subscription), by `demand` (see `on_demand`), instead of now."""
         self.index, self.name = index, name
         topics = topic_prefix(name, several)
         frames = frame_prefix(name, several, frames_prefix)
@@ -111,27 +119,55 @@ class RobotPorts:
 
         self.matches = np.zeros(MATCH_COLUMNS, dtype=np.int64) if matches is None else matches
         self._matched = [Matched(self.matches, column) for column in range(MATCH_COLUMNS)]
-        odom, truth, raw, ranges, joints, wheels, twist = self._matched
-        self._odom_pub = quiet_publisher(node, Odometry, topics + 'odom', stream_qos, odom)
-        self._truth_pub = quiet_publisher(node, Odometry, topics + 'ground_truth', stream_qos, truth)
-        self._range_pub = quiet_publisher(node, Range, topics + 'proximity', deeper(stream_qos, len(SENSOR_NAMES)),
-                                          ranges)
-        self._joints_pub = quiet_publisher(node, JointState, topics + 'joint_states', stream_qos, joints)
-        self._raw_pub = quiet_publisher(node, Float64MultiArray, topics + 'ir_raw', stream_qos, raw)
-        self._collisions_pub = quiet_publisher(node, UInt32, topics + 'collisions', latched_qos)
-        self.stream_publishers = [self._odom_pub, self._truth_pub, self._range_pub, self._joints_pub, self._raw_pub]
-        self.publish_collisions(0)
+        self._publishers: list[Publisher | None] = [None] * len(STEP_TOPICS)
+        """The step publishers by READERS column, once made."""
+        self._collisions_pub: Publisher | None = None
+        self._collisions = 0
+        self._twist_sub: Subscription | None = None
+        self._wheels_sub: Subscription | None = None
+        qos = {topic: stream_qos for topic in STEP_TOPICS}
+        qos['proximity'] = deeper(stream_qos, len(SENSOR_NAMES))   # proximity sends eight messages per step
+        makers = {topic: partial(self._make_step_publisher, column, qos[topic])
+                  for column, topic in enumerate(STEP_TOPICS)}
+        makers['collisions'] = partial(self._make_collisions, latched_qos)
+        commands = {'cmd_vel': partial(self._make_twist, cmd_vel_stamped), 'wheel_cmd': self._make_wheels}
+        self.topics = {topic: topics + topic for topic in (*makers, *commands)}
+        """Each of its topics (relative to the node's namespace) by its name under the robot."""
+        for topic, make in {**makers, **commands}.items():
+            if demand is None:
+                make()
+            else:
+                demand.add(node.resolve_topic_name(self.topics[topic]), make, by_writer=topic in commands)
 
+    @property
+    def stream_publishers(self) -> list[Publisher]:
+        """The step publishers made so far (the simulator's acknowledgement window looks at them)."""
+        return [publisher for publisher in self._publishers if publisher is not None]
+
+    def _make_step_publisher(self, column: int, qos: QoSProfile) -> None:
+        self._publishers[column] = quiet_publisher(self._node, _STEP_TYPES[column], self.topics[STEP_TOPICS[column]],
+                                                   qos, self._matched[column])
+
+    def _make_collisions(self, qos: QoSProfile) -> None:
+        """The latched count of contacts, with the count so far."""
+        self._collisions_pub = quiet_publisher(self._node, UInt32, self.topics['collisions'], qos)
+        self.publish_collisions(self._collisions)
+
+    def _make_twist(self, stamped: bool) -> None:
+        twist = self._matched[CONTROLLERS.start + 1]
         events = {'event_callbacks': SubscriptionEventCallbacks(matched=twist.on_matched)}
-        if cmd_vel_stamped:
-            self._twist_sub = node.create_subscription(TwistStamped, topics + 'cmd_vel', self._stamped_twist, 10,
-                                                       **events)
+        if stamped:
+            self._twist_sub = self._node.create_subscription(TwistStamped, self.topics['cmd_vel'],
+                                                             self._stamped_twist, 10, **events)
         else:
-            self._twist_sub = node.create_subscription(Twist, topics + 'cmd_vel', self._twist, 10, **events)
+            self._twist_sub = self._node.create_subscription(Twist, self.topics['cmd_vel'], self._twist, 10, **events)
         twist.bind(self._twist_sub.get_publisher_count)
-        self._wheels_sub = node.create_subscription(Float64MultiArray, topics + 'wheel_cmd', self._wheels, 10,
-                                                    raw=True, event_callbacks=SubscriptionEventCallbacks(
-                                                        matched=wheels.on_matched))
+
+    def _make_wheels(self) -> None:
+        wheels = self._matched[CONTROLLERS.start]
+        self._wheels_sub = self._node.create_subscription(
+            Float64MultiArray, self.topics['wheel_cmd'], self._wheels, 10, raw=True,
+            event_callbacks=SubscriptionEventCallbacks(matched=wheels.on_matched))
         wheels.bind(self._wheels_sub.get_publisher_count)
 
     def _make_messages(self, frames: str, world_frame: str, model: RobotModel, patches: PatchCache) -> None:
@@ -190,23 +226,26 @@ class RobotPorts:
 
     @property
     def command_topics(self) -> tuple[str, str]:
-        """The fully qualified topics of its commands (wheel_cmd, cmd_vel): what a declaration names."""
-        return self._wheels_sub.topic_name, self._twist_sub.topic_name
+        """The fully qualified topics of its commands (wheel_cmd, cmd_vel): what a declaration names (also before
+        their subscriptions are made, on demand)."""
+        return self._node.resolve_topic_name(self.topics['wheel_cmd']), \
+            self._node.resolve_topic_name(self.topics['cmd_vel'])
 
     def controller(self, declared: Controller | None) -> Controller:
         """What the graph says of its controller: only plain Twist publishers cannot answer by name; else it is
-        what it `declared` (also once it has left the graph: its goodbye)."""
-        naming = self._wheels_sub.get_publisher_count() or (self._stamped and self._twist_sub.get_publisher_count())
-        if not naming and self._twist_sub.get_publisher_count():
+        what it `declared` (also once it has left the graph: its goodbye). A subscription not made yet (on demand)
+        has no publisher."""
+        wheels, twists = (0 if sub is None else sub.get_publisher_count()
+                          for sub in (self._wheels_sub, self._twist_sub))
+        if twists and not (wheels or self._stamped):
             return Controller.UNNAMING
         return declared or Controller.UNDECLARED
 
     def publishers(self) -> str:
         """The publishers of its commands, as the graph shows them (node, topic, endpoint GID)."""
-        found = [f'{info.node_namespace.rstrip("/")}/{info.node_name} on {sub.topic_name} '
+        found = [f'{info.node_namespace.rstrip("/")}/{info.node_name} on {topic} '
                  f'(gid {bytes(info.endpoint_gid).hex()})'
-                 for sub in (self._wheels_sub, self._twist_sub)
-                 for info in self._node.get_publishers_info_by_topic(sub.topic_name)]
+                 for topic in self.command_topics for info in self._node.get_publishers_info_by_topic(topic)]
         return ', '.join(found) or 'none left on the graph'
 
     # --- publishing -------------------------------------------------------------------------------------
@@ -217,21 +256,25 @@ class RobotPorts:
         `stamp` is (sec, nanosec) of the step."""
         robot = self.index
         odom, truth, raw, ranges, joints, _, _ = self.matches.tolist()
+        odom_pub, truth_pub, raw_pub, range_pub, joints_pub = self._publishers   # matched: made
         if odom:
-            self._odom_pub.publish(self._odom.bytes(_odometry(stamp, sim.odom_pose[robot], sim.odom_twist[robot])))
+            odom_pub.publish(self._odom.bytes(_odometry(stamp, sim.odom_pose[robot], sim.odom_twist[robot])))
         if truth:
-            self._truth_pub.publish(self._truth.bytes(_odometry(stamp, sim.true_pose[robot], sim.true_twist[robot])))
+            truth_pub.publish(self._truth.bytes(_odometry(stamp, sim.true_pose[robot], sim.true_twist[robot])))
         if raw:
-            self._raw_pub.publish(array_bytes(sim.ir_raw[robot].tolist(), stamp))
+            raw_pub.publish(array_bytes(sim.ir_raw[robot].tolist(), stamp))
         if ranges:
             for patch, value in zip(self._ranges, sim.ir_range[robot].tolist()):
-                self._range_pub.publish(patch.bytes((*stamp, value)))
+                range_pub.publish(patch.bytes((*stamp, value)))
         if joints:
-            self._joints_pub.publish(self._joints.bytes(
+            joints_pub.publish(self._joints.bytes(
                 (*stamp, *sim.wheel_angles[robot].tolist(), *sim.wheel_speeds[robot].tolist())))
 
     def publish_collisions(self, count: int) -> None:
-        self._collisions_pub.publish(UInt32(data=count))
+        """The robot's count of contacts, latched (kept for its topic's first reader, on demand)."""
+        self._collisions = count
+        if self._collisions_pub is not None:
+            self._collisions_pub.publish(UInt32(data=count))
 
 
 def quiet_publisher(node: Node, msg_type: type, topic: str, qos: QoSProfile, matched: Matched | None = None

@@ -30,6 +30,7 @@ from std_msgs.msg import Float64MultiArray, String
 from epuck_ros.bag.steps import SENSES_ON_TOPIC, senses_on_text
 from epuck_ros.description import IMU_FRAME
 from epuck_ros.model import CAMERA_FOV, TOF_APERTURE, TOF_NAME
+from epuck_ros.nodes.on_demand import TOPICS_ON_DEMAND_FROM
 from epuck_ros.nodes.qos import SENSES_ON_QOS
 from epuck_ros.nodes.robot_ports import STAMP_FIELDS, frame_prefix, quiet_publisher, topic_prefix
 from epuck_ros.conversions import stamp_from_seconds
@@ -49,9 +50,9 @@ SENSE_POLL = 0.5
 SENSE_TOPICS = {'camera': 'camera/image_raw', 'ground': 'ground_raw', 'light': 'light_raw', 'imu': 'imu',
                 'tof': TOF_NAME}
 """Each sense and the topic whose subscribers want it."""
-SENSE_TOPICS_ON_DEMAND_FROM = 200
+SENSE_TOPICS_ON_DEMAND_FROM = TOPICS_ON_DEMAND_FROM
 """Robots from which the simulator makes a sense topic's publisher only once the topic has a reader
-(`SensePorts`' on_demand): below, their publishers cost little at start and every topic is in the graph."""
+(`SensePorts`' on_demand), as every per-robot topic (`on_demand`)."""
 _CAMERA_INFO = 'camera_info'
 ON_DEMAND_TOPICS = {**SENSE_TOPICS, _CAMERA_INFO: 'camera/camera_info'}
 """Every sense topic of a robot by kind (the camera has two); `_TYPES`: their message types."""
@@ -311,13 +312,13 @@ class SenseFeeds:
         for ports in self._publishing:
             ports.publish(self._sim, stamp)
 
-    def offer_read_topics(self) -> None:
+    def offer_read_topics(self, graph: Iterable[str]) -> None:
         """The publisher of each on-demand topic a reader has appeared on (the subscription of each one a writer
-        has): one look at the graph's topics (a topic with only a reader is in it) instead of one question per
-        topic."""
+        has): `graph` is the node's one look at the graph's topics (a topic with only a reader is in it) instead of
+        one question per topic."""
         if not self._unoffered:
             return
-        for topic, _ in self._node.get_topic_names_and_types():
+        for topic in graph:
             if topic in self._unoffered:
                 ports, kind = self._unoffered[topic]
                 if (self._node.count_publishers if kind in ports.taken else self._node.count_subscribers)(topic):

@@ -43,6 +43,7 @@ from epuck_ros.nodes.dds_profile import use_no_local_profile, use_package_profil
 from epuck_ros.nodes.domain_watch import DISCOVERY_WINDOW, DomainWatch
 from epuck_ros.nodes.interface_ports import InterfacePorts
 from epuck_ros.nodes.lockstep_report import LockstepReport
+from epuck_ros.nodes.on_demand import TOPICS_ON_DEMAND_FROM, OnDemand
 from epuck_ros.nodes.pacing import Controls, Pacer, Settings
 from epuck_ros.nodes.params import ParamSpec, Usage, command_line_value, declare_parameters, prepare_arguments
 from epuck_ros.nodes.qos import LATCHED, clock_kept, step_stream
@@ -145,6 +146,8 @@ class SimNode(Node):
         self.add_post_set_parameters_callback(self._apply_parameters)
         history = history_steps(len(world.robots))
         stream = step_stream(history)
+        self._demand = OnDemand() if len(world.robots) >= TOPICS_ON_DEMAND_FROM else None
+        """A swarm's per-robot topics waiting for their first reader or writer (`on_demand`)."""
         self.ports = self._make_ports(values, stream)
         self._swarm = SwarmPorts(self, self._sim.names, stream, self._on_swarm_command, self._on_declare) \
             if len(self.ports) > 1 else None
@@ -153,7 +156,7 @@ class SimNode(Node):
         self.create_timer(SENSE_POLL, self._update_sense_wants)
         _stop_if_asked()
         self._tf = TfPorts(self, self.ports, self._sim, len(self.ports) > 1, stream, LATCHED,
-                           values['frame_prefix'] + WORLD_FRAME)
+                           values['frame_prefix'] + WORLD_FRAME, demand=self._demand)
         publish_world(self, world, values['frame_prefix'])
         self.create_service(Empty, 'reset', self._on_reset)
         self.create_service(Trigger, 'step', self._on_step)
@@ -218,7 +221,7 @@ class SimNode(Node):
             _stop_if_asked()
             ports.append(RobotPorts(self, index, name, several, stream, LATCHED, self._on_command,
                                     values['frame_prefix'], values['cmd_vel_stamped'], patches=patches,
-                                    matches=self._matches[index]))
+                                    matches=self._matches[index], demand=self._demand))
         return ports
 
     @staticmethod
@@ -469,9 +472,17 @@ class SimNode(Node):
         self._senses.update_next()
 
     def _update_sense_wants(self) -> None:
-        """Senses follow their topics' subscribers (see sense_ports): every robot every SENSE_POLL wall seconds."""
-        self._senses.offer_read_topics()
+        """Senses follow their topics' subscribers (see sense_ports): every robot every SENSE_POLL wall seconds. A
+        swarm's topics on demand (`on_demand`): one look at the graph's topics, outside the lock; those that got a
+        reader or a writer are made under it (the loop thread publishes what is matched)."""
+        made = []
+        if self._demand is not None:
+            graph = [topic for topic, _ in self.get_topic_names_and_types()]
+            self._senses.offer_read_topics(graph)
+            made = self._demand.due(graph, self.count_subscribers, self.count_publishers)
         with self._lock:
+            for make in made:
+                make()
             self._senses.update_all()
 
     def _after_step(self, events: StepEvents, now_sim: float) -> None:

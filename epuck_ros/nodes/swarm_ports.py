@@ -24,8 +24,8 @@ from std_msgs.msg import Float64MultiArray
 from epuck_ros.conversions import nanoseconds_from_stamp
 from epuck_ros.nodes.qos import COMMAND_READER_QOS
 from epuck_ros.nodes.robot_ports import WARN_PERIOD, quiet_publisher
-from epuck_ros.nodes.swarm_messages import (COMMAND_FIELDS, COMMAND_TOPIC, OBSERVATION_FIELDS, OBSERVATION_TOPIC,
-                                            SwarmLayout, SwarmReader, observation_values)
+from epuck_ros.swarm_messages import (COMMAND_FIELDS, COMMAND_TOPIC, OBSERVATION_FIELDS, OBSERVATION_TOPIC,
+                                      SwarmLayout, SwarmReader, observation_values)
 from epuck_ros.simulation import Simulation
 
 CommandsHandler = Callable[[list[int], np.ndarray, 'int | None'], None]

@@ -11,6 +11,8 @@ are still published, and the simulator says once that there is no TF.
 """
 from __future__ import annotations
 
+from functools import partial
+
 from geometry_msgs.msg import TransformStamped
 from rclpy.node import Node
 from rclpy.qos import QoSProfile
@@ -20,6 +22,7 @@ from epuck_ros.conversions import quaternion_from_yaw
 from epuck_ros.description import WHEEL_LINKS, sensor_frames, urdf, wheel_offsets
 from epuck_ros.epuck_interface import SCAN_FRAME, SCAN_FRAME_HEIGHT
 from epuck_ros.model import RobotModel
+from epuck_ros.nodes.on_demand import OnDemand
 from epuck_ros.nodes.qos import LATCHED, deeper
 from epuck_ros.nodes.robot_ports import RobotPorts, quiet_publisher, topic_prefix
 from epuck_ros.nodes.serialized import Patch
@@ -47,12 +50,18 @@ class TfPorts:
     """Publishes every robot's description once and, if tf2_msgs imports, the static tree and each step's TF."""
 
     def __init__(self, node: Node, ports: list[RobotPorts], sim: Simulation, several: bool, stream_qos: QoSProfile,
-                 latched_qos: QoSProfile, world_frame: str, model: RobotModel = RobotModel()) -> None:
+                 latched_qos: QoSProfile, world_frame: str, model: RobotModel = RobotModel(),
+                 demand: OnDemand | None = None) -> None:
         """`stream_qos`: that of the robots' step topics; /tf, one message per robot and step, keeps as many steps
-        (reliable, as tf2_ros broadcasts), so that the simulator's acknowledgement window covers it too."""
+        (reliable, as tf2_ros broadcasts), so that the simulator's acknowledgement window covers it too. `demand`:
+        each robot's description is published only once its topic has a reader (`on_demand`)."""
         for robot in ports:
-            quiet_publisher(node, String, topic_prefix(robot.name, several) + 'robot_description', latched_qos).publish(
-                String(data=urdf(model, _prefix(robot))))
+            topic = topic_prefix(robot.name, several) + 'robot_description'
+            describe = partial(_describe, node, topic, latched_qos, model, _prefix(robot))
+            if demand is None:
+                describe()
+            else:
+                demand.add(node.resolve_topic_name(topic), describe)
         self._tf_pub = None
         self.stream_publishers = []
         """The publishers of every step, for the simulator's acknowledgement window (`ack_window`)."""
@@ -109,3 +118,8 @@ def _transform(parent: str, child: str, xyz: tuple[float, float, float],
     (msg.transform.rotation.x, msg.transform.rotation.y, msg.transform.rotation.z,
      msg.transform.rotation.w) = quaternion
     return msg
+
+
+def _describe(node: Node, topic: str, qos: QoSProfile, model: RobotModel, prefix: str) -> None:
+    """A robot's description (its links named `<prefix>base_link`, ...), latched on `topic`."""
+    quiet_publisher(node, String, topic, qos).publish(String(data=urdf(model, prefix)))

@@ -149,6 +149,14 @@ class World:
         """Whether any wall or obstacle surface is closer than `distance` to (x, y); cheap when nothing is."""
         return bool(self.geometry.surfaces_within(x, y, distance))
 
+    def anything_within_each(self, xy: np.ndarray, distance: float) -> np.ndarray:
+        """`anything_within` for each point (N, 2): the same answers, the points far from every surface set aside in
+        NumPy first (a swarm's tally asks it of every robot at every step)."""
+        within = np.zeros(len(xy), dtype=bool)
+        for i in np.flatnonzero(self.geometry.maybe_within(xy[:, 0], xy[:, 1], distance)).tolist():
+            within[i] = self.anything_within(*xy[i].tolist(), distance)
+        return within
+
     def surfaces_near(self, x: float, y: float, distance: float) -> list[int]:
         """Indexes of the surfaces closer than `distance` to (x, y) (for `cast_near`); empty when nothing is."""
         return self.geometry.surfaces_near(x, y, distance)

@@ -140,6 +140,21 @@ class Geometry:
         """Indexes of the surfaces closer than `distance` to (x, y) (for `raycast.cast_near`); empty when none is."""
         return [index for index, *_ in self.surfaces_within(x, y, distance)]
 
+    def maybe_within(self, x: np.ndarray, y: np.ndarray, reach: float) -> np.ndarray:
+        """(N,) for points (x, y: (N,)), False where `surfaces_within` surely finds nothing within `reach`: the
+        walls' tests and the obstacles' bounding circles, CONTACT_TOLERANCE wider (NumPy's rounding need not be the
+        one-point code's). A point marked True may still have nothing within reach: ask `surfaces_within`."""
+        reach = reach + CONTACT_TOLERANCE
+        near = (x + self.half_x < reach) | (y + self.half_y < reach) | (self.half_x - x < reach) | \
+            (self.half_y - y < reach)
+        if self.box_count:
+            dx, dy = x[:, None] - self.box_x[:-1], y[:, None] - self.box_y[:-1]
+            near |= (dx * dx + dy * dy < (self.box_bound[:-1] + reach) ** 2).any(axis=1)
+        if self.cylinder_count:
+            dx, dy = x[:, None] - self.cyl_x[:-1], y[:, None] - self.cyl_y[:-1]
+            near |= (np.hypot(dx, dy) - self.cyl_radius[:-1] < reach).any(axis=1)
+        return near
+
     def surfaces_within(self, x: float, y: float, reach: float) -> list[tuple[int, float, float, float]]:
         """(index, signed distance, normal x, normal y) of each surface closer than `reach` to the point (x, y).
 
