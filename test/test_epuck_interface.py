@@ -1,4 +1,4 @@
-"""The e-puck's own ROS 2 interface (epuck_ros/epuck_interface.py, nodes/interface_ports.py) from the real `sim`
+"""The e-puck's own ROS 2 interface (epuck_ros/epuck_interface.py, ros/interface_ports.py) from the real `sim`
 process over DDS: what `ros2 topic echo /ps1` gets, the scan against one built from /ps* and /tof as
 webots_ros2_epuck's epuck_node.py builds it, the LEDs, the robots' namespaces, a swarm's topics made on demand, the
 headless trial's bag, and the example nodes of epuck_ros/examples/epuck2 run as a user runs them."""
@@ -23,8 +23,8 @@ from epuck_ros import epuck_interface as iface
 from epuck_ros.conversions import stamp_from_label
 from epuck_ros.ir_sensor import distance_from_raw
 from epuck_ros.model import IR_LOOKUP_TABLE
-from epuck_ros.nodes.qos import LATCHED
-from epuck_ros.nodes.sense_ports import SENSE_TOPICS_ON_DEMAND_FROM
+from epuck_ros.ros.qos import LATCHED
+from epuck_ros.ros.sense_ports import SENSE_TOPICS_ON_DEMAND_FROM
 
 EXAMPLES = Path(__file__).resolve().parents[1] / 'epuck_ros' / 'examples' / 'epuck2'
 WORLDS = Path(__file__).resolve().parents[1] / 'epuck_ros' / 'worlds'
