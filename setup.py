@@ -11,7 +11,7 @@ setup(
     packages=find_packages(exclude=['test']),
     package_data={
         package_name: ['worlds/*.yaml', 'view/static/*', 'webots/examples/*.py', 'examples/*.py',
-                       'examples/epuck2/*.py', 'nodes/*.xml', 'urdf/*.urdf']},
+                       'examples/epuck2/*.py', 'ros/*.xml', 'urdf/*.urdf']},
     data_files=[
         ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
         ('share/' + package_name, ['package.xml']),

@@ -15,8 +15,8 @@ import gc
 import rclpy
 from std_msgs.msg import Float64MultiArray
 
-from epuck_ros.nodes.ack_window import command_qos
-from epuck_ros.nodes.serialized import array_bytes
+from epuck_ros.ros.ack_window import command_qos
+from epuck_ros.ros.serialized import array_bytes
 
 
 def resident_bytes() -> int:

@@ -6,7 +6,7 @@ bringup). An observer node in this process watches the graph and `ground_truth`;
 pose first changes. Phases: the simulator node in the graph, the controller's command publisher in the graph,
 bringup resuming the simulation (its `running` line), first motion. The floor is a bare rclpy process that
 creates one node and is seen in the graph (interpreter, imports, DDS participant, discovery). Every process here,
-the observer included, uses the package's Fast DDS profile (epuck_ros/nodes/dds_profile.py).
+the observer included, uses the package's Fast DDS profile (epuck_ros/ros/dds_profile.py).
 
     python benchmarks/bench_startup.py [--repeats 3]
 """
@@ -30,7 +30,7 @@ from rclpy.context import Context  # noqa: E402
 from rclpy.executors import SingleThreadedExecutor  # noqa: E402
 from rclpy.node import Node  # noqa: E402
 
-from epuck_ros.nodes.dds_profile import use_package_profile  # noqa: E402
+from epuck_ros.ros.dds_profile import use_package_profile  # noqa: E402
 
 BIN = Path(sys.executable).parent
 TIMEOUT = 120.0

@@ -35,7 +35,7 @@ WAIT = (0.0, 3600.0)
 """`bag play --wait` bounds: wall seconds to look for the subscribers already running."""
 DEFAULT_WAIT = 3.5
 """`bag play --wait` default: a node under Fast DDS's default profile announces itself every 3 s
-(`nodes.matching.FOREIGN_DISCOVERY_WINDOW`: equal, as test_bag_play checks; that module imports rclpy, this one
+(`ros.matching.FOREIGN_DISCOVERY_WINDOW`: equal, as test_bag_play checks; that module imports rclpy, this one
 does not)."""
 
 

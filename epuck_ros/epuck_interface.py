@@ -4,7 +4,7 @@ Sources (read 2026-11-28): the physical e-puck2's driver, cyberbotics/epuck_ros2
 ("physical"), and Webots' simulated e-puck, cyberbotics/webots_ros2 `webots_ros2_epuck` (`epuck_webots.urdf`,
 `epuck_node.py`) over `webots_ros2_driver`'s plugins ("Webots"). Where they differ the physical robot's form is
 taken (code written here is to move to it) and the simulation's where it costs little; each choice is named at its
-constant. nodes/interface_ports.py publishes these topics on the simulator's node.
+constant. ros/interface_ports.py publishes these topics on the simulator's node.
 """
 from __future__ import annotations
 

@@ -10,7 +10,7 @@ import os
 import sys
 
 from epuck_ros.experiments import headless_cli
-from epuck_ros.nodes.spinning import end_process
+from epuck_ros.ros.spinning import end_process
 from epuck_ros.webots import runner
 
 HEADLESS = '--headless'

@@ -29,7 +29,7 @@ if signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
 
 EVERY_MESSAGE = QoSProfile(history=HistoryPolicy.KEEP_ALL, reliability=ReliabilityPolicy.RELIABLE)
 """A reader that gets every step's message, in order, however far behind it falls (as a recorder does): the simulator
-waits for it (nodes/ack_window.py). A KEEP_LAST reader of any depth, reliable or not, is not waited for and skips
+waits for it (ros/ack_window.py). A KEEP_LAST reader of any depth, reliable or not, is not waited for and skips
 samples when the simulator runs ahead of it under load: with a busy loop on each core a depth-2000 reader of
 ground_truth had 245 of the first 988 steps, in holes; in a repeat, a KEEP_ALL reader beside it had every step."""
 

@@ -1,7 +1,7 @@
 """Simulator announcements: the text round-trips, anything else is not one, and the order is the start order."""
 import os
 
-from epuck_ros.nodes.announcements import announcement, parse_announcement
+from epuck_ros.ros.announcements import announcement, parse_announcement
 
 
 def test_an_announcement_round_trips_and_names_this_process():

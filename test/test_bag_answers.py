@@ -75,7 +75,7 @@ def test_answers_are_checked_only_while_the_run_was_lockstep(recorded, tmp_path)
     from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
 
     from epuck_ros.integrity import Integrity
-    from epuck_ros.nodes.serialized import exact_cdr
+    from epuck_ros.ros.serialized import exact_cdr
     level, name, message, values = Integrity(False, 'a controller at its own rate', 0.1).fields()
     status = DiagnosticStatus(level=bytes([level]), name=name, message=message,
                               values=[KeyValue(key=key, value=value) for key, value in values])

@@ -414,7 +414,7 @@ def test_wall_clock_stamps_never_make_simulated_topics_miss_the_epoch(tmp_path):
     judged on its own, log lines on the step grid are not a periodic topic, and a report is bounded by the bag."""
     from rcl_interfaces.msg import Log
 
-    from epuck_ros.nodes.serialized import exact_cdr
+    from epuck_ros.ros.serialized import exact_cdr
     period, epoch_steps = 32_000_000, 56_109_941_978
     writer = BagWriter(tmp_path / 'run')
     for topic, type_name in (('/odom', 'nav_msgs/msg/Odometry'), ('/rosout', 'rcl_interfaces/msg/Log'),

@@ -15,8 +15,8 @@ from rosbags.typesys import Stores, get_typestore
 from rosgraph_msgs.msg import Clock
 from std_msgs.msg import Float64MultiArray, Int32MultiArray, MultiArrayDimension, MultiArrayLayout
 
-from epuck_ros.nodes.ack_window import command_qos
-from epuck_ros.nodes.qos import CLOCK_KEPT, LED_QOS
+from epuck_ros.ros.ack_window import command_qos
+from epuck_ros.ros.qos import CLOCK_KEPT, LED_QOS
 
 REPO = Path(__file__).resolve().parents[1]
 LEDS_EVERY_STEP = REPO / 'test' / 'data' / 'webots' / 'leds_every_step.py'
@@ -149,7 +149,7 @@ def test_record_senses_asks_for_a_sense_and_a_recorder_records_what_is_published
 BURST_AND_EXIT = '''
 import os, sys, time
 import rclpy
-from epuck_ros.nodes.dds_profile import use_package_profile
+from epuck_ros.ros.dds_profile import use_package_profile
 from epuck_ros.webots.link import SimLink
 use_package_profile()
 rclpy.init()

@@ -175,7 +175,7 @@ def test_the_wait_before_the_first_message_is_said_and_chosen_with_wait(launch):
     """Issue 33 item 12: `bag play` waited 3.5 s for subscribers silently (a 3.97 s bag at 4x took 4.48 s). It says
     that it waits, for what and how long, then how long it waited; `--wait S` chooses (0: no wait)."""
     from epuck_ros.bag_cli import DEFAULT_WAIT
-    from epuck_ros.nodes.matching import FOREIGN_DISCOVERY_WINDOW
+    from epuck_ros.ros.matching import FOREIGN_DISCOVERY_WINDOW
     assert DEFAULT_WAIT == FOREIGN_DISCOVERY_WINDOW
     for wait, said in ((None, 'waiting 3.'), ('1.5', 'waiting 1.')):
         player = launch('bag', 'play', str(SAMPLE), '--rate', '100', '--topics', '/odom',

@@ -16,7 +16,7 @@ from rosbags.highlevel import AnyReader
 from rosbags.typesys import Stores, get_typestore
 
 from epuck_ros.bag.msgdefs import schema_text
-from epuck_ros.nodes.tf_ports import tf_available
+from epuck_ros.ros.tf_ports import tf_available
 
 BAGS = Path(__file__).resolve().parents[1] / 'bags'
 FROM_RCL = ('/rosout', '/parameter_events')

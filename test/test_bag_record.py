@@ -27,7 +27,7 @@ from epuck_ros.bag.info import format_info
 from epuck_ros.bag.reader import Bag
 from epuck_ros.bag.writer import BagWriter
 from epuck_ros.conversions import nanoseconds_from_stamp
-from epuck_ros.nodes.qos import CLOCK_KEPT
+from epuck_ros.ros.qos import CLOCK_KEPT
 
 LATCHED = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
 STEP_NS = 32_000_000

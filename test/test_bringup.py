@@ -266,7 +266,7 @@ def test_the_summary_is_the_bag_summary_and_lockstep_runs_are_identical(launch, 
     acknowledgements (`ack_window.SHORT_WINDOW`), and long enough that a recorder taking one message per topic and
     turn fell behind on `proximity` (eight per step) and lost most of it: every message is in the bag."""
     from epuck_ros.bag.reader import Bag
-    from epuck_ros.nodes.ack_window import SHORT_WINDOW
+    from epuck_ros.ros.ack_window import SHORT_WINDOW
     steps = 1600
     assert steps > 4 * SHORT_WINDOW
     trajectories, distances = [], []

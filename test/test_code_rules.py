@@ -25,7 +25,7 @@ def test_the_latched_profile_is_made_only_in_nodes_qos():
                 text = ast.unparse(node)
                 if 'TRANSIENT_LOCAL' in text and re.search(r'depth=1\b', text):
                     makers.append(f'{path.relative_to(PACKAGE)}:{node.lineno}')
-    assert [maker.split(':')[0] for maker in makers] == ['nodes/qos.py'], makers
+    assert [maker.split(':')[0] for maker in makers] == ['ros/qos.py'], makers
 
 
 def test_module_docstrings_hold_no_measured_figures():

@@ -10,7 +10,7 @@ import pytest
 import yourdfpy
 
 from epuck_ros import description
-from epuck_ros.nodes.robot_ports import frame_prefix as simulator_frame_prefix
+from epuck_ros.ros.robot_ports import frame_prefix as simulator_frame_prefix
 
 
 def links_of(prefix_argument: str) -> set[str]:

@@ -1,4 +1,4 @@
-"""The e-puck's own ROS 2 interface (epuck_ros/epuck_interface.py, nodes/interface_ports.py) from the real `sim`
+"""The e-puck's own ROS 2 interface (epuck_ros/epuck_interface.py, ros/interface_ports.py) from the real `sim`
 process over DDS: what `ros2 topic echo /ps1` gets, the scan against one built from /ps* and /tof as
 webots_ros2_epuck's epuck_node.py builds it, the LEDs, the robots' namespaces, a swarm's topics made on demand, the
 headless trial's bag, and the example nodes of epuck_ros/examples/epuck2 run as a user runs them."""
@@ -23,8 +23,8 @@ from epuck_ros import epuck_interface as iface
 from epuck_ros.conversions import stamp_from_label
 from epuck_ros.ir_sensor import distance_from_raw
 from epuck_ros.model import IR_LOOKUP_TABLE
-from epuck_ros.nodes.qos import LATCHED
-from epuck_ros.nodes.sense_ports import SENSE_TOPICS_ON_DEMAND_FROM
+from epuck_ros.ros.qos import LATCHED
+from epuck_ros.ros.sense_ports import SENSE_TOPICS_ON_DEMAND_FROM
 
 EXAMPLES = Path(__file__).resolve().parents[1] / 'epuck_ros' / 'examples' / 'epuck2'
 WORLDS = Path(__file__).resolve().parents[1] / 'epuck_ros' / 'worlds'
@@ -254,18 +254,20 @@ def test_random_walker_example_avoids_the_walls_for_a_minute(launch: object, tes
     assert contacts == 0 and travelled > 1.0
 
 
-def test_a_swarms_interface_topics_are_made_once_read(launch: object, test_node: object, tmp_path: Path) -> None:
-    """From SENSE_TOPICS_ON_DEMAND_FROM robots no interface topic is in the graph at start (a swarm's discovery costs
-    what it did): a reader of epuck7/ps2 makes its publisher, a writer of epuck7/led8 its subscription; that robot
-    then publishes its ps2 each step and its `leds` when told, and no other robot's topic exists."""
+def test_a_swarms_interface_topics_are_made_once_read(launch: object, test_node: object,
+                                                      tmp_path: Path) -> None:
+    """From SENSE_TOPICS_ON_DEMAND_FROM robots no robot's topic is in the graph at start, its own or the interface's
+    (a swarm's discovery costs what it did): a reader of epuck7/ps2 makes its publisher, a writer of epuck7/led8 its
+    subscription; that robot then publishes its ps2 each step and its `leds` when told, and no other robot's topic
+    exists."""
     world = tmp_path / 'big.yaml'
     world.write_text('arena: {size: [10.0, 10.0]}\n')
     launch('sim', *ros_args({'world': str(world), 'robots': SENSE_TOPICS_ON_DEMAND_FROM, 'paused': True}))
     test_node.wait_for_simulator(timeout=120)
     node = test_node.node
     names = {name for name, _ in node.get_topic_names_and_types()}
-    assert '/epuck7/odom' in names and not names & {f'/epuck{i}/{topic}' for i in range(SENSE_TOPICS_ON_DEMAND_FROM)
-                                                    for topic in ('ps2', 'scan', 'ls0', 'image_raw', 'camera_info')}
+    assert '/clock' in names and not names & {f'/epuck{i}/{topic}' for i in range(SENSE_TOPICS_ON_DEMAND_FROM)
+                                              for topic in ('odom', 'ps2', 'scan', 'ls0', 'image_raw', 'camera_info')}
     assert node.count_subscribers('/epuck7/led8') == 0
     ranges = test_node.collect(Range, '/epuck7/ps2', EVERY_MESSAGE)
     leds = test_node.collect(Int32MultiArray, '/epuck7/leds', LATCHED)

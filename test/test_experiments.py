@@ -20,6 +20,7 @@ from conftest import BIN_DIR, EVERY_MESSAGE
 from epuck_ros.bag.reader import Bag
 from epuck_ros.bag.run_summary import load_runs
 from epuck_ros.behaviours import Observation, WheelCommand
+from epuck_ros.experiments.cluster import SCHEDULER_TIMEOUT
 from epuck_ros.experiments.trial import Script, Trial, controller_from, run, run_trial
 from epuck_ros.model import MAX_WHEEL_SPEED, TIME_STEP, RobotModel
 
@@ -326,8 +327,10 @@ class SilentListener:
 
 
 def test_an_unreachable_scheduler_is_one_line_and_exit_2(tmp_path):
-    """Nothing listens on the port: said at once; a port that accepts but never answers as a scheduler: said within
-    the sweep's 10 s for the whole connection (an address that does not answer: after 5 s)."""
+    """Nothing listens on the port: said at once; a port that accepts but never answers as a scheduler: said once the
+    sweep's limit for the whole connection (SCHEDULER_TIMEOUT) has passed, which the line names, not a hang (the run's
+    own time-out would fail the test). How long each took is printed, not asserted: a loaded machine starts the
+    process slowly."""
     listener = SilentListener()
     try:
         for address in (f'tcp://127.0.0.1:{free_port()}', listener.address):
@@ -337,7 +340,8 @@ def test_an_unreachable_scheduler_is_one_line_and_exit_2(tmp_path):
             took = time.monotonic() - began
             assert result.returncode == 2 and 'cannot reach the Dask scheduler' in result.stderr, result.stderr
             assert result.stderr.count('\n') == 1 and 'Traceback' not in result.stderr, result.stderr
-            assert took < 20, f'{address}: reported after {took:.1f} s'   # 10 s and the start of a process
+            if address == listener.address:   # gave up at the limit the line names
+                assert f'within {SCHEDULER_TIMEOUT:g} s' in result.stderr, result.stderr
             print(f'\n{address}: unreachable scheduler reported after {took:.1f} s')
     finally:
         listener.close()

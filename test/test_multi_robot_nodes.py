@@ -23,9 +23,9 @@ from std_srvs.srv import Trigger
 
 from epuck_ros.conversions import stamp_from_label, stamp_label
 from epuck_ros.lockstep import DECLARATION_TOPIC, Controller, declaration
-from epuck_ros.nodes.ack_window import history_steps
-from epuck_ros.nodes.on_demand import TOPICS_ON_DEMAND_FROM, OnDemand
-from epuck_ros.nodes.sense_ports import SENSE_TOPICS_ON_DEMAND_FROM
+from epuck_ros.ros.ack_window import history_steps
+from epuck_ros.ros.on_demand import TOPICS_ON_DEMAND_FROM, OnDemand
+from epuck_ros.ros.sense_ports import SENSE_TOPICS_ON_DEMAND_FROM
 
 STEP = 0.032
 HALF_SPEED = 3.14

@@ -9,7 +9,7 @@ from rclpy.context import Context
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 
-from epuck_ros.nodes.params import ParamSpec, ParameterError, Usage, check_arguments, declare_parameters, \
+from epuck_ros.ros.params import ParamSpec, ParameterError, Usage, check_arguments, declare_parameters, \
     prepare_arguments
 
 SPECS = [

@@ -1,4 +1,4 @@
-"""The QoS profiles are built in one place (`nodes/qos.py`), and the one rule the recorder and the Foxglove bridge
+"""The QoS profiles are built in one place (`ros/qos.py`), and the one rule the recorder and the Foxglove bridge
 use to read a topic whatever its publishers offer (`qos.matching`)."""
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ from pathlib import Path
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
 from epuck_ros.nodes.foxglove_node import MAX_DEPTH, reading_qos
-from epuck_ros.nodes.qos import matching
+from epuck_ros.ros.qos import matching
 from epuck_ros.nodes.record_node import SUBSCRIPTION_DEPTH, subscription_qos
 
 PACKAGE = Path(__file__).resolve().parents[1] / 'epuck_ros'
@@ -55,7 +55,7 @@ def test_the_recorder_and_the_bridge_read_by_the_same_rule():
 
 
 def test_profiles_are_built_only_in_nodes_qos():
-    """Profiles were built in 14 modules. Besides nodes/qos.py only `ack_window.command_qos` builds one: its
+    """Profiles were built in 14 modules. Besides ros/qos.py only `ack_window.command_qos` builds one: its
     depth is the acknowledgement window's history (`history_steps`)."""
     builders = []
     for path in sorted(PACKAGE.rglob('*.py')):
@@ -69,5 +69,5 @@ def test_profiles_are_built_only_in_nodes_qos():
                 builders.append(f'{path.relative_to(PACKAGE)}:{functions.get(id(node), "<module>")}')
             if isinstance(node, ast.alias) and node.name.startswith('qos_profile_'):   # rclpy's ready-made ones
                 builders.append(f'{path.relative_to(PACKAGE)}:{node.name}')
-    assert {builder for builder in builders if not builder.startswith('nodes/qos.py:')} == {
-        'nodes/ack_window.py:command_qos'}
+    assert {builder for builder in builders if not builder.startswith('ros/qos.py:')} == {
+        'ros/ack_window.py:command_qos'}

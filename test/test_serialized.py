@@ -1,4 +1,4 @@
-"""Step messages as CDR bytes (nodes/serialized.py), checked against rclpy's own (de)serialisation, no DDS."""
+"""Step messages as CDR bytes (ros/serialized.py), checked against rclpy's own (de)serialisation, no DDS."""
 import math
 import struct
 
@@ -12,7 +12,7 @@ from std_msgs.msg import Float64MultiArray, MultiArrayDimension, MultiArrayLayou
 
 from epuck_ros.bag.msgdefs import schema_text
 from epuck_ros.conversions import stamp_label
-from epuck_ros.nodes.serialized import Patch, array_bytes, array_values, exact_cdr
+from epuck_ros.ros.serialized import Patch, array_bytes, array_values, exact_cdr
 
 
 def test_a_patched_message_is_the_exact_cdr_of_the_message_with_those_values():

@@ -24,8 +24,8 @@ from visualization_msgs.msg import MarkerArray
 from epuck_ros.conversions import stamp_label
 from epuck_ros.lockstep import DECLARATION_TOPIC, Controller, declaration
 from epuck_ros.model import MAX_WHEEL_SPEED, SENSOR_NAMES
-from epuck_ros.nodes.qos import DECLARATIONS_READ, LATCHED
-from epuck_ros.nodes.robot_ports import WARN_PERIOD
+from epuck_ros.ros.qos import DECLARATIONS_READ, LATCHED
+from epuck_ros.ros.robot_ports import WARN_PERIOD
 from epuck_ros.nodes.sim_node import publication_mode
 from epuck_ros.webots.link import SimLink
 
@@ -111,7 +111,7 @@ def test_a_late_clock_reader_of_the_kept_profile_gets_the_last_tick(launch, test
     """`bringup`'s monitor reads /clock as CLOCK_KEPT: a simulator that matched it only after its last step (a
     500-robot swarm's, whose graph lags by tens of seconds) still delivers the tick that ends the run; with a
     volatile /clock bringup waited for ever. Here the reader comes after the simulator paused itself."""
-    from epuck_ros.nodes.qos import CLOCK_KEPT
+    from epuck_ros.ros.qos import CLOCK_KEPT
     start_sim(launch, test_node, real_time_factor=0.0, pause_at=0.32)
     parameters = test_node.node.create_client(GetParameters, '/sim/get_parameters')
     test_node.spin_until(parameters.service_is_ready, what='the simulator\'s parameter service')
@@ -443,7 +443,7 @@ def test_lockstep_on_the_command_line_publishes_synchronously(args, mode):
 def test_another_middleware_gets_one_warning(monkeypatch):
     import rclpy
 
-    from epuck_ros.nodes.dds_profile import FAST_DDS, warn_if_not_fast_dds
+    from epuck_ros.ros.dds_profile import FAST_DDS, warn_if_not_fast_dds
     said = []
 
     class Logger:
@@ -465,8 +465,8 @@ def test_the_no_local_profile_is_the_package_profile_without_local_matching(monk
     import os
     import xml.etree.ElementTree as ET
 
-    from epuck_ros.nodes.dds_profile import (NO_LOCAL_PROFILES_FILE, PROFILES_FILE, PROFILES_VARIABLE,
-                                             use_no_local_profile)
+    from epuck_ros.ros.dds_profile import (NO_LOCAL_PROFILES_FILE, PROFILES_FILE, PROFILES_VARIABLE,
+                                           use_no_local_profile)
 
     def settings(path: Path) -> list[tuple[str, str]]:
         tree = ET.parse(path)

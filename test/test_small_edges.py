@@ -63,7 +63,7 @@ def test_bringup_s_monitor_misses_no_step_however_long_it_does_not_read(launch, 
 def test_bringup_s_summary_under_load_is_the_headless_run_s(launch):
     """Items 11 and 16: not recorded, beside a busy loop on each core, bringup's figures (distance, duration,
     contacts, final pose) are those of the same run headless, to the printed digit: its ground-truth reader keeps
-    all (`nodes.qos.EVERY_STEP`), so the simulator waits for it (a KEEP_LAST reader is not waited for)."""
+    all (`ros.qos.EVERY_STEP`), so the simulator waits for it (a KEEP_LAST reader is not waited for)."""
     duration = 20.0
     _, tally = run(Trial(Controller('avoid'), seed=3, duration=duration))
     expected = format_figures(tally.figures)
@@ -121,7 +121,7 @@ def test_a_clock_source_not_yet_known_by_name_is_named_by_its_announcement():
     import time
 
     from epuck_ros.bringup.monitor import unknown_named_by
-    from epuck_ros.nodes.announcements import announcement
+    from epuck_ros.ros.announcements import announcement
     unknown = '_NODE_NAMESPACE_UNKNOWN_/_NODE_NAME_UNKNOWN_'
     other = announcement(time.time_ns(), 4242)
     [said] = unknown_named_by([unknown], [other])

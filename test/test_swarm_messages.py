@@ -10,7 +10,7 @@ from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from rosgraph_msgs.msg import Clock
 from std_msgs.msg import Float64MultiArray
 
-from epuck_ros.nodes.serialized import _TYPESTORE
+from epuck_ros.ros.serialized import _TYPESTORE
 from epuck_ros.swarm_messages import COMMAND_FIELDS, OBSERVATION_FIELDS, SwarmLayout, SwarmReader
 
 FLOAT64_ARRAY = 'std_msgs/msg/Float64MultiArray'

@@ -21,7 +21,7 @@ from epuck_ros.exit_codes import refuse
 from epuck_ros.foxglove.address import DEFAULT_HOST as FOXGLOVE_HOST
 from epuck_ros.foxglove.address import DEFAULT_PORT as FOXGLOVE_PORT
 from epuck_ros.foxglove.address import address_error
-from epuck_ros.nodes.params import ParameterError, ParamSpec, check_arguments
+from epuck_ros.ros.params import ParameterError, ParamSpec, check_arguments
 from epuck_ros.world import WorldError, load_world, placed_names
 
 WEBOTS_MODULE = 'controller'

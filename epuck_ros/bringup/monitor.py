@@ -31,11 +31,11 @@ from epuck_ros.bag.tally import RunTally
 from epuck_ros.bringup.swarm_follow import SwarmFollower
 from epuck_ros.conversions import nanoseconds_from_seconds, seconds_from_stamp
 from epuck_ros.integrity import STATUS_TOPIC, Integrity, integrity_from
-from epuck_ros.nodes.announcements import SIMULATORS_TOPIC, Announcement, parse_announcement
-from epuck_ros.nodes.dds_profile import use_package_profile, warn_if_not_fast_dds
-from epuck_ros.nodes.qos import ANNOUNCEMENT_QOS, CLOCK_KEPT, EVERY_STEP, LATCHED
-from epuck_ros.nodes.robot_ports import topic_prefix
-from epuck_ros.nodes.sense_ports import RECORDER_NODE
+from epuck_ros.ros.announcements import SIMULATORS_TOPIC, Announcement, parse_announcement
+from epuck_ros.ros.dds_profile import use_package_profile, warn_if_not_fast_dds
+from epuck_ros.ros.qos import ANNOUNCEMENT_QOS, CLOCK_KEPT, EVERY_STEP, LATCHED
+from epuck_ros.ros.robot_ports import topic_prefix
+from epuck_ros.ros.sense_ports import RECORDER_NODE
 from epuck_ros.swarm_messages import COMMAND_TOPIC as SWARM_COMMAND_TOPIC
 from epuck_ros.world import World, WorldError, world_from_dict
 

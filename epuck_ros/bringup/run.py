@@ -17,7 +17,7 @@ from epuck_ros.bringup import summary, tables
 from epuck_ros.bringup.cli import FOXGLOVE_HOST, Plan, parse_args, ros_domain
 from epuck_ros.bringup.monitor import RunMonitor, samples_missing
 from epuck_ros.bringup.processes import Child, Children, executable, say
-from epuck_ros.nodes.announcements import Announcement
+from epuck_ros.ros.announcements import Announcement
 from epuck_ros.foxglove.address import NODE_NAME as FOXGLOVE_NODE
 
 STOP_ORDER = ('controller', 'view', 'foxglove', 'record', 'sim')

@@ -17,7 +17,7 @@ from std_msgs.msg import Float64MultiArray
 
 from epuck_ros.conversions import nanoseconds_from_stamp, quaternion_from_yaw, yaw_from_quaternion
 from epuck_ros.swarm_messages import OBSERVATION_FIELDS, OBSERVATION_TOPIC, SwarmReader
-from epuck_ros.nodes.swarm_ports import DeclaredRobots
+from epuck_ros.ros.swarm_ports import DeclaredRobots
 
 _TRUTH = [OBSERVATION_FIELDS.index(field) for field in ('truth_x', 'truth_y', 'truth_yaw')]
 

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from epuck_ros.nodes.params import ParamSpec
+from epuck_ros.ros.params import ParamSpec
 
 
 def sim_parameters() -> list[ParamSpec]:

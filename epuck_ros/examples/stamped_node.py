@@ -18,8 +18,8 @@ from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from std_msgs.msg import Float64MultiArray
 
-from epuck_ros.nodes.ack_window import command_qos
-from epuck_ros.nodes.serialized import array_bytes, array_values
+from epuck_ros.ros.ack_window import command_qos
+from epuck_ros.ros.serialized import array_bytes, array_values
 
 CRUISE = 3.0
 """rad/s of each wheel with nothing ahead."""

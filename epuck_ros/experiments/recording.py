@@ -34,18 +34,18 @@ from epuck_ros.bag.writer import BagWriter
 from epuck_ros.conversions import nanoseconds_from_stamp, stamp_from_seconds
 from epuck_ros.integrity import HELD
 from epuck_ros.model import RobotModel
-from epuck_ros.nodes.ack_window import command_qos, history_steps
-from epuck_ros.nodes.interface_ports import INTERFACE_TOPICS, InterfacePorts
-from epuck_ros.nodes.lockstep_report import LockstepReport
-from epuck_ros.nodes.qos import LATCHED, LED_QOS, clock_kept, step_stream
-from epuck_ros.nodes.robot_ports import WORLD_FRAME, RobotPorts, topic_prefix
-from epuck_ros.nodes.sense_ports import ON_DEMAND_TOPICS, SensePorts
-from epuck_ros.nodes.serialized import Patch, array_bytes, exact_cdr
+from epuck_ros.ros.ack_window import command_qos, history_steps
+from epuck_ros.ros.interface_ports import INTERFACE_TOPICS, InterfacePorts
+from epuck_ros.ros.lockstep_report import LockstepReport
+from epuck_ros.ros.qos import LATCHED, LED_QOS, clock_kept, step_stream
+from epuck_ros.ros.robot_ports import WORLD_FRAME, RobotPorts, topic_prefix
+from epuck_ros.ros.sense_ports import ON_DEMAND_TOPICS, SensePorts
+from epuck_ros.ros.serialized import Patch, array_bytes, exact_cdr
 from epuck_ros.swarm_messages import (COMMAND_FIELDS, OBSERVATION_FIELDS, OBSERVATION_TOPIC, SwarmLayout,
                                       observation_values)
 from epuck_ros.swarm_messages import COMMAND_TOPIC as SWARM_COMMAND_TOPIC
 from epuck_ros.nodes.sim_node import publish_world
-from epuck_ros.nodes.tf_ports import TfPorts
+from epuck_ros.ros.tf_ports import TfPorts
 from epuck_ros.simulation import Simulation
 from epuck_ros.webots.link import COMMAND_TOPIC
 from epuck_ros.world import World
@@ -53,7 +53,7 @@ from epuck_ros.world import World
 READ = dict.fromkeys(ON_DEMAND_TOPICS, True)
 """Every sense topic has a reader (the recorder): the senses the simulation computes are published."""
 INTERFACE_READ = dict.fromkeys(INTERFACE_TOPICS, True)
-"""The same for the e-puck interface's topics (nodes/interface_ports.py)."""
+"""The same for the e-puck interface's topics (ros/interface_ports.py)."""
 
 
 def offered(qos: QoSProfile) -> QosProfile:

@@ -257,7 +257,7 @@ def _stamp_seconds(seconds: float) -> float:
 
 
 def _odometry_as_received(pose: Sequence[float]) -> tuple[float, float, float]:
-    """The odometry pose a node reads: the yaw travels as a quaternion about z (nodes/robot_ports.py)."""
+    """The odometry pose a node reads: the yaw travels as a quaternion about z (ros/robot_ports.py)."""
     x, y, yaw = (float(value) for value in pose)
     return x, y, yaw_from_quaternion(0.0, 0.0, *quaternion_from_yaw(yaw))
 

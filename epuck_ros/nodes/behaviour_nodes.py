@@ -56,13 +56,13 @@ from epuck_ros.conversions import (nanoseconds_from_stamp, quaternion_from_yaw, 
                                    yaw_from_quaternion)
 from epuck_ros.lockstep import Controller
 from epuck_ros.model import SENSOR_NAMES, TIME_STEP
-from epuck_ros.nodes.ack_window import command_qos
-from epuck_ros.nodes.declaration import Declarer
-from epuck_ros.nodes.dds_profile import use_no_local_profile, use_package_profile, warn_if_not_fast_dds
-from epuck_ros.nodes.params import ParamSpec, Usage, declare_parameters, prepare_arguments, user_arguments
-from epuck_ros.nodes.qos import CONTROLLER_READS, LATCHED
-from epuck_ros.nodes.serialized import array_bytes, array_values
-from epuck_ros.nodes.spinning import end_process, handle_shutdown_signals, shutdown_requested, spin_until_shutdown
+from epuck_ros.ros.ack_window import command_qos
+from epuck_ros.ros.declaration import Declarer
+from epuck_ros.ros.dds_profile import use_no_local_profile, use_package_profile, warn_if_not_fast_dds
+from epuck_ros.ros.params import ParamSpec, Usage, declare_parameters, prepare_arguments, user_arguments
+from epuck_ros.ros.qos import CONTROLLER_READS, LATCHED
+from epuck_ros.ros.serialized import array_bytes, array_values
+from epuck_ros.ros.spinning import end_process, handle_shutdown_signals, shutdown_requested, spin_until_shutdown
 from epuck_ros.swarm_messages import (COMMAND_FIELDS, COMMAND_TOPIC, OBSERVATION_FIELDS, OBSERVATION_TOPIC,
                                       SwarmLayout, SwarmReader)
 from epuck_ros.world import WorldError, world_from_yaml

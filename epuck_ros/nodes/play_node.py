@@ -24,9 +24,9 @@ from std_srvs.srv import Trigger
 from epuck_ros.bag.play import CLOCK_TOPIC, PlaybackClock, replay_profile
 from epuck_ros.bag.reader import Bag, BagError
 from epuck_ros.conversions import stamp_from_nanoseconds
-from epuck_ros.nodes.dds_profile import use_package_profile
-from epuck_ros.nodes.matching import FOREIGN_DISCOVERY_WINDOW, wait_until_matched
-from epuck_ros.nodes.qos import replayed
+from epuck_ros.ros.dds_profile import use_package_profile
+from epuck_ros.ros.matching import FOREIGN_DISCOVERY_WINDOW, wait_until_matched
+from epuck_ros.ros.qos import replayed
 from epuck_ros.nodes.record_node import message_class
 
 MATCH_TIMEOUT = 10.0

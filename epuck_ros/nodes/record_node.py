@@ -4,7 +4,7 @@
 
 Topics (all visible ones when none is named) are found from the graph every `DISCOVERY_PERIOD` seconds, so topics that
 appear later are recorded too. The simulator's on-demand sense topics (camera, ground and light sensors, IMU:
-`nodes/sense_ports.py`; the e-puck interface's: `nodes/interface_ports.py`) are recorded as they are published, without
+`ros/sense_ports.py`; the e-puck interface's: `ros/interface_ports.py`) are recorded as they are published, without
 asking for them: the simulator computes a sense while something else reads it (a controller, the view, an echo) or its
 `senses` parameter says so, and a recorder alone must not make it render a camera every step. Such a topic enters the
 bag with its first message. `--senses` / `--all-senses` (or naming the topic) ask for them: those subscriptions are
@@ -59,10 +59,10 @@ from epuck_ros.bag.qos import QosProfile
 from epuck_ros.bag.reader import Bag, BagError
 from epuck_ros.bag.writer import COMPRESSIONS, BackgroundWriter, BagExistsError, BagWriteError, BagWriter
 from epuck_ros.exit_codes import EXIT_FAILED, refuse
-from epuck_ros.nodes.dds_profile import use_package_profile, warn_if_not_fast_dds
-from epuck_ros.nodes.interface_ports import INTERFACE_TOPICS
-from epuck_ros.nodes.qos import matching
-from epuck_ros.nodes.sense_ports import ON_DEMAND_TOPICS, RECORDER_NODE, SENSE_TOPICS
+from epuck_ros.ros.dds_profile import use_package_profile, warn_if_not_fast_dds
+from epuck_ros.ros.interface_ports import INTERFACE_TOPICS
+from epuck_ros.ros.qos import matching
+from epuck_ros.ros.sense_ports import ON_DEMAND_TOPICS, RECORDER_NODE, SENSE_TOPICS
 
 DISCOVERY_PERIOD = 0.2
 """s of wall time between two looks at the graph (rosbag2 polls every 0.1 s)."""
@@ -114,7 +114,7 @@ def subscription_qos(offered: list[QoSProfile]) -> QoSProfile:
     """Compatible with every publisher: reliable / transient_local only if all of them offer it.
 
     Reliable topics are taken KEEP_ALL: DDS then acknowledges a sample only once the recorder has room for it, so
-    a publisher that waits for acknowledgements (the simulator, see `epuck_ros.nodes.ack_window`) waits for the
+    a publisher that waits for acknowledgements (the simulator, see `epuck_ros.ros.ack_window`) waits for the
     recorder instead of the recorder's queue overwriting what it has not written yet (KEEP_LAST lost much of
     `proximity` at `real_time_factor` 0)."""
     return matching(offered, SUBSCRIPTION_DEPTH, keep_all=True)

@@ -37,24 +37,24 @@ from epuck_ros.integrity import HELD, NOT_LOCKSTEP
 from epuck_ros.lockstep import DECLARATION_TOPIC, Answer, Controller, Lockstep
 from epuck_ros.markers import world_markers
 from epuck_ros.model import TIME_STEP, RobotModel
-from epuck_ros.nodes.ack_window import AckWindow, history_steps, window_steps
-from epuck_ros.nodes.declaration import read_declarations
-from epuck_ros.nodes.dds_profile import use_no_local_profile, use_package_profile, warn_if_not_fast_dds
-from epuck_ros.nodes.domain_watch import DISCOVERY_WINDOW, DomainWatch
-from epuck_ros.nodes.interface_ports import InterfacePorts
-from epuck_ros.nodes.lockstep_report import LockstepReport
-from epuck_ros.nodes.on_demand import TOPICS_ON_DEMAND_FROM, OnDemand
-from epuck_ros.nodes.pacing import Controls, Pacer, Settings
-from epuck_ros.nodes.params import ParamSpec, Usage, command_line_value, declare_parameters, prepare_arguments
-from epuck_ros.nodes.qos import LATCHED, clock_kept, step_stream
-from epuck_ros.nodes.repeated import RepeatedCondition
-from epuck_ros.nodes.robot_ports import (CONTROLLERS, JOINT_NAMES, MATCH_COLUMNS, READERS, WARN_PERIOD, WORLD_FRAME,
-                                         RobotPorts, quiet_publisher)
-from epuck_ros.nodes.sense_ports import SENSE_POLL, SENSE_TOPICS, SenseError, SenseFeeds
-from epuck_ros.nodes.serialized import Patch, PatchCache
-from epuck_ros.nodes.spinning import end_process, handle_shutdown_signals, shutdown_requested, spin_until_shutdown
-from epuck_ros.nodes.swarm_ports import SwarmPorts
-from epuck_ros.nodes.tf_ports import TfPorts
+from epuck_ros.ros.ack_window import AckWindow, history_steps, window_steps
+from epuck_ros.ros.declaration import read_declarations
+from epuck_ros.ros.dds_profile import use_no_local_profile, use_package_profile, warn_if_not_fast_dds
+from epuck_ros.ros.domain_watch import DISCOVERY_WINDOW, DomainWatch
+from epuck_ros.ros.interface_ports import InterfacePorts
+from epuck_ros.ros.lockstep_report import LockstepReport
+from epuck_ros.ros.on_demand import TOPICS_ON_DEMAND_FROM, OnDemand
+from epuck_ros.pacing import Controls, Pacer, Settings
+from epuck_ros.ros.params import ParamSpec, Usage, command_line_value, declare_parameters, prepare_arguments
+from epuck_ros.ros.qos import LATCHED, clock_kept, step_stream
+from epuck_ros.ros.repeated import RepeatedCondition
+from epuck_ros.ros.robot_ports import (CONTROLLERS, JOINT_NAMES, MATCH_COLUMNS, READERS, WARN_PERIOD, WORLD_FRAME,
+                                       RobotPorts, quiet_publisher)
+from epuck_ros.ros.sense_ports import SENSE_POLL, SENSE_TOPICS, SenseError, SenseFeeds
+from epuck_ros.ros.serialized import Patch, PatchCache
+from epuck_ros.ros.spinning import end_process, handle_shutdown_signals, shutdown_requested, spin_until_shutdown
+from epuck_ros.ros.swarm_ports import SwarmPorts
+from epuck_ros.ros.tf_ports import TfPorts
 from epuck_ros.simulation import MAX_SEED, CommandError, Simulation, StepEvents
 from epuck_ros.world import World, WorldError, default_world, load_world, place_robots
 
@@ -320,7 +320,7 @@ class SimNode(Node):
         self._report.conflict(robot, named * 1e-9, detail, self.ports[robot].publishers())
 
     def _on_declaration(self, controller: Controller, topics: list[str]) -> None:
-        """A controller's declaration (nodes/declaration.py): what lockstep expects of it before its first answer.
+        """A controller's declaration (ros/declaration.py): what lockstep expects of it before its first answer.
         Topics of other simulators' robots are not ours to read."""
         for topic in topics:
             robot = self._robot_of_topic.get(topic)

@@ -28,9 +28,9 @@ from rclpy.node import Node
 from rclpy.signals import SignalHandlerOptions
 
 from epuck_ros.model import RobotModel
-from epuck_ros.nodes.dds_profile import use_package_profile
-from epuck_ros.nodes.matching import FOREIGN_DISCOVERY_WINDOW, wait_until_matched
-from epuck_ros.nodes.params import ParamSpec, Usage, declare_parameters, prepare_arguments, user_arguments
+from epuck_ros.ros.dds_profile import use_package_profile
+from epuck_ros.ros.matching import FOREIGN_DISCOVERY_WINDOW, wait_until_matched
+from epuck_ros.ros.params import ParamSpec, Usage, declare_parameters, prepare_arguments, user_arguments
 from epuck_ros.world import ROBOT_NAME, ROBOT_NAME_MAX
 
 SPEED_STEP = 1.1

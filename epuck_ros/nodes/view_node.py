@@ -45,9 +45,9 @@ from std_srvs.srv import Empty, Trigger
 from epuck_ros.conversions import seconds_from_stamp, yaw_from_quaternion
 from epuck_ros.exit_codes import EXIT_BAD_INPUT
 from epuck_ros.model import SENSOR_NAMES
-from epuck_ros.nodes.dds_profile import use_package_profile
-from epuck_ros.nodes.params import ParamSpec, Usage, declare_parameters, prepare_arguments
-from epuck_ros.nodes.qos import LATCHED, NEWEST_ONLY, newest
+from epuck_ros.ros.dds_profile import use_package_profile
+from epuck_ros.ros.params import ParamSpec, Usage, declare_parameters, prepare_arguments
+from epuck_ros.ros.qos import LATCHED, NEWEST_ONLY, newest
 from epuck_ros.nodes.sim_node import JOINT_NAMES
 from epuck_ros.sensors.png import png_bytes
 from epuck_ros.view.server import Action, ActionError, ViewServer, is_loopback

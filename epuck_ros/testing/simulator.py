@@ -51,7 +51,7 @@ class SimulatorUnderTest:
         self.names: tuple[str, ...] = layout.names
         """The robots' names, in the simulator's order."""
         self.start_poses = {robot.name: robot.pose for robot in layout.robots}
-        from epuck_ros.nodes.dds_profile import PROFILES_FILE, PROFILES_VARIABLE, use_package_profile
+        from epuck_ros.ros.dds_profile import PROFILES_FILE, PROFILES_VARIABLE, use_package_profile
         use_package_profile()   # this process's participant (made below) announces itself every 0.5 s, not 3 s
         self.domain, self._domain_claim = claim_free_domain()
         self.env = {**os.environ, 'ROS_DOMAIN_ID': str(self.domain), 'ROS_AUTOMATIC_DISCOVERY_RANGE': 'LOCALHOST',
@@ -67,7 +67,7 @@ class SimulatorUnderTest:
         self._clock = 0.0
         self._truth: dict[str, tuple[float, float, float, float]] = {}
         self._swarm = None
-        """Which robots swarm controllers declared they drive (nodes/swarm_ports.DeclaredRobots), with several."""
+        """Which robots swarm controllers declared they drive (ros/swarm_ports.DeclaredRobots), with several."""
         self._controlled: set[str] = set()
         """The robots `wait_for_controller` saw driven: the first `run_until` waits until the simulator sees them."""
         self._context = None
@@ -166,7 +166,7 @@ class SimulatorUnderTest:
     def _latest(self, msg_type: type, topic: str, timeout: float, what: str) -> Any:
         """The latest message of a latched topic, from a new subscription: the simulator publishes such a topic after
         the step's `/clock`, so a subscription kept from the start could still have it on its way."""
-        from epuck_ros.nodes.qos import LATCHED
+        from epuck_ros.ros.qos import LATCHED
         received: list[Any] = []
         subscription = self._node.create_subscription(msg_type, topic, received.append, LATCHED)
         try:
@@ -233,7 +233,7 @@ class SimulatorUnderTest:
             self._node.create_subscription(Odometry, self._topic(name, 'ground_truth'),
                                            lambda msg, name=name: self._on_truth(name, msg), 10)
         if len(self.names) > 1:   # a swarm controller (`avoid --robots all`) names the robots it drives
-            from epuck_ros.nodes.swarm_ports import DeclaredRobots
+            from epuck_ros.ros.swarm_ports import DeclaredRobots
             self._swarm = DeclaredRobots(self._node)
         self._parameters = AsyncParameterClient(self._node, 'sim')
         self._thread = threading.Thread(target=self._spin, name='epuck_sim_fixture', daemon=True)
@@ -282,7 +282,7 @@ class SimulatorUnderTest:
         return robot
 
     def _topic(self, name: str, topic: str) -> str:
-        from epuck_ros.nodes.robot_ports import topic_prefix
+        from epuck_ros.ros.robot_ports import topic_prefix
         return '/' + topic_prefix(name, len(self.names) > 1) + topic
 
     def _wait(self, condition: Callable[[], bool], timeout: float, what: str) -> None:

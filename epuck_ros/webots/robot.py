@@ -33,8 +33,8 @@ from epuck_ros.model import (
     ACCELEROMETER_LOOKUP_TABLE, CAMERA_FOV, CAMERA_NEAR, GROUND_LOOKUP_TABLE,
     GROUND_SENSOR_NAMES, GYRO_LOOKUP_TABLE, LIGHT_LOOKUP_TABLE, LIGHT_SENSOR_NAMES, SENSOR_NAMES, TOF_APERTURE,
     TOF_LOOKUP_TABLE, TOF_NAME, RobotModel)
-from epuck_ros.nodes.dds_profile import use_package_profile
-from epuck_ros.nodes.spinning import end_process
+from epuck_ros.ros.dds_profile import use_package_profile
+from epuck_ros.ros.spinning import end_process
 from epuck_ros.webots.devices import (
     LED, NANOSECONDS_PER_MS, TURRET_DEVICES, Accelerometer, Camera, Device, DistanceSensor, Gyro, LightSensor, Motor,
     PositionSensor, SampledSensor, TurretSensor, public_methods, report, unsupported)

@@ -20,9 +20,9 @@ import rclpy
 
 from epuck_ros import untrusted_yaml
 from epuck_ros.exit_codes import refuse
-from epuck_ros.nodes.params import HELP_FLAGS, ParameterError, check_arguments, user_arguments
+from epuck_ros.ros.params import HELP_FLAGS, ParameterError, check_arguments, user_arguments
 from epuck_ros.webots.link import LinkError
-from epuck_ros.nodes.spinning import end_process
+from epuck_ros.ros.spinning import end_process
 from epuck_ros.webots.robot import close, configure
 from epuck_ros.webots.script_file import FileMissing, FileProblem, read_script
 

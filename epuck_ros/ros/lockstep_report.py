@@ -10,8 +10,8 @@ from rclpy.node import Node
 
 from epuck_ros.integrity import STATUS_TOPIC, Integrity
 from epuck_ros.lockstep import HOW_TO_DECLARE, OWN_RATE_WAIT, Answer, Controller
-from epuck_ros.nodes.qos import LATCHED
-from epuck_ros.nodes.robot_ports import quiet_publisher
+from epuck_ros.ros.qos import LATCHED
+from epuck_ros.ros.robot_ports import quiet_publisher
 
 
 class LockstepReport:

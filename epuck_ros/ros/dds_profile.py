@@ -4,7 +4,7 @@ Why, in short (the file itself has the settings and figures):
 - discovery: a participant that misses another's first announcements learns of it only at the next periodic
   announcement, seconds later by default; the profile announces far more often (benchmarks/bench_startup.py);
 - acknowledgements: reliable writers send heartbeats far more often than by default and readers answer them at
-  once, so a behaviour's last zero command and the simulator's ack window (nodes/ack_window.py) are acknowledged
+  once, so a behaviour's last zero command and the simulator's ack window (ros/ack_window.py) are acknowledged
   within milliseconds (benchmarks/bench_lockstep.py);
 - liveliness: a participant that stops announcing is dropped within seconds, not tens of seconds;
 - the profile of a process that never reads its own topics (fastdds_no_local_profiles.xml, `use_no_local_profile`:

@@ -23,10 +23,10 @@ from std_msgs.msg import Bool, Int32, Int32MultiArray
 from epuck_ros import epuck_interface as iface
 from epuck_ros.ir_sensor import distance_from_raw
 from epuck_ros.model import RobotModel
-from epuck_ros.nodes.qos import LED_QOS
-from epuck_ros.nodes.robot_ports import STAMP_FIELDS, frame_prefix, quiet_publisher, topic_prefix
-from epuck_ros.nodes.sense_ports import ImagePatch, camera_messages, readers_of
-from epuck_ros.nodes.serialized import Patch
+from epuck_ros.ros.qos import LED_QOS
+from epuck_ros.ros.robot_ports import STAMP_FIELDS, frame_prefix, quiet_publisher, topic_prefix
+from epuck_ros.ros.sense_ports import ImagePatch, camera_messages, readers_of
+from epuck_ros.ros.serialized import Patch
 from epuck_ros.sensors.tof import range_from_value
 from epuck_ros.simulation import Simulation
 

@@ -22,8 +22,8 @@ from rclpy.qos import QoSProfile
 from std_msgs.msg import Float64MultiArray
 
 from epuck_ros.conversions import nanoseconds_from_stamp
-from epuck_ros.nodes.qos import COMMAND_READER_QOS
-from epuck_ros.nodes.robot_ports import WARN_PERIOD, quiet_publisher
+from epuck_ros.ros.qos import COMMAND_READER_QOS
+from epuck_ros.ros.robot_ports import WARN_PERIOD, quiet_publisher
 from epuck_ros.swarm_messages import (COMMAND_FIELDS, COMMAND_TOPIC, OBSERVATION_FIELDS, OBSERVATION_TOPIC,
                                       SwarmLayout, SwarmReader, observation_values)
 from epuck_ros.simulation import Simulation

@@ -30,11 +30,11 @@ from std_msgs.msg import Float64MultiArray, String
 from epuck_ros.bag.steps import SENSES_ON_TOPIC, senses_on_text
 from epuck_ros.description import IMU_FRAME
 from epuck_ros.model import CAMERA_FOV, TOF_APERTURE, TOF_NAME
-from epuck_ros.nodes.on_demand import TOPICS_ON_DEMAND_FROM
-from epuck_ros.nodes.qos import SENSES_ON_QOS
-from epuck_ros.nodes.robot_ports import STAMP_FIELDS, frame_prefix, quiet_publisher, topic_prefix
+from epuck_ros.ros.on_demand import TOPICS_ON_DEMAND_FROM
+from epuck_ros.ros.qos import SENSES_ON_QOS
+from epuck_ros.ros.robot_ports import STAMP_FIELDS, frame_prefix, quiet_publisher, topic_prefix
 from epuck_ros.conversions import stamp_from_seconds
-from epuck_ros.nodes.serialized import Patch, array_bytes, exact_cdr
+from epuck_ros.ros.serialized import Patch, array_bytes, exact_cdr
 from epuck_ros.sensors.camera import camera_matrix
 from epuck_ros.sensors.imu import rates_from_gyro_values
 from epuck_ros.sensors.tof import RANGE_LIMITS, range_from_value

@@ -7,7 +7,7 @@ from collections.abc import Sequence
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
 from epuck_ros.bag.qos import QosProfile
-from epuck_ros.nodes.ack_window import command_qos
+from epuck_ros.ros.ack_window import command_qos
 
 LATCHED = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
 """Published once, kept for late readers (ROS 1's latched topics): the world, its markers, contact counts."""
@@ -112,5 +112,5 @@ a volatile reader (rclpy's clock, the controllers) gets only what comes after it
 
 EVERY_STEP = QoSProfile(history=HistoryPolicy.KEEP_ALL, reliability=ReliabilityPolicy.RELIABLE)
 """How a reader that needs every step's message reads a per-step topic (`bringup`'s ground truth): the simulator
-waits for a reader that keeps all (nodes/ack_window.py), however far behind it falls. A KEEP_LAST reader of any
+waits for a reader that keeps all (ros/ack_window.py), however far behind it falls. A KEEP_LAST reader of any
 depth is not waited for and skips steps under load (`bringup`'s summary then disagreed with the bag's)."""

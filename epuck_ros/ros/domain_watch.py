@@ -13,9 +13,9 @@ from collections.abc import Callable
 from rclpy.node import Node
 from std_msgs.msg import String
 
-from epuck_ros.nodes.announcements import SIMULATORS_TOPIC, announcement, parse_announcement
-from epuck_ros.nodes.qos import ANNOUNCEMENT_QOS
-from epuck_ros.nodes.robot_ports import quiet_publisher
+from epuck_ros.ros.announcements import SIMULATORS_TOPIC, announcement, parse_announcement
+from epuck_ros.ros.qos import ANNOUNCEMENT_QOS
+from epuck_ros.ros.robot_ports import quiet_publisher
 
 DISCOVERY_WINDOW = 1.0
 """The default of `discovery_window`: wall seconds from the creation of the sim's node (its DDS participant is up)

@@ -10,7 +10,7 @@ from rclpy.node import Node
 from std_msgs.msg import String
 
 from epuck_ros.lockstep import DECLARATION_TOPIC, Controller, declaration, read_declaration
-from epuck_ros.nodes.qos import DECLARATIONS_READ, declarations_kept
+from epuck_ros.ros.qos import DECLARATIONS_READ, declarations_kept
 
 
 class Declarer:

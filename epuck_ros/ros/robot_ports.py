@@ -26,9 +26,9 @@ from epuck_ros.conversions import nanoseconds_from_stamp, quaternion_from_yaw
 from epuck_ros.description import JOINT_NAMES
 from epuck_ros.lockstep import Controller
 from epuck_ros.model import SENSOR_NAMES, RobotModel
-from epuck_ros.nodes.qos import deeper
-from epuck_ros.nodes.on_demand import OnDemand
-from epuck_ros.nodes.serialized import PatchCache, array_bytes, array_values
+from epuck_ros.ros.qos import deeper
+from epuck_ros.ros.on_demand import OnDemand
+from epuck_ros.ros.serialized import PatchCache, array_bytes, array_values
 from epuck_ros.simulation import Simulation
 
 WORLD_FRAME = 'world'

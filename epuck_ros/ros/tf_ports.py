@@ -22,10 +22,10 @@ from epuck_ros.conversions import quaternion_from_yaw
 from epuck_ros.description import WHEEL_LINKS, sensor_frames, urdf, wheel_offsets
 from epuck_ros.epuck_interface import SCAN_FRAME, SCAN_FRAME_HEIGHT
 from epuck_ros.model import RobotModel
-from epuck_ros.nodes.on_demand import OnDemand
-from epuck_ros.nodes.qos import LATCHED, deeper
-from epuck_ros.nodes.robot_ports import RobotPorts, quiet_publisher, topic_prefix
-from epuck_ros.nodes.serialized import Patch
+from epuck_ros.ros.on_demand import OnDemand
+from epuck_ros.ros.qos import LATCHED, deeper
+from epuck_ros.ros.robot_ports import RobotPorts, quiet_publisher, topic_prefix
+from epuck_ros.ros.serialized import Patch
 from epuck_ros.simulation import Simulation
 
 try:
