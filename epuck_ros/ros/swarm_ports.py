@@ -10,7 +10,8 @@ reads or drives a robot by them.
 Lockstep membership: a swarm controller declares the robots it drives before its first answer (a command with no
 fields, `swarm_messages`), on a transient-local topic, so the simulator learns them as soon as it matches the
 controller, however late: they are driven from then on (`driven`, while the controller is connected both ways), and
-`Lockstep.declare` keeps them in lockstep however long the first answer takes.
+the simulator takes it as a declaration in lockstep of each (`SimNode._on_declare`): waited for however long the first
+answer takes.
 """
 from __future__ import annotations
 
