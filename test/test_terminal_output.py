@@ -111,13 +111,15 @@ def test_bringup_writes_whole_lines_and_state_changes_only_when_verbose(tmp_path
     lines = ''.join(writes['out']).splitlines()
     assert any(line.startswith('[bringup] running avoid on 2 robots') for line in lines)
     assert all(line.startswith(('[bringup] ', '[sim] ', '[avoid] ')) for line in lines), lines
-    states = [line for line in lines if re.search(r'\]: (cruising|front obstacle: turning \w+ until clear) \(t=',
-                                                  line)]
+    # One avoid drives both robots through the swarm topics: its node says its settings once, and each robot's state
+    # changes, named by the robot, only at DEBUG (--verbose).
+    states = [line for line in lines if re.search(r'\]: epuck\d: (cruising|front obstacle: turning \w+ until clear) '
+                                                  r'\(t=', line)]
     settings = [line for line in lines if 'obstacle avoidance on the IR ranges; mode=rules' in line]
+    assert len(settings) == 1 and '[INFO]' in settings[0] and '2 robots through /swarm/observation' in settings[0], \
+        settings
     if verbose:
         assert states and all('[DEBUG]' in line for line in states), states
-        assert {re.search(r'\[(epuck\d)\.avoid\]', line).group(1) for line in states} == {'epuck0', 'epuck1'}
-        assert len(settings) == 2 and '[INFO]' in settings[0] and '[DEBUG]' in settings[1]
+        assert {re.search(r'\]: (epuck\d): ', line).group(1) for line in states} == {'epuck0', 'epuck1'}
     else:
         assert states == [], states
-        assert len(settings) == 1 and '[epuck0.avoid]' in settings[0], 'the robots share their settings: said once'

@@ -32,9 +32,11 @@ class StampedNode(Node):
 
     def __init__(self) -> None:
         super().__init__('stamped_node')
-        self.publisher = self.create_publisher(Float64MultiArray, 'wheel_cmd', command_qos(1))
         self.create_subscription(Float64MultiArray, 'ir_raw', self.on_ir_raw,
                                  QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE), raw=True)
+        # Last: a lockstep simulator (and bringup) takes a wheel_cmd publisher for a controller ready to answer; made
+        # before the reader, the first step could go out before the reader was matched, and wait for a resend.
+        self.publisher = self.create_publisher(Float64MultiArray, 'wheel_cmd', command_qos(1))
 
     def on_ir_raw(self, data: bytes) -> None:
         read = array_values(data)                        # None: bytes that are no Float64MultiArray

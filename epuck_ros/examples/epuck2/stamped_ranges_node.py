@@ -35,13 +35,15 @@ class StampedRangesNode(Node):
     def __init__(self) -> None:
         super().__init__('stamped_ranges_node')
         self.ranges: dict[tuple[int, int], dict[str, float]] = {}
+        for name in SENSORS:
+            self.create_subscription(Range, name, partial(self.on_range, name),
+                                     QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE))
+        # Last, the declaration and then the publisher: a lockstep simulator takes a command publisher for a
+        # controller ready to answer (its readers made first, the first step is not sent before they are matched).
         command_topic = self.resolve_topic_name('cmd_vel')
         self.declaration = self.create_publisher(String, '/lockstep_declarations', LATCHED)
         self.declaration.publish(String(data=f'lockstep {command_topic}'))
         self.publisher = self.create_publisher(TwistStamped, 'cmd_vel', ANSWERS)
-        for name in SENSORS:
-            self.create_subscription(Range, name, partial(self.on_range, name),
-                                     QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE))
 
     def on_range(self, name: str, msg: Range) -> None:
         stamp = (msg.header.stamp.sec, msg.header.stamp.nanosec)
