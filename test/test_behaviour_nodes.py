@@ -189,3 +189,27 @@ def test_a_bad_parameter_stops_the_node_with_a_message_naming_it(launch: object,
     assert rectangle.proc.wait(timeout=15.0) == 2
     output = rectangle.output()
     assert named in output and 'Traceback' not in output
+
+
+def test_a_step_sent_again_is_answered_again_with_the_same_answer(launch: object, test_node: object) -> None:
+    """The simulator sends a step again while it has no answer to it; the answer may never have reached it (a writer
+    that matched the simulator's reader only after publishing sends it nothing it had published: a fixture run
+    stood still for 120 s under load, the behaviour having answered the step once). Each copy of the step's
+    `ir_raw` gets the same answer, naming that step; the simulator drops the second as a repeat."""
+    from rosgraph_msgs.msg import Clock
+    from epuck_ros.conversions import stamp_from_label
+    from epuck_ros.ros.serialized import array_bytes
+    answers: list[Float64MultiArray] = test_node.collect(Float64MultiArray, 'wheel_cmd', EVERY_MESSAGE)
+    clock = test_node.node.create_publisher(Clock, '/clock', 10)
+    ir_raw = test_node.node.create_publisher(Float64MultiArray, 'ir_raw', 10)
+    launch('avoid', *ros_args({'use_sim_time': True}))
+    test_node.spin_until(lambda: ir_raw.get_subscription_count() and clock.get_subscription_count(),
+                         what='avoid to read ir_raw and /clock')
+    step = Clock()
+    step.clock.nanosec = 32_000_000
+    for copy in range(2):
+        clock.publish(step)
+        ir_raw.publish(array_bytes([100.0] * 8, (0, 32_000_000)))
+        test_node.spin_until(lambda: len(answers) > copy, what=f'the answer to copy {copy + 1} of the step')
+    assert [stamp_from_label(answer.layout.dim[0].label) for answer in answers] == [(0, 32_000_000)] * 2
+    assert answers[0].data.tolist() == answers[1].data.tolist()

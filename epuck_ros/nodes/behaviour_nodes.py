@@ -226,6 +226,8 @@ class BehaviourNode(Node):
         self._ranges_stamp: int | None = None
         self._answered: int | None = None
         """The step (ns) last answered."""
+        self._last_answer: bytes | None = None
+        """Its answer, as sent (a step sent again is answered with it again)."""
         self._assembler = RangeAssembler()
         self._range_subscription = None
         self._graph_timer = None
@@ -330,11 +332,18 @@ class BehaviourNode(Node):
             self._act(stamps[0])
 
     def _act(self, step: int) -> None:
-        """Answer step `step` (ns): a new decision every control_period, the last one in between."""
+        """Answer step `step` (ns): a new decision every control_period, the last one in between. A step the
+        simulator sends again is answered again with the same bytes: it sends a step again while it has no answer
+        (the answer may never have reached it: a writer that matched the simulator's reader only after publishing
+        sends it nothing it had published), and drops a second identical answer as a repeat."""
         if self._answered is not None and step <= self._answered:
-            return   # a step sent again, or an older message come late: answered already
+            if step == self._answered and self._last_answer is not None:
+                self._publisher.publish(self._last_answer)
+            return   # an older message come late: answered already
         self._answered = step
-        self._publish(self._decisions.answer(step, self._odom, self._ranges), step)
+        command = self._decisions.answer(step, self._odom, self._ranges)
+        self._last_answer = array_bytes((command.left, command.right), stamp_from_nanoseconds(step))
+        self._publisher.publish(self._last_answer)
 
     def _log_status(self, line: str, standing: bool) -> None:
         if standing:   # the robot stands still: said at INFO
@@ -386,6 +395,8 @@ class SwarmController(Node):
         """The observation's robots and the row of each of ours (None: one of ours is missing)."""
         self._answered: int | None = None
         """The step (ns) last answered."""
+        self._last_answer: bytes | None = None
+        """Its answer, as sent."""
         self._commands = SwarmLayout(self._robots, COMMAND_FIELDS)
         self._speeds = np.zeros((len(self._robots), len(COMMAND_FIELDS)))
         self.create_subscription(Float64MultiArray, OBSERVATION_TOPIC, self._on_observation, QOS, raw=True)
@@ -423,8 +434,12 @@ class SwarmController(Node):
             return
         step = nanoseconds_from_stamp(*read.stamp)
         rows = self._rows_of(read.robots)
-        if rows is None or (self._answered is not None and step <= self._answered):
-            return   # a step sent again, or an older message come late: answered already
+        if rows is None:
+            return
+        if self._answered is not None and step <= self._answered:
+            if step == self._answered and self._last_answer is not None:
+                self._publisher.publish(self._last_answer)   # a step sent again (`BehaviourNode._act`)
+            return   # an older message come late: answered already
         self._answered = step
         speeds = self._speeds
         for robot, (decisions, values) in enumerate(zip(self._decisions, read.data[rows].tolist())):
@@ -435,7 +450,8 @@ class SwarmController(Node):
             ranges = ranges_from_raw(values[_IR_RAW]) if behaviour.needs_proximity else None
             command = decisions.answer(step, odom, ranges)
             speeds[robot] = command.left, command.right
-        self._publisher.publish(self._commands.to_bytes(speeds, read.stamp))
+        self._last_answer = self._commands.to_bytes(speeds, read.stamp)
+        self._publisher.publish(self._last_answer)
 
     def stop_robot(self) -> None:
         """A zero command for every robot, naming no step (`BehaviourNode.stop_robot`)."""
