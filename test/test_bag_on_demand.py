@@ -13,10 +13,11 @@ from rclpy.duration import Duration
 from rosbags.highlevel import AnyReader
 from rosbags.typesys import Stores, get_typestore
 from rosgraph_msgs.msg import Clock
-from std_msgs.msg import Float64MultiArray, Int32MultiArray, MultiArrayDimension, MultiArrayLayout
+from std_msgs.msg import Float64MultiArray, Int32MultiArray, MultiArrayDimension, MultiArrayLayout, String
+from std_srvs.srv import Trigger
 
 from epuck_ros.ros.ack_window import command_qos
-from epuck_ros.ros.qos import CLOCK_KEPT, LED_QOS
+from epuck_ros.ros.qos import CLOCK_KEPT, LED_QOS, SENSES_ON_QOS
 
 REPO = Path(__file__).resolve().parents[1]
 LEDS_EVERY_STEP = REPO / 'test' / 'data' / 'webots' / 'leds_every_step.py'
@@ -128,6 +129,19 @@ def test_record_senses_asks_for_a_sense_and_a_recorder_records_what_is_published
     asking.wait_for_output('asking for it')
     # Kept ticks (transient local): the 60 steps may all be out before this reader matches (a CI run waited 60 s)
     clocks = test_node.collect(Clock, '/clock', CLOCK_KEPT)
+    # The simulator renders the camera once its graph shows the asking reader's node by name (a reader it cannot
+    # name yet does not ask); at full speed the 60 steps were once all out before that (no image in a loaded suite
+    # run). So: one step at a time until it says the camera is on (`senses_on`), then the rest at full speed.
+    senses_on = test_node.collect(String, 'senses_on', SENSES_ON_QOS)
+    step = test_node.node.create_client(Trigger, 'step')
+    assert step.wait_for_service(timeout_sec=20.0)
+    for _ in range(steps // 2):
+        if any('camera/image_raw' in msg.data for msg in senses_on):
+            break
+        done = step.call_async(Trigger.Request())
+        test_node.spin_until(done.done, what='the step service')
+        test_node.spin_for(0.1)
+    assert any('camera/image_raw' in msg.data for msg in senses_on), [msg.data for msg in senses_on]
     set_sim_parameter(test_node, sim, 'paused', False)
     test_node.spin_until(lambda: clocks and clocks[-1].clock.sec * 10**9 + clocks[-1].clock.nanosec >= steps * STEP_NS,
                          timeout=60, what='the simulator at its pause_at')
