@@ -34,6 +34,7 @@ from rclpy.exceptions import ParameterException
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter, parameter_value_to_python
+from rclpy.signals import SignalHandlerOptions
 from rclpy.parameter_client import AsyncParameterClient
 from rclpy.publisher import Publisher
 from rclpy.subscription import Subscription
@@ -49,6 +50,7 @@ from epuck_ros.ros.dds_profile import use_package_profile
 from epuck_ros.ros.params import ParamSpec, Usage, declare_parameters, prepare_arguments
 from epuck_ros.ros.qos import LATCHED, NEWEST_ONLY, newest
 from epuck_ros.nodes.sim_node import JOINT_NAMES
+from epuck_ros.ros.spinning import handle_shutdown_signals, shutdown_requested
 from epuck_ros.sensors.png import png_bytes
 from epuck_ros.view.server import Action, ActionError, ViewServer, is_loopback
 from epuck_ros.view.state import ViewState, robot_topic
@@ -346,11 +348,13 @@ def _service_answered(name: str, result: ResultFuture, future: Future) -> None:
 
 def spin_thinned(node: ViewNode) -> None:
     """Take the newest message of each topic SPIN_RATE times a second (see the module docstring), and the page's
-    actions; ends when the context is shut down (Ctrl-C, SIGTERM)."""
+    actions; ends on Ctrl-C or SIGTERM (`ros.spinning`: the signal raises a flag, the context stays alive until
+    `main`'s finally; rclpy's own handler shut the context down under a spin_once, and the view once ended with a
+    segmentation fault on Ctrl-C in a loaded suite run)."""
     executor = SingleThreadedExecutor(context=node.context)
     executor.add_node(node)
     period = 1.0 / SPIN_RATE
-    while node.context.ok():
+    while node.context.ok() and not shutdown_requested():
         started = time.monotonic()
         # One wait finds every ready entity; each spin_once runs one of them. A spin that changed nothing means
         # the ready ones are done (a service answer or parameter event left over waits for the next round).
@@ -373,7 +377,8 @@ def spin_thinned(node: ViewNode) -> None:
 def main(args: list[str] | None = None) -> None:
     argv = prepare_arguments(args, PARAMETERS, USAGE)
     use_package_profile()
-    rclpy.init(args=argv)
+    rclpy.init(args=argv, signal_handler_options=SignalHandlerOptions.NO)
+    handle_shutdown_signals()
     node = None
     try:
         node = ViewNode()
