@@ -9,8 +9,13 @@ import time
 from collections.abc import Iterator
 from pathlib import Path
 
+import numpy as np
 import pytest
 import yaml
+
+from epuck_ros.model import SENSOR_NAMES
+from epuck_ros.swarm_messages import OBSERVATION_FIELDS, OBSERVATION_TOPIC, SwarmLayout, SwarmReader
+from epuck_ros.view.follow import CAMERA_TOPIC, DETAIL_TOPICS, LATCHED_TOPICS, STEP_TOPICS, SWARM, wanted_topics
 
 from epuck_ros.view.server import ACTIONS, MAX_POLLED, MAX_STREAMS, Action, ActionError, ViewServer, parse_action
 from epuck_ros.view.state import ViewState, robot_topic
@@ -33,6 +38,7 @@ def test_topics_are_prefixed_only_when_there_are_several_robots() -> None:
 def test_frame_holds_every_robot_and_the_odometry_error_in_the_world_frame() -> None:
     state = ViewState()
     state.set_world(THREE)
+    state.set_detailed(frozenset({'epuck1'}))
     # epuck1 starts at (0.1, 0.2) facing +y: 0.1 m forward in its odom frame is (0.1, 0.3) in the world.
     state.update('epuck1', pose=(0.1, 0.31, math.pi / 2 + 0.05), stamp=1.5, odom=(0.1, 0.0, 0.0),
                  wheel_speeds=(1.0, 2.0), collisions=2)
@@ -45,8 +51,48 @@ def test_frame_holds_every_robot_and_the_odometry_error_in_the_world_frame() -> 
     assert robot['odom_error']['odom_in_world'] == pytest.approx([0.1, 0.3])
     assert robot['odom_error']['distance'] == pytest.approx(0.01)
     assert robot['odom_error']['yaw'] == pytest.approx(-0.05)
-    assert frame['collisions'] == 2
+    assert frame['collisions'] is None   # not every robot's count is known
     assert frame['robots']['epuck0']['pose'] is None
+    # The robots not shown in detail: only what the canvas draws.
+    assert sorted(frame['robots']['epuck0']) == ['collisions', 'ir_range', 'ir_raw', 'leds', 'pose', 'stamp']
+    state.update('epuck0', collisions=1)
+    state.update('epuck2', collisions=0)
+    assert json.loads(state.frame_json(wall_now=0.0))['collisions'] == 3
+
+
+def test_a_swarm_observation_sets_every_robot_it_names_and_the_time() -> None:
+    state = ViewState()
+    state.set_world(THREE)
+    table = state.model.ir_table
+    rows = np.zeros((2, len(OBSERVATION_FIELDS)))
+    for row, (x, raw) in enumerate(((0.25, table[3, 1]), (-0.5, table[-1, 1]))):
+        values = {'truth_x': x, 'truth_y': 0.125, 'truth_yaw': 1.0, 'odom_x': 0.5, 'wheel_left_speed': 2.0,
+                  **{f'{sensor}_raw': raw for sensor in SENSOR_NAMES}}
+        for field, value in values.items():
+            rows[row, OBSERVATION_FIELDS.index(field)] = value
+    data = SwarmLayout(('epuck2', 'epuck0'), OBSERVATION_FIELDS).to_bytes(rows, (3, 200_000_000))
+    state.set_swarm(SwarmReader().read(data), wall_time=10.0)
+    assert state.time == pytest.approx(3.2)
+    epuck2, epuck0 = state.robots['epuck2'], state.robots['epuck0']
+    assert epuck2.pose == (0.25, 0.125, 1.0) and epuck0.pose == (-0.5, 0.125, 1.0)
+    assert epuck2.odom == (0.5, 0.0, 0.0) and epuck2.wheel_speeds == (2.0, 0.0)
+    assert epuck2.ir_range == [pytest.approx(table[3, 0])] * 8 and epuck0.ir_range == [state.model.ir_range] * 8
+    assert epuck2.stamp == pytest.approx(3.2) and state.robots['epuck1'].pose is None   # not in the message
+
+
+def test_the_view_reads_a_swarm_in_one_message_and_own_topics_only_of_robots_in_detail() -> None:
+    robots = tuple(f'epuck{i}' for i in range(300))
+    assert wanted_topics(robots, False, {'epuck7'}, True, robots, (), False) == set()   # no page: nothing
+    swarm = wanted_topics(robots, True, {'epuck7', 'nobody'}, True, (), (), False)
+    assert swarm == {(SWARM, OBSERVATION_TOPIC), ('epuck7', CAMERA_TOPIC), ('epuck7', 'collisions'),
+                     ('epuck7', 'leds')}
+    few = wanted_topics(robots[:3], True, {'epuck1'}, True, robots[:3], (), True)   # the latched ones of all
+    assert {topic for topic in few if topic[1] in LATCHED_TOPICS} == {
+        (robot, topic) for robot in robots[:3] for topic in LATCHED_TOPICS}
+    # No swarm topic (one robot, a bag without it): the own step topics of the robots that publish them.
+    own = wanted_topics(('epuck0', 'epuck1'), True, {'epuck1'}, False, {'epuck0'}, {'epuck0'}, True)
+    assert {topic for topic in own if topic[1] in (*STEP_TOPICS, *DETAIL_TOPICS)} == {
+        ('epuck0', 'ground_truth'), ('epuck0', 'ir_raw'), ('epuck1', 'odom'), ('epuck1', 'joint_states')}
 
 
 def test_ir_readings_become_ray_lengths_through_the_lookup_table() -> None:

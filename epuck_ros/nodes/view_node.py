@@ -2,16 +2,17 @@
 
 It follows the latched `world` topic (arena, obstacles, robot names: one robot uses the unprefixed topics,
 several use `<name>/...`), keeps the newest ground truth, odometry, IR readings, wheel speeds and collision count
-of every robot and the simulated time (the stamp of the first robot's ground truth), and serves them to the page
-(`epuck_ros.view.server`). The page's controls reach the simulator only through its own interfaces: its `paused`
-and `real_time_factor` parameters, its `step` and `reset` services and each robot's `cmd_vel`.
+of the robots and the simulated time (the step's stamp), and serves them to the page (`epuck_ros.view.server`).
+What it reads for that is `view.follow`'s: a swarm's every robot from one `swarm/observation` message per step, a
+robot's own topics only for the robots a page shows in detail (or when there is no swarm topic). The page's
+controls reach the simulator only through its own interfaces: its `paused` and `real_time_factor` parameters, its
+`step` and `reset` services and each robot's `cmd_vel`.
 
 The view must never slow the simulator down, which may step thousands of times a second. Every subscription is
 best-effort with a history of one, and the node takes its messages `SPIN_RATE` times a second rather than as they
 come: in between, each topic keeps only its newest sample, so the view handles a fixed number of messages a
 second whatever the simulator's rate, and the simulator never waits for it. Each subscriber still costs the
-simulator a send per step, so the view subscribes to the robots' topics only while a page is open, and to
-odometry and wheel speeds only for the robots a page shows in detail.
+simulator a send per step, so the view reads only while a page is open (`view.follow`).
 """
 from __future__ import annotations
 
@@ -48,10 +49,13 @@ from epuck_ros.exit_codes import EXIT_BAD_INPUT
 from epuck_ros.model import SENSOR_NAMES
 from epuck_ros.ros.dds_profile import use_package_profile
 from epuck_ros.ros.params import ParamSpec, Usage, declare_parameters, prepare_arguments
+from epuck_ros.ros.on_demand import TOPICS_ON_DEMAND_FROM
 from epuck_ros.ros.qos import LATCHED, NEWEST_ONLY, newest
 from epuck_ros.nodes.sim_node import JOINT_NAMES
 from epuck_ros.ros.spinning import handle_shutdown_signals, shutdown_requested
 from epuck_ros.sensors.png import png_bytes
+from epuck_ros.swarm_messages import OBSERVATION_FIELDS, OBSERVATION_TOPIC, SwarmReader
+from epuck_ros.view.follow import CAMERA_TOPIC, DETAIL_TOPICS, SWARM, Topic, wanted_topics
 from epuck_ros.view.server import Action, ActionError, ViewServer, is_loopback
 from epuck_ros.view.state import ViewState, robot_topic
 from epuck_ros.world import WorldError, world_from_yaml
@@ -60,6 +64,10 @@ SPIN_RATE = 30.0
 """Times a second the node takes its newest messages: the page's frame rate, a fixed cost per second."""
 ACTION_TIMEOUT = 5.0
 """Wall seconds the page waits for the simulator to answer an action."""
+GRAPH_LOOK = 0.5
+"""Wall seconds between two looks at the graph for robots' own ground_truth publishers, while some have none."""
+DETAIL_FIELDS = {'odom': 'odom', 'joint_states': 'wheel_speeds'}
+"""The reading each of DETAIL_TOPICS gives."""
 DRIVE_IDLE = 2.0
 """Wall seconds after the page's last drive command before its cmd_vel publisher is removed (so a lockstep
 simulator does not wait for a driver that has gone)."""
@@ -96,12 +104,23 @@ class ViewNode(Node):
         values = declare_parameters(self, PARAMETERS)
         self.state = ViewState()
         self._requests: queue.SimpleQueue[tuple[Action, ResultFuture]] = queue.SimpleQueue()
-        self._robot_subscriptions: list[Subscription] = []
-        self._details: dict[str, list[Subscription]] = {}
-        self._proximity: dict[str, Subscription] = {}
+        self._reading: dict[Topic, Subscription] = {}
         self._drivers: dict[str, tuple[Publisher, float]] = {}
         self._robot_names: tuple[str, ...] = ()
         self._has_ir_raw: set[str] = set()
+        self._published: set[str] = set()
+        """The robots whose own ground_truth had a publisher in the graph (`_look_for_publishers`)."""
+        self._graph_looked = 0.0
+        self._swarm_reader = SwarmReader()
+        self._readers = {   # a robot's topic: its type, what takes it, its QoS (only the newest of each is drawn)
+            'ground_truth': (Odometry, self._on_truth, NEWEST_ONLY),
+            'ir_raw': (Float64MultiArray, self._on_ir_raw, NEWEST_ONLY),
+            # bags recorded before `ir_raw` existed have only the 8 Range messages (depth: one step's worth)
+            'proximity': (Range, self._on_range, newest(len(SENSOR_NAMES))),
+            'odom': (Odometry, self._on_odom, NEWEST_ONLY), 'joint_states': (JointState, self._on_joints, NEWEST_ONLY),
+            # the camera of the robot shown in detail: the simulator renders it while this subscription lasts
+            CAMERA_TOPIC: (Image, self._on_image, NEWEST_ONLY),
+            'collisions': (UInt32, self._on_collisions, LATCHED), 'leds': (Int32MultiArray, self._on_leds, LATCHED)}
 
         sim_node = values['sim_node']
         namespace = self.get_namespace().rstrip('/')
@@ -137,57 +156,59 @@ class ViewNode(Node):
             self.get_logger().error(f'cannot draw the world: {" ".join(str(error).split())}')
             return
         self.state.set_world(world)
-        self._follow(())  # the previous world's robots
+        self._apply(set())  # the previous world's robots
         for publisher, _ in self._drivers.values():
             self.destroy_publisher(publisher)
         self._drivers, self._robot_names = {}, tuple(robot.name for robot in world.robots)
-        self._has_ir_raw = set()
-        self.get_logger().info(f'world: {world.arena_size[0]:g} m x {world.arena_size[1]:g} m, '
-                               f'robots {", ".join(self._robot_names)}')
+        self._has_ir_raw, self._published, self._graph_looked = set(), set(), 0.0
+        shown = ', '.join(self._robot_names[:5]) + (f', ... ({len(world.robots)})' if len(world.robots) > 5 else '')
+        self.get_logger().info(f'world: {world.arena_size[0]:g} m x {world.arena_size[1]:g} m, robots {shown}')
 
-    def _follow(self, robots: tuple[str, ...]) -> None:
-        """Subscribe to what is drawn of each of `robots` (none: drop every such subscription).
+    def _follow(self) -> None:
+        """Read what the pages draw, the cheapest way the simulator offers it (`view.follow`)."""
+        several = len(self._robot_names) > 1
+        swarm = several and self.count_publishers(OBSERVATION_TOPIC) > 0
+        pages_open = self.server.pages_open()
+        if pages_open and not swarm:
+            self._look_for_publishers()
+        detailed = self.server.watched() & set(self._robot_names)
+        self.state.set_detailed(frozenset(detailed))
+        self._apply(wanted_topics(self._robot_names, pages_open, detailed, swarm, self._published,
+                                  self._has_ir_raw, len(self._robot_names) < TOPICS_ON_DEMAND_FROM))
 
-        Only while a page is open: every subscriber costs the simulator a send per step (bench_view.py), and the
-        readings kept meanwhile are what a page opened later starts from."""
-        for subscription in self._robot_subscriptions + list(self._proximity.values()):
-            self.destroy_subscription(subscription)
-        self._robot_subscriptions, self._proximity = [], {}
-        self._watch(set())
-        if not robots:
+    def _look_for_publishers(self) -> None:
+        """The robots whose own ground truth has a publisher, looked for at most every GRAPH_LOOK while some are
+        not: one look at the graph's topics, then a count of publishers only for those of ours it shows."""
+        if len(self._published) == len(self._robot_names) or time.monotonic() - self._graph_looked < GRAPH_LOOK:
             return
-        for robot in robots:
-            topic = partial(robot_topic, self._robot_names, robot)
-            self._robot_subscriptions += [
-                self.create_subscription(Odometry, topic('ground_truth'), partial(self._on_truth, robot), NEWEST_ONLY),
-                self.create_subscription(Float64MultiArray, topic('ir_raw'), partial(self._on_ir_raw, robot),
-                                         NEWEST_ONLY),
-                self.create_subscription(UInt32, topic('collisions'), partial(self._on_collisions, robot), LATCHED),
-                self.create_subscription(Int32MultiArray, topic('leds'), partial(self._on_leds, robot), LATCHED),
-            ]
-            if robot not in self._has_ir_raw:
-                # Bags recorded before `ir_raw` existed have only the 8 Range messages (depth: one step's worth);
-                # dropped once ir_raw arrives.
-                self._proximity[robot] = self.create_subscription(
-                    Range, topic('proximity'), partial(self._on_range, robot),
-                    newest(len(SENSOR_NAMES)))
+        self._graph_looked = time.monotonic()
+        topics = {self.resolve_topic_name(robot_topic(self._robot_names, robot, 'ground_truth')): robot
+                  for robot in self._robot_names if robot not in self._published}
+        for name, _ in self.get_topic_names_and_types():
+            if name in topics and self.count_publishers(name):
+                self._published.add(topics[name])
 
-    def _watch(self, robots: set[str]) -> None:
-        """Odometry and wheel speeds only of the robots a page shows in detail: every subscription costs the
-        simulator a send per step (bench_view.py), and with many robots most are never looked at."""
-        for robot in set(self._details) - robots:
-            for subscription in self._details.pop(robot):
-                self.destroy_subscription(subscription)
-            self.state.update(robot, odom=None, wheel_speeds=None)  # no stale figures when it is shown again
-        for robot in robots - set(self._details):
-            topic = partial(robot_topic, self._robot_names, robot)
-            self._details[robot] = [
-                self.create_subscription(Odometry, topic('odom'), partial(self._on_odom, robot), NEWEST_ONLY),
-                self.create_subscription(JointState, topic('joint_states'), partial(self._on_joints, robot),
-                                         NEWEST_ONLY),
-                # the camera of the robot shown in detail: the simulator renders it while this subscription lasts
-                self.create_subscription(Image, topic('camera/image_raw'), partial(self._on_image, robot),
-                                         NEWEST_ONLY)]
+    def _apply(self, wanted: set[Topic]) -> None:
+        """Subscribe to the `wanted` topics not read yet, drop those no longer wanted."""
+        for key in set(self._reading) - wanted:
+            self.destroy_subscription(self._reading.pop(key))
+            robot, topic = key
+            if topic in DETAIL_TOPICS:
+                self.state.update(robot, **{DETAIL_FIELDS[topic]: None})   # no stale figures when shown again
+        for key in wanted - set(self._reading):
+            robot, topic = key
+            if robot == SWARM:
+                self._reading[key] = self.create_subscription(
+                    Float64MultiArray, OBSERVATION_TOPIC, self._on_swarm, NEWEST_ONLY, raw=True)
+                continue
+            msg_type, callback, qos = self._readers[topic]
+            self._reading[key] = self.create_subscription(
+                msg_type, robot_topic(self._robot_names, robot, topic), partial(callback, robot), qos)
+
+    def _on_swarm(self, data: bytes) -> None:
+        step = self._swarm_reader.read(data)
+        if step is not None and step.stamp is not None and step.fields == OBSERVATION_FIELDS:
+            self.state.set_swarm(step, time.monotonic())
 
     def _on_truth(self, robot: str, msg: Odometry) -> None:
         stamp = _seconds(msg.header.stamp)
@@ -210,15 +231,12 @@ class ViewNode(Node):
     def _on_ir_raw(self, robot: str, msg: Float64MultiArray) -> None:
         if len(msg.data) != len(SENSOR_NAMES) or not all(math.isfinite(v) for v in msg.data):
             return
-        self._has_ir_raw.add(robot)
-        proximity = self._proximity.pop(robot, None)
-        if proximity is not None:
-            self.destroy_subscription(proximity)
+        self._has_ir_raw.add(robot)   # its proximity Ranges are no longer read (`view.follow`)
         self.state.set_ir_raw(robot, list(msg.data))
 
     def _on_range(self, robot: str, msg: Range) -> None:
         sensor = msg.header.frame_id.rsplit('/', 1)[-1]
-        if robot in self._proximity and sensor in SENSOR_NAMES:
+        if robot not in self._has_ir_raw and sensor in SENSOR_NAMES:
             self.state.set_ir_range(robot, SENSOR_NAMES.index(sensor), msg.range)
 
     def _on_leds(self, robot: str, msg: Int32MultiArray) -> None:
@@ -268,10 +286,7 @@ class ViewNode(Node):
         """Carry out the page's queued actions and follow what the pages watch (on the node's thread, as rclpy
         wants)."""
         self._read_settings_once()
-        if self.server.pages_open() != bool(self._robot_subscriptions):
-            self._follow(self._robot_names if self.server.pages_open() else ())
-        if self._robot_subscriptions:
-            self._watch(self.server.watched() & set(self._robot_names))
+        self._follow()
         while not self._requests.empty():
             action, result = self._requests.get()
             try:

@@ -2,7 +2,10 @@
 
 The view node writes into a `ViewState` from its callbacks; the HTTP server reads JSON frames from it. A frame
 is built once per change and shared by every connected page, so the cost of encoding does not grow with the
-number of browsers; the server sends at most `MAX_FRAME_RATE` of them a second.
+number of browsers; the server sends at most `MAX_FRAME_RATE` of them a second. A swarm's step arrives as one
+`swarm/observation` message (`set_swarm`: every robot in one go); a frame carries everything only of the robots a page
+shows in detail, of the others what the canvas draws (`RobotReadings.drawn_json`), so its size grows slowly with
+the robots.
 """
 from __future__ import annotations
 
@@ -16,11 +19,17 @@ import numpy as np
 
 from epuck_ros import ir_sensor
 from epuck_ros.model import LED_COLORS, LED_POSITIONS, RobotModel
+from epuck_ros.swarm_messages import OBSERVATION_FIELDS, SwarmArray
 from epuck_ros.world import World
 from epuck_ros.world.appearance import FLOOR_COLOR, WALL_COLOR
 
 RTF_WINDOW = 1.0
 """Wall seconds of simulated-time samples over which the real-time factor reached is measured."""
+_SWARM_COLUMNS = {name: [OBSERVATION_FIELDS.index(field) for field in fields] for name, fields in {
+    'pose': ('truth_x', 'truth_y', 'truth_yaw'), 'odom': ('odom_x', 'odom_y', 'odom_yaw'),
+    'wheel_speeds': ('wheel_left_speed', 'wheel_right_speed'),
+    'ir_raw': tuple(f for f in OBSERVATION_FIELDS if f.endswith('_raw'))}.items()}
+"""The swarm observation's columns of what the view keeps of each robot."""
 
 
 def page_json(value: object) -> str:
@@ -58,17 +67,26 @@ class RobotReadings:
     ir_range: list[float] | None = None
     """Distance (m) each ray is drawn to: the inverse lookup table, clipped to [0, ir_range]."""
     wheel_speeds: tuple[float, float] | None = None
-    collisions: int = 0
+    collisions: int | None = None
+    """Contacts so far (`collisions`); None while the view does not follow the robot's count."""
     leds: list[int] | None = None
     """led0..led9 as the robot's controller set them (`leds`)."""
     camera: float | None = None
     """Simulated time (s) of the newest camera image (shown for the robot a page looks at)."""
 
     def to_json(self, start: tuple[float, float, float]) -> dict:
+        """Everything, for a robot a page shows in detail."""
         return {'pose': self.pose, 'stamp': self.stamp, 'odom': self.odom,
                 'odom_error': _odom_error(start, self.odom, self.pose),
                 'ir_raw': self.ir_raw, 'ir_range': self.ir_range, 'wheel_speeds': self.wheel_speeds,
                 'collisions': self.collisions, 'leds': self.leds, 'camera': self.camera}
+
+    def drawn_json(self) -> dict:
+        """What the canvas draws of a robot not shown in detail: a swarm's frame is mostly these (the raw IR values
+        only colour the rays: a tenth is more than a colour tells)."""
+        return {'pose': self.pose, 'stamp': self.stamp,
+                'ir_raw': None if self.ir_raw is None else [round(v, 1) for v in self.ir_raw],
+                'ir_range': self.ir_range, 'collisions': self.collisions, 'leds': self.leds}
 
 
 def _odom_error(start: tuple[float, float, float], odom: tuple[float, float, float] | None,
@@ -121,6 +139,8 @@ class ViewState:
     settings: SimSettings = field(default_factory=SimSettings)
     version: int = 0
     world_version: int = 0
+    detailed: frozenset[str] = frozenset()
+    """The robots some page shows in detail: their frame entries carry everything (`RobotReadings.to_json`)."""
     _clock_samples: deque = field(default_factory=lambda: deque(maxlen=512))
     _lock: threading.Condition = field(default_factory=threading.Condition)
     _frame_cache: tuple[int, float, str] | None = None
@@ -166,6 +186,30 @@ class ViewState:
         distance = ir_sensor.distance_from_raw(np.asarray(raw, dtype=float), self.model.ir_table)
         ranges = np.clip(distance, 0.0, self.model.ir_range)
         self.update(robot, ir_raw=[float(v) for v in raw], ir_range=[round(float(v), 5) for v in ranges])
+
+    def set_swarm(self, step: SwarmArray, wall_time: float) -> None:
+        """Every robot's step from one swarm observation (`swarm_messages`): ground truth, odometry, wheel speeds and
+        raw IR values of each robot it names, at its stamp, which is also the simulated time shown."""
+        columns = {name: step.data[:, index] for name, index in _SWARM_COLUMNS.items()}
+        ranges = np.clip(ir_sensor.distance_from_raw(columns['ir_raw'], self.model.ir_table), 0.0, self.model.ir_range)
+        values = {name: column.tolist() for name, column in columns.items()}
+        values['ir_range'] = np.round(ranges, 5).tolist()
+        stamp = step.stamp[0] + step.stamp[1] * 1e-9
+        with self._lock:
+            for row, name in enumerate(step.robots):
+                target = self.robots.get(name)
+                if target is not None:
+                    target.pose, target.odom = tuple(values['pose'][row]), tuple(values['odom'][row])
+                    target.wheel_speeds = tuple(values['wheel_speeds'][row])
+                    target.ir_raw, target.ir_range, target.stamp = values['ir_raw'][row], values['ir_range'][row], stamp
+        self.set_time(stamp, wall_time)
+
+    def set_detailed(self, robots: frozenset[str]) -> None:
+        """The robots pages show in detail now."""
+        with self._lock:
+            if robots != self.detailed:
+                self.detailed = robots
+                self._changed()
 
     def set_ir_range(self, robot: str, sensor: int, distance: float) -> None:
         """One sensor's Range (bags made before `ir_raw` existed): raw value from the table, inf drawn full length."""
@@ -230,17 +274,20 @@ class ViewState:
         return page_json(body)
 
     def frame_json(self, wall_now: float) -> str:
-        """The state event: time, real-time factor reached, settings, every robot's readings; cached per version."""
+        """The state event: time, real-time factor reached, settings, every robot's readings (all of them for the
+        robots shown in detail); the contacts of all robots, None unless every robot's count is followed; cached per
+        version."""
         rtf = round(self.real_time_factor(wall_now), 3)
         with self._lock:
             if self._frame_cache is not None and self._frame_cache[:2] == (self.version, rtf):
                 return self._frame_cache[2]
             starts = {r.name: (r.x, r.y, r.yaw) for r in self.world.robots} if self.world is not None else {}
-            robots = {name: readings.to_json(starts.get(name, (0.0, 0.0, 0.0)))
-                      for name, readings in self.robots.items()}
+            robots = {name: readings.to_json(starts.get(name, (0.0, 0.0, 0.0))) if name in self.detailed
+                      else readings.drawn_json() for name, readings in self.robots.items()}
+            counts = [r.collisions for r in self.robots.values()]
             text = page_json({
                 'version': self.version, 'world_version': self.world_version, 'time': self.time,
                 'rtf': rtf, 'paused': self.settings.paused, 'real_time_factor': self.settings.real_time_factor,
-                'collisions': sum(r.collisions for r in self.robots.values()), 'robots': robots})
+                'collisions': None if None in counts else sum(counts), 'robots': robots})
             self._frame_cache = (self.version, rtf, text)
             return text

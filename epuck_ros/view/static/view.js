@@ -2,7 +2,9 @@
 // sends the page's actions as small JSON POSTs. Plain JS, no library: it has to work offline from the package.
 'use strict';
 
-const TRAIL_POINTS = 600;      // per robot; older points fade out and are dropped
+const TRAIL_POINTS = 600;      // per robot at most; older points fade out and are dropped
+const TRAIL_BUDGET = 20000;    // points of all trails together: a swarm's robots get shorter trails each
+const NAME_MIN_PX = 6;         // a robot's name is drawn when its body is at least this radius on screen
 const TRAIL_SPACING = 0.002;   // m between stored trail points
 const TRAIL_JUMP = 0.1;        // m; a larger move between two frames (a reset) starts a new trail
 const DRIVE_REPEAT_MS = 100;   // a held key re-sends its command, so the simulator's cmd_timeout never stops it
@@ -63,7 +65,8 @@ function extendTrail(name, pose) {
   const moved = last ? Math.hypot(pose[0] - last[0], pose[1] - last[1]) : Infinity;
   if (moved > TRAIL_JUMP) trail.length = 0;
   if (moved >= TRAIL_SPACING) trail.push([pose[0], pose[1]]);
-  if (trail.length > TRAIL_POINTS) trail.splice(0, trail.length - TRAIL_POINTS);
+  const most = Math.min(TRAIL_POINTS, Math.floor(TRAIL_BUDGET / Object.keys(view.frame.robots).length));
+  if (trail.length > most) trail.splice(0, trail.length - most);
 }
 
 // --- figures -----------------------------------------------------------------------------------------------
@@ -77,7 +80,7 @@ function showFigures() {
   setText('rtf', fixed(frame.rtf, 2));
   setText('rtf-setting', frame.real_time_factor === null ? '–'
     : frame.real_time_factor === 0 ? 'max' : String(frame.real_time_factor));
-  setText('collisions', String(frame.collisions));
+  setText('collisions', frame.collisions === null ? '–' : String(frame.collisions));
   setText('run-state', frame.paused === null ? '–' : frame.paused ? 'paused' : 'running');
   $('pause').textContent = frame.paused ? 'Resume' : 'Pause';
   $('step').disabled = frame.paused === false;
@@ -89,7 +92,7 @@ function showFigures() {
     ? `${fixed(robot.wheel_speeds[0], 2)} / ${fixed(robot.wheel_speeds[1], 2)} rad/s` : '–');
   setText('odom-error', robot.odom_error
     ? `${fixed(robot.odom_error.distance * 1000, 1)} mm, ${fixed(robot.odom_error.yaw * 180 / Math.PI, 2)}°` : '–');
-  setText('robot-collisions', String(robot.collisions));
+  setText('robot-collisions', robot.collisions === null ? '–' : String(robot.collisions));
   showCamera(robot);
 }
 
@@ -292,6 +295,7 @@ function drawRobot(name, robot, colour, scale) {
     });
   }
   ctx.restore();
+  if (name !== view.selected && model.body_radius * scale < NAME_MIN_PX) return;   // a swarm: names would be a blur
   ctx.save();   // the name, upright
   ctx.translate(x, y + model.body_radius * 1.3);
   ctx.scale(1 / scale, -1 / scale);
