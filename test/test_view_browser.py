@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import math
 import os
+import re
 import shutil
 import tempfile
 from collections.abc import Iterator
@@ -15,7 +16,11 @@ from pathlib import Path
 import pytest
 from geometry_msgs.msg import Twist
 from nav_msgs.msg import Odometry
+from rclpy._rclpy_pybind11 import NodeNameNonExistentError
 from rclpy.parameter_client import AsyncParameterClient
+from std_msgs.msg import Float64MultiArray
+
+from epuck_ros.swarm_messages import OBSERVATION_FIELDS, OBSERVATION_TOPIC, SwarmReader
 
 CHROMIUM = shutil.which('chromium') or '/usr/bin/chromium'
 CHROMEDRIVER = shutil.which('chromedriver') or '/usr/bin/chromedriver'
@@ -260,3 +265,57 @@ def test_the_floor_paint_of_the_line_track_is_drawn(launch, browser) -> None:
                     'the page to draw the world')
     assert _canvas_pixel(page, 0.35, 0.0) == [0, 0, 0, 255]          # a vertex of the oval, on the line
     assert _canvas_pixel(page, 0.0, 0.0) == [255, 255, 255, 255]     # the white floor inside it
+
+
+SWARM_ROBOTS = 200
+"""From this many robots (`ros.on_demand.TOPICS_ON_DEMAND_FROM`) the simulator makes a robot's topics only once
+someone reads them: the graph shows what the view reads."""
+
+
+class SwarmTruth:
+    """Every robot's ground truth of each step, by stamp (ns), from the test's own reader of `swarm/observation`."""
+
+    def __init__(self, test_node) -> None:
+        self.poses: dict[int, dict[str, tuple[float, float, float]]] = {}
+        self._reader = SwarmReader()
+        test_node.node.create_subscription(Float64MultiArray, OBSERVATION_TOPIC, self._on_msg, 1000, raw=True)
+
+    def _on_msg(self, data: bytes) -> None:
+        step = self._reader.read(data)
+        truth = [OBSERVATION_FIELDS.index(field) for field in ('truth_x', 'truth_y', 'truth_yaw')]
+        self.poses[step.stamp[0] * 10**9 + step.stamp[1]] = {
+            robot: tuple(row) for robot, row in zip(step.robots, step.data[:, truth].tolist())}
+
+
+def test_a_swarm_is_drawn_whole_from_one_topic_and_only_the_selected_robot_is_read_by_its_own(
+        launch, test_node, browser, tmp_path) -> None:
+    """200 robots: the page draws every robot where the simulator has it, and the view reads every robot's step
+    from swarm/observation: of the robots' own topics, only the selected robot's are in the graph (the simulator
+    makes them on demand), besides epuck3's ground truth the test reads itself to tie the two together."""
+    world = tmp_path / 'arena5.yaml'
+    world.write_text('arena: {size: [5.0, 5.0]}\n')
+    swarm, epuck3 = SwarmTruth(test_node), Truth(test_node, 'epuck3/ground_truth')
+    # The address names the robot shown in detail: the page reads no other robot's own topics, even at first.
+    page = Page(browser, _open_view(launch, '-p', f'world:={world}', '-p', f'robots:={SWARM_ROBOTS}') + '?robot=epuck7')
+    assert browser.find_element(By.ID, 'robot').get_attribute('value') == 'epuck7'
+    stepped = _step_until_heard(page, test_node, [swarm, epuck3])
+    page.wait_until(lambda: len(page.drawn()['robots']) == SWARM_ROBOTS, 'every robot drawn')
+    drawn = page.drawn()['robots']
+    truth = swarm.poses[_ns(stepped)]
+    assert {name: tuple(robot['pose']) for name, robot in drawn.items()} == truth
+    assert truth['epuck3'] == pytest.approx(epuck3.poses[_ns(stepped)], abs=1e-12)
+    page.wait_until(lambda: page.text('pose') != '–', "the selected robot's pose shown")
+    assert float(page.text('pose').split(' m')[0]) == pytest.approx(truth['epuck7'][0], abs=6e-4)
+
+    def view_reads() -> set[str]:
+        try:
+            return {topic for topic, _ in test_node.node.get_subscriber_names_and_types_by_node('view', '/')}
+        except NodeNameNonExistentError:   # the test's node has not discovered the view yet
+            return set()
+    test_node.spin_until(lambda: {f'/{OBSERVATION_TOPIC}', '/epuck7/camera/image_raw'} <= view_reads(),
+                         what='the view to read the swarm topic and the selected camera', timeout=60)
+    assert {topic for topic in view_reads() if re.match(r'/epuck\d+/', topic)} == {
+        '/epuck7/camera/image_raw', '/epuck7/collisions', '/epuck7/leds'}
+    robots_in_graph = {name.split('/')[1] for name, _ in test_node.node.get_topic_names_and_types()
+                       if re.match(r'/epuck\d+/', name) and name != '/epuck3/ground_truth'}
+    assert robots_in_graph == {'epuck7'}

@@ -12,7 +12,8 @@ const COLOURS = ['#d62728', '#1f77b4', '#2ca02c', '#9467bd', '#ff7f0e', '#17becf
 
 // Everything the page knows and what it last drew; `window.epuckView.drawn` is what tests compare with ROS.
 const view = {
-  world: null, worldText: null, frame: null, selected: null, trails: {},
+  // `?robot=NAME` in the page's address: the robot shown in detail from the start (a swarm's first robot is not read)
+  world: null, worldText: null, frame: null, selected: new URLSearchParams(location.search).get('robot'), trails: {},
   drawn: null,   // {time, world: version, robots: {name: {pose: [x, y, yaw], stamp}}} of the last frame painted
   drive: {linear: 0.1, angular: 1.5, keys: new Set(), sent: '0,0', timer: null},
 };
