@@ -45,7 +45,8 @@ function onWorld(event) {
   view.worldText = event.data;
   view.trails = {};
   const names = (world.robots || []).map((robot) => robot.name);
-  const selected = names.includes(view.selected) ? view.selected : names[0] || null;
+  // no robots yet (the view has no world): the selection, perhaps the address's, stays for the world to come
+  const selected = names.includes(view.selected) || !names.length ? view.selected : names[0];
   $('robot').replaceChildren(...names.map((name) => new Option(name, name, false, name === selected)));
   if (selected !== view.selected) select(selected);
   requestDraw();
