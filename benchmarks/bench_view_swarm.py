@@ -5,12 +5,15 @@ Per phase (sim alone; sim + view, no page; sim + view + page):
 - the simulator's real-time factor and steps a wall second (/clock sampled at the start and end of the phase by a
   best-effort depth-1 subscription) and its CPU time per simulated second (Linux /proc);
 - the view's CPU use (cores) and resident memory (MB);
-- with a page: the wall seconds from the page's connection to the first state event that holds every robot's
+- with a page (showing `--robot` in detail): the wall seconds from the page's connection to the first state event that holds every robot's
   pose, the state events a second it then got and their mean size;
 - after the phase: the robots' own topics the graph shows (`/<robot>/...`: from 200 robots the simulator makes a
   robot's topics only once someone reads them).
 `--browser`: a headless Chromium (as test_view_browser) opens the page instead of the plain client: the seconds from
 opening the URL until the page has drawn every robot (`window.epuckView.drawn`).
+`--foxglove`: the Foxglove bridge instead of the view (`foxglove --port 0`): alone, then with a WebSocket client
+subscribed to `--channels` (default `/swarm/observation` and `/tf`: what a swarm's plot and 3D panel read), the
+channels it advertised, the messages a second the client got.
 
 Run: . scripts/env.sh && ROS_DOMAIN_ID=42 python benchmarks/bench_view_swarm.py [--robots N] [--seconds S]
 [--browser]
@@ -128,6 +131,59 @@ def _show(name: str, figures: dict) -> None:
                                   for key, value in figures.items()), flush=True)
 
 
+class FoxgloveClient:
+    """A Foxglove WebSocket client (the protocol's JSON control messages; binary messageData only counted)."""
+
+    def __init__(self, port: int) -> None:
+        import websocket
+        self.ws = websocket.create_connection(f'ws://127.0.0.1:{port}', subprotocols=['foxglove.sdk.v1'], timeout=60)
+        self.channels: dict[str, int] = {}
+        self.messages = 0
+        self._ids = iter(range(1, 1 << 30))
+        threading.Thread(target=self._read, daemon=True).start()
+
+    def _read(self) -> None:
+        try:
+            while True:
+                opcode, data = self.ws.recv_data()
+                if opcode == 1:   # text: control
+                    message = json.loads(data)
+                    if message['op'] == 'advertise':
+                        self.channels.update({c['topic']: c['id'] for c in message['channels']})
+                elif data[0] == 1:   # messageData
+                    self.messages += 1
+        except Exception:   # noqa: BLE001 - closed at the end
+            pass
+
+    def subscribe(self, *topics: str) -> None:
+        self.ws.send(json.dumps({'op': 'subscribe', 'subscriptions': [
+            {'id': next(self._ids), 'channelId': self.channels[topic]} for topic in topics]}))
+
+
+def _foxglove_phases(args: argparse.Namespace, sampler: ClockSampler, sim: subprocess.Popen, names: set[str]) -> None:
+    _show('sim alone', measure(sampler, args.seconds, sim.pid, None))
+    log = Path(tempfile.gettempdir()) / f'bench_view_swarm_foxglove_{os.getpid()}.log'
+    bridge = subprocess.Popen([_executable('foxglove'), '--port', '0'], stdout=open(log, 'w'),
+                              stderr=subprocess.STDOUT, env=dict(os.environ, PYTHONUNBUFFERED='1'))
+    try:
+        wait_for(lambda: 'ws://' in log.read_text(), 'the bridge to serve', 60)
+        port = int(re.search(r'ws://127\.0\.0\.1:(\d+)', log.read_text()).group(1))
+        _show('sim + foxglove, no client', {**measure(sampler, args.seconds, sim.pid, bridge.pid),
+                                            'robot_topics': len(robot_topics(sampler.node, names))})
+        client = FoxgloveClient(port)
+        wait_for(lambda: set(args.channels) <= set(client.channels), f'the channels {args.channels}', 60)
+        client.subscribe(*args.channels)
+        wait_for(lambda: client.messages > 0, 'the first forwarded message', 60)
+        count = client.messages
+        figures = measure(sampler, args.seconds, sim.pid, bridge.pid)
+        _show(f'sim + foxglove + client on {" ".join(args.channels)}', {
+            **figures, 'messages_per_s': (client.messages - count) / args.seconds,
+            'channels': len(client.channels), 'robot_topics': len(robot_topics(sampler.node, names))})
+        client.ws.close()
+    finally:
+        interrupt(bridge, 10)
+
+
 def _phases(args: argparse.Namespace, sampler: ClockSampler, sim: subprocess.Popen, names: set[str]) -> None:
     _show('sim alone', measure(sampler, args.seconds, sim.pid, None))
     view, host, port = start_view(Path(tempfile.gettempdir()) / f'bench_view_swarm_{os.getpid()}.log')
@@ -139,7 +195,7 @@ def _phases(args: argparse.Namespace, sampler: ClockSampler, sim: subprocess.Pop
         if args.browser:
             _show('browser', {'seconds_to_draw_every_robot': browser_seconds(f'http://{host}:{port}/',
                                                                              args.robots)})
-        page = Page(host, port, 'epuck0', args.robots)
+        page = Page(host, port, args.robot, args.robots)
         wait_for(lambda: page.complete is not None, 'a state with every robot', 300)
         states, size = page.states, page.state_bytes
         figures = measure(sampler, args.seconds, sim.pid, view.pid)
@@ -159,6 +215,11 @@ def main() -> None:
     parser.add_argument('--robots', type=int, default=1000)
     parser.add_argument('--seconds', type=float, default=5.0, help='wall seconds per phase (default 5)')
     parser.add_argument('--browser', action='store_true', help='also time a headless Chromium drawing the robots')
+    parser.add_argument('--robot', default='epuck0',
+                        help="the robot the page shows in detail (its camera is rendered); '' for none")
+    parser.add_argument('--foxglove', action='store_true', help='the Foxglove bridge instead of the view')
+    parser.add_argument('--channels', nargs='+', default=['/swarm/observation', '/tf'],
+                        help='with --foxglove: the topics the client subscribes to')
     args = parser.parse_args()
     os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
     world = Path(tempfile.mkdtemp(prefix='bench_view_swarm_')) / 'arena10.yaml'
@@ -173,7 +234,7 @@ def main() -> None:
         sampler.sample(300.0)
         print(f'{args.robots} robots; sim stepping after {time.monotonic() - started:.1f} s; load average '
               f'{os.getloadavg()[0]:.2f} on {os.cpu_count()} cores', flush=True)
-        _phases(args, sampler, sim, {f'epuck{i}' for i in range(args.robots)})
+        (_foxglove_phases if args.foxglove else _phases)(args, sampler, sim, {f'epuck{i}' for i in range(args.robots)})
     finally:
         sampler.node.destroy_node()
         rclpy.try_shutdown()

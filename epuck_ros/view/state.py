@@ -34,8 +34,12 @@ _SWARM_COLUMNS = {name: [OBSERVATION_FIELDS.index(field) for field in fields] fo
 
 def page_json(value: object) -> str:
     """JSON the page's JSON.parse accepts: NaN and infinities (a NaN pose from any node on the domain, or a replayed
-    bag) become null instead of the bare NaN Python writes."""
-    return json.dumps(_finite(value), allow_nan=False)
+    bag) become null instead of the bare NaN Python writes. Looked for only when there is one: a swarm's frame is
+    thousands of numbers, and the walk took longer than the encoding."""
+    try:
+        return json.dumps(value, allow_nan=False)
+    except ValueError:
+        return json.dumps(_finite(value), allow_nan=False)
 
 
 def _finite(value: object) -> object:
