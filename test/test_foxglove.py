@@ -258,6 +258,34 @@ def test_several_robots_two_clients_and_a_simulator_that_ends(launch, test_node)
     assert bridge.stop() == 0, bridge.log_path.read_text()
 
 
+def test_a_swarm_through_foxglove_makes_no_robot_topic(launch, test_node, tmp_path):
+    """200 robots (from which the simulator makes a robot's topics only once someone reads them): the bridge
+    advertises what the graph has and subscribes only what its client shows, so a client reading every robot's step
+    from swarm/observation makes the simulator make none of the robots' own topics."""
+    from std_srvs.srv import Trigger
+    world = tmp_path / 'arena5.yaml'
+    world.write_text('arena: {size: [5.0, 5.0]}\n')
+    launch('sim', *ros_args({'paused': True, 'robots': 200, 'world': world}))
+    test_node.wait_for_simulator()
+    bridge, port = start_bridge(launch)
+    client = FoxgloveClient(port)
+    stepper = test_node.node.create_client(Trigger, '/step')
+    try:
+        client.pump(lambda: '/swarm/observation' in client.channels, 'the swarm observation channel')
+        client.subscribe('/swarm/observation')
+        client.pump(lambda: client.received['/swarm/observation'], 'a swarm observation',
+                    between=lambda: stepper.call_async(Trigger.Request()))
+        step = client.last('/swarm/observation')
+        assert [dim.size for dim in step.layout.dim[-2:]] == [200, 20]   # every robot's step, in one message
+        robot_topics = [name for name, _ in test_node.node.get_topic_names_and_types()
+                        if re.match(r'/epuck\d+/', name)]
+        assert robot_topics == []
+        assert not any(re.match(r'/epuck\d+/', channel) for channel in client.channels)
+    finally:
+        client.close()
+    assert bridge.stop() == 0, bridge.log_path.read_text()
+
+
 def taken_port() -> socket.socket:
     """A socket listening on a free loopback port: that port is taken while it lives."""
     holder = socket.socket()
