@@ -7,9 +7,9 @@ websocket library would add a dependency and nothing the page uses.
 - `GET /` the page, `GET /static/<file>` its assets (only the files shipped in `view/static`).
 - `GET /events?robot=NAME` Server-Sent Events: `world` on connect and whenever the world changes, `state` at most
   `MAX_FRAME_RATE` times a second and only when something changed. NAME is the robot the page shows in detail.
-  The view subscribes to the robots' topics only while a page is open (`ViewServer.pages_open`), and to
-  odometry and wheel speeds only for the robots a page shows in detail (`ViewServer.watched`): each subscriber
-  costs the simulator a send per step.
+  The view reads only while a page is open (`ViewServer.pages_open`), and a robot's own topics only for the
+  robots a page shows in detail (`ViewServer.watched`; `view.follow`): each subscriber costs the simulator a send
+  per step.
 - `GET /state?robot=NAME`, `GET /world` the same JSON once (for scripts and benchmarks); `GET /camera?robot=NAME`
   the newest camera image of the robot shown in detail (PNG; 404 before the first).
 - `POST /api/<action>` with a JSON body: one of ACTIONS, checked by `parse_action` before anything reaches ROS.
