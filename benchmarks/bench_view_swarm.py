@@ -2,15 +2,16 @@
 1,000) in a 10 m x 10 m arena at `real_time_factor` 0, then the `view` beside it, then a page on the view.
 
 Per phase (sim alone; sim + view, no page; sim + view + page):
-- the simulator's real-time factor and steps a wall second (/clock sampled at the start and end of the phase by a
+- the simulator's real-time factor (/clock sampled at the start and end of the phase by a
   best-effort depth-1 subscription) and its CPU time per simulated second (Linux /proc);
 - the view's CPU use (cores) and resident memory (MB);
-- with a page (showing `--robot` in detail): the wall seconds from the page's connection to the first state event that holds every robot's
-  pose, the state events a second it then got and their mean size;
+- with a page (showing `--robot` in detail): the wall seconds from the page's connection to the first state event
+  that holds every robot's pose, the state events a second it then got and their mean size;
 - after the phase: the robots' own topics the graph shows (`/<robot>/...`: from 200 robots the simulator makes a
   robot's topics only once someone reads them).
-`--browser`: a headless Chromium (as test_view_browser) opens the page instead of the plain client: the seconds from
-opening the URL until the page has drawn every robot (`window.epuckView.drawn`).
+`--browser`: before the page client, a headless Chromium (as test_view_browser) opens the page: the seconds from
+opening the URL until the page has drawn every robot (`window.epuckView.drawn`), and how long one drawing takes
+once the trails have grown for 5 s.
 `--foxglove`: the Foxglove bridge instead of the view (`foxglove --port 0`): alone, then with a WebSocket client
 subscribed to `--channels` (default `/swarm/observation` and `/tf`: what a swarm's plot and 3D panel read), the
 channels it advertised, the messages a second the client got.
@@ -91,8 +92,9 @@ class Page:
         self._connection.close()
 
 
-def browser_seconds(url: str, robots: int) -> float:
-    """Seconds from opening the page in a headless Chromium until it has drawn every robot."""
+def browser_seconds(url: str, robots: int) -> tuple[float, float]:
+    """Seconds from opening the page in a headless Chromium until it has drawn every robot, and then the
+    milliseconds one drawing of the canvas takes 5 s later (the mean of ten)."""
     from selenium import webdriver
     from selenium.webdriver.chrome.service import Service
     from selenium.webdriver.support.ui import WebDriverWait
@@ -109,7 +111,10 @@ def browser_seconds(url: str, robots: int) -> float:
         drawn = ('const d = window.epuckView.drawn; return d && d.robots ? '
                  'Object.values(d.robots).filter(r => r.pose).length : 0')
         WebDriverWait(driver, 300, poll_frequency=0.05).until(lambda d: d.execute_script(drawn) == robots)
-        return time.monotonic() - started
+        seconds = time.monotonic() - started
+        time.sleep(5.0)   # the trails grow
+        return seconds, driver.execute_script(
+            'const t = performance.now(); for (let i = 0; i < 10; i++) draw(); return (performance.now() - t) / 10')
     finally:
         driver.quit()
 
@@ -193,8 +198,8 @@ def _phases(args: argparse.Namespace, sampler: ClockSampler, sim: subprocess.Pop
         _show('sim + view, no page', {**measure(sampler, args.seconds, sim.pid, view.pid),
                                       'robot_topics': len(robot_topics(sampler.node, names))})
         if args.browser:
-            _show('browser', {'seconds_to_draw_every_robot': browser_seconds(f'http://{host}:{port}/',
-                                                                             args.robots)})
+            seconds, draw_ms = browser_seconds(f'http://{host}:{port}/', args.robots)
+            _show('browser', {'seconds_to_draw_every_robot': seconds, 'ms_per_drawing': draw_ms})
         page = Page(host, port, args.robot, args.robots)
         wait_for(lambda: page.complete is not None, 'a state with every robot', 300)
         states, size = page.states, page.state_bytes
