@@ -166,3 +166,28 @@ def test_view_draws_a_played_bag_recorded_before_ir_raw(launch, test_node, tmp_p
     assert robot['pose'] == pytest.approx(poses[round(robot['stamp'] * 1e9)], abs=1e-12)
     for sensor, drawn_range in enumerate(robot['ir_range']):
         assert drawn_range in ranges[f'ps{sensor}']
+
+
+def test_view_draws_a_played_swarm_bag_without_the_swarm_topic(launch, test_node) -> None:
+    """`bag play` of the sample swarm run (five robots, recorded before the swarm topics: each robot's own topics
+    only): with no `swarm/observation` publisher the view reads every robot's own ground truth."""
+    bag = Path(__file__).resolve().parents[1] / 'bags' / 'swarm'
+    poses: dict[str, dict[int, list[float]]] = {}
+    with open(next(bag.glob('*.mcap')), 'rb') as stream:
+        for _, channel, _, msg in make_reader(stream, decoder_factories=[DecoderFactory()]).iter_decoded_messages():
+            if channel.topic.endswith('/ground_truth'):
+                q, stamp = msg.pose.pose.orientation, msg.header.stamp
+                poses.setdefault(channel.topic.split('/')[1], {})[stamp.sec * 10**9 + stamp.nanosec] = [
+                    msg.pose.pose.position.x, msg.pose.pose.position.y, 2 * math.atan2(q.z, q.w)]
+    assert len(poses) == 5
+
+    address = _url(launch('view', '--ros-args', '-p', 'port:=0'))
+    launch('bag', 'play', str(bag), '--rate', '2')
+
+    def drawn() -> dict | None:
+        robots = _call(address, 'GET', '/state')[1]['robots']
+        return robots if set(robots) == set(poses) and all(
+            robot['pose'] and robot['stamp'] > 1.0 for robot in robots.values()) else None
+    test_node.spin_until(lambda: drawn() is not None, what='every played robot in the view', timeout=60)
+    for name, robot in drawn().items():
+        assert robot['pose'] == pytest.approx(poses[name][round(robot['stamp'] * 1e9)], abs=1e-12)
