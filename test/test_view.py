@@ -80,6 +80,20 @@ def test_a_swarm_observation_sets_every_robot_it_names_and_the_time() -> None:
     assert epuck2.stamp == pytest.approx(3.2) and state.robots['epuck1'].pose is None   # not in the message
 
 
+def test_a_swarm_observation_of_non_finite_numbers_still_gives_json_the_page_parses() -> None:
+    """Any node on the domain may publish on swarm/observation."""
+    state = ViewState()
+    state.set_world(THREE)
+    rows = np.full((3, len(OBSERVATION_FIELDS)), np.nan)
+    rows[1] = np.inf
+    state.set_swarm(SwarmReader().read(SwarmLayout(THREE.names, OBSERVATION_FIELDS).to_bytes(rows, (1, 0))), 0.0)
+
+    def strict(constant: str) -> None:
+        raise ValueError(f'{constant} is not JSON')
+    frame = json.loads(state.frame_json(wall_now=0.0), parse_constant=strict)
+    assert frame['robots']['epuck0']['pose'] == [None] * 3 and frame['robots']['epuck1']['pose'] == [None] * 3
+
+
 def test_the_view_reads_a_swarm_in_one_message_and_own_topics_only_of_robots_in_detail() -> None:
     robots = tuple(f'epuck{i}' for i in range(300))
     assert wanted_topics(robots, False, {'epuck7'}, True, robots, (), False) == set()   # no page: nothing
