@@ -54,20 +54,21 @@ function onWorld(event) {
 
 function onState(event) {
   view.frame = JSON.parse(event.data);
-  for (const [name, robot] of Object.entries(view.frame.robots)) {
-    if (robot.pose) extendTrail(name, robot.pose);
+  const robots = Object.entries(view.frame.robots);
+  const most = Math.min(TRAIL_POINTS, Math.floor(TRAIL_BUDGET / robots.length));
+  for (const [name, robot] of robots) {
+    if (robot.pose) extendTrail(name, robot.pose, most);
   }
   showFigures();
   requestDraw();
 }
 
-function extendTrail(name, pose) {
+function extendTrail(name, pose, most) {
   const trail = view.trails[name] || (view.trails[name] = []);
   const last = trail[trail.length - 1];
   const moved = last ? Math.hypot(pose[0] - last[0], pose[1] - last[1]) : Infinity;
   if (moved > TRAIL_JUMP) trail.length = 0;
   if (moved >= TRAIL_SPACING) trail.push([pose[0], pose[1]]);
-  const most = Math.min(TRAIL_POINTS, Math.floor(TRAIL_BUDGET / Object.keys(view.frame.robots).length));
   if (trail.length > most) trail.splice(0, trail.length - most);
 }
 
