@@ -3,8 +3,9 @@
 step, to the bit, and `bringup` says the run was reproducible. Scripts that read senses (the light seeker, the line
 follower, the red-box finder) included: their first readings no longer depend on when discovery delivers a topic.
 
-One pass here: every script on 1 robot, and on 3 robots those that read a sense of each kind (light, ground,
-camera, proximity); the other scripts on 3 robots and the run beside busy loops are the slow tier (marker `slow`:
+One pass here: every script that reads a sense on 1 robot and on 3 robots (light, ground, camera, proximity), and
+one that only drives (spin.py); the other plain drives (on 1 and on 3 robots: what decides them is the clock and
+the wheels, which spin.py's run checks) and the run beside busy loops are the slow tier (marker `slow`:
 `scripts/test.sh --slow`, .ci/run). `python benchmarks/same_run_loops.py` repeats it all many times with busy loops
 on every core beside it (its figures are in the README)."""
 from __future__ import annotations
@@ -19,10 +20,19 @@ from same_run import Case, bringup_truth, difference, example_cases, headless_tr
 
 SENSES_OF_EACH_KIND = ('light_seeker.py', 'line_follower.py', 'find_red_box.py', 'obstacle_avoidance.py')
 """The scripts whose 3-robot runs stay in the quick tier: light, ground, camera and proximity, read from the first
-step by each robot's own webots_controller; 3 robots of the other scripts (plain drives) add little but time."""
+step by each robot's own webots_controller; 3 robots of the other scripts add little but time."""
+PLAIN_DRIVES = ('circle.py', 'straight_line.py', 'timed_rectangle.py', 'circular_and_turn_around.py', 'controller_1.py',
+                'controller_4.py')
+"""Scripts that enable no sensor: one robot of each is in the slow tier, spin.py's stays here for them all."""
 CASES = [*example_cases(robots=0, duration=3.0), *example_cases(robots=3, duration=2.0)]
-PARAMS = [pytest.param(case, id=case.label, marks=() if case.robots == 0 or case.label.split()[0] in SENSES_OF_EACH_KIND
-                       else pytest.mark.slow) for case in CASES]
+
+
+def _quick(case: Case) -> bool:
+    script = case.label.split()[0]
+    return script in SENSES_OF_EACH_KIND if case.robots else script not in PLAIN_DRIVES
+
+
+PARAMS = [pytest.param(case, id=case.label, marks=() if _quick(case) else pytest.mark.slow) for case in CASES]
 
 
 @pytest.mark.parametrize('case', PARAMS)
