@@ -9,18 +9,19 @@ from __future__ import annotations
 import os
 import sys
 
-from epuck_ros.experiments import headless_cli
-from epuck_ros.ros.spinning import end_process
-from epuck_ros.webots import runner
-
 HEADLESS = '--headless'
 
 
 def main(argv: list[str] | None = None) -> None:
     args = sys.argv[1:] if argv is None else argv
+    # Each way imports only its own half: a script's process starts once per robot, and the other half's imports
+    # (the bag and experiments modules, or ROS's) took a fifth of its start.
     if HEADLESS not in args:
+        from epuck_ros.webots import runner
         runner.main(args)
         return
+    from epuck_ros.experiments import headless_cli
+    from epuck_ros.ros.spinning import end_process
     code = 0
     try:
         headless_cli.main([arg for arg in args if arg != HEADLESS])

@@ -7,13 +7,14 @@ import pytest
 from conftest import ros_args
 from nav_msgs.msg import Odometry
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+from rosbags.typesys import Stores, get_typestore
 from rosgraph_msgs.msg import Clock
 from std_msgs.msg import Float64MultiArray
 
-from epuck_ros.ros.serialized import _TYPESTORE
 from epuck_ros.swarm_messages import COMMAND_FIELDS, OBSERVATION_FIELDS, SwarmLayout, SwarmReader
 
 FLOAT64_ARRAY = 'std_msgs/msg/Float64MultiArray'
+TYPESTORE = get_typestore(Stores.ROS2_JAZZY)
 
 
 @pytest.mark.parametrize('stamp', [(12, 32000000), (0, 0), None])
@@ -24,8 +25,8 @@ def test_a_swarm_message_is_a_float64_multi_array_as_rosbags_writes_it(stamp, fi
     and Foxglove read it; and read back by `SwarmReader`."""
     data = np.arange(len(robots) * len(fields), dtype=float).reshape(len(robots), len(fields)) * 1.5 - 2.0
     raw = SwarmLayout(robots, fields).to_bytes(data, stamp)
-    msg = _TYPESTORE.deserialize_cdr(raw, FLOAT64_ARRAY)
-    assert bytes(_TYPESTORE.serialize_cdr(msg, FLOAT64_ARRAY)) == raw
+    msg = TYPESTORE.deserialize_cdr(raw, FLOAT64_ARRAY)
+    assert bytes(TYPESTORE.serialize_cdr(msg, FLOAT64_ARRAY)) == raw
     labels = [dim.label for dim in msg.layout.dim]
     assert labels[-2:] == ['robots=' + ','.join(robots), 'fields=' + ','.join(fields)]
     assert labels[:-2] == ([] if stamp is None else [f'stamp={stamp[0]}.{stamp[1]:09d}'])
@@ -41,8 +42,8 @@ def test_bytes_that_are_no_swarm_message_are_none_not_an_error():
     wrong_sizes = SwarmLayout(['epuck0'], COMMAND_FIELDS).to_bytes(np.ones((1, 2)), (1, 0)).replace(
         b'robots=epuck0', b'robots=epuckX,y')
     for bad in [b'', b'\x00\x01\x00\x00', good[:-8], good[:40], b'\x01' * 200, good.replace(b'stamp=1.', b'stamp=x.'),
-                wrong_sizes, _TYPESTORE.serialize_cdr(_TYPESTORE.types[FLOAT64_ARRAY](
-                    layout=_TYPESTORE.types['std_msgs/msg/MultiArrayLayout'](dim=[], data_offset=0),
+                wrong_sizes, TYPESTORE.serialize_cdr(TYPESTORE.types[FLOAT64_ARRAY](
+                    layout=TYPESTORE.types['std_msgs/msg/MultiArrayLayout'](dim=[], data_offset=0),
                     data=np.ones(3)), FLOAT64_ARRAY)]:
         assert reader.read(bytes(bad)) is None
     assert reader.read(good).robots == ('epuck0', 'epuck1')

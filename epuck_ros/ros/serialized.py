@@ -25,11 +25,11 @@ from __future__ import annotations
 
 import struct
 from collections.abc import Hashable, Sequence
+from functools import cache
 from typing import Any
 
 import numpy as np
 from rosbags.serde import SerdeError
-from rosbags.typesys import Stores, get_typestore
 
 from epuck_ros.conversions import stamp_from_label, stamp_label
 
@@ -135,7 +135,14 @@ class PatchCache:
             return Patch(msg, fields)
 
 
-_TYPESTORE = get_typestore(Stores.ROS2_JAZZY)
+@cache
+def _typestore() -> Any:
+    """rosbags' Jazzy typestore, made on first use: it costs every node process 60 ms at import (rosbags builds every
+    distribution's store before Jazzy's), and most never need it."""
+    from rosbags.typesys import Stores, get_typestore
+    return get_typestore(Stores.ROS2_JAZZY)
+
+
 _FLOAT64_ARRAY = 'std_msgs/msg/Float64MultiArray'
 _DTYPES = {'double': np.float64, 'float': np.float32, 'int8': np.int8, 'uint8': np.uint8, 'octet': np.uint8,
            'int16': np.int16, 'uint16': np.uint16, 'int32': np.int32, 'uint32': np.uint32, 'int64': np.int64,
@@ -145,7 +152,7 @@ _DTYPES = {'double': np.float64, 'float': np.float32, 'int8': np.int8, 'uint8': 
 
 def exact_cdr(msg: Any) -> bytes:
     """`msg` (an rclpy message) as the exact little-endian CDR of its type: its own length, zero padding."""
-    return bytes(_TYPESTORE.serialize_cdr(_as_rosbags(msg), _type_name(msg)))
+    return bytes(_typestore().serialize_cdr(_as_rosbags(msg), _type_name(msg)))
 
 
 def _type_name(msg: Any) -> str:
@@ -168,7 +175,7 @@ def _as_rosbags(msg: Any) -> Any:
                                 for item in value]
         else:   # rclpy holds an octet (DiagnosticStatus.level) as one byte, rosbags as its number
             values[name] = value[0] if kind == 'octet' else value
-    return _TYPESTORE.types[_type_name(msg)](**values)
+    return _typestore().types[_type_name(msg)](**values)
 
 
 def _get(msg: Any, path: str) -> Any:
@@ -228,7 +235,7 @@ def array_values(data: bytes) -> tuple[tuple[float, ...], tuple[int, int] | None
             if read is not None:
                 return read
     try:
-        msg = _TYPESTORE.deserialize_cdr(data, _FLOAT64_ARRAY)
+        msg = _typestore().deserialize_cdr(data, _FLOAT64_ARRAY)
     except SerdeError:
         return None
     dims = msg.layout.dim
