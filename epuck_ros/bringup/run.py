@@ -155,7 +155,7 @@ class Supervisor:
         """Simulators that announced a start before ours: ours refuses to run when it hears them (perhaps only
         after the resume, when discovery is slow), so the run cannot be ours."""
         own = self.own_announcement()
-        return [f'the simulator pid {other.pid} on {other.host}' for other in sorted(self.monitor.announcements)
+        return [other.describe() for other in sorted(self.monitor.announcements)
                 if own is not None and other < own]
 
     def refuse_other_simulators(self) -> None:
@@ -178,7 +178,7 @@ class Supervisor:
         while not self.stop_requested.is_set():
             monitor.spin(WATCH_SLICE)
             found = sorted(set(monitor.clock_sources()) | set(monitor.other_simulators())) or \
-                [f'the simulator pid {a.pid} on {a.host}' for a in monitor.announcements] or \
+                [a.describe() for a in monitor.announcements] or \
                 (['/clock ticking'] if monitor.clock_messages else [])
             if found:
                 raise DomainTaken(f'another simulator is running on this ROS domain ({", ".join(found)}; '
