@@ -133,7 +133,8 @@ def test_a_clock_source_not_yet_known_by_name_is_named_by_its_announcement():
 def test_foxglove_addresses_ipv6_in_brackets_and_127_1_is_loopback(launch):
     """Item 14: `foxglove --host ::` printed `ws://:::PORT`; `--host 127.1` (127.0.0.1) was warned as reachable from
     other machines."""
-    from epuck_ros.foxglove.address import is_loopback, websocket_url
+    from epuck_ros.foxglove.address import websocket_url
+    from epuck_ros.loopback import is_loopback
     assert websocket_url('::', 8793) == 'ws://[::]:8793' and websocket_url('::1', 1) == 'ws://[::1]:1'
     assert websocket_url('127.0.0.1', 8765) == 'ws://127.0.0.1:8765'
     assert websocket_url('localhost', 8765) == 'ws://localhost:8765'

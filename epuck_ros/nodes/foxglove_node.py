@@ -44,7 +44,8 @@ from rosgraph_msgs.msg import Clock as ClockMessage
 from epuck_ros.bag.msgdefs import message_definition
 from epuck_ros.conversions import nanoseconds_from_stamp
 from epuck_ros.exit_codes import refuse
-from epuck_ros.foxglove.address import DEFAULT_HOST, DEFAULT_PORT, NODE_NAME, address_error, is_loopback, websocket_url
+from epuck_ros.foxglove.address import DEFAULT_HOST, DEFAULT_PORT, NODE_NAME, address_error, websocket_url
+from epuck_ros.loopback import is_loopback
 from epuck_ros.ros.dds_profile import use_package_profile, warn_if_not_fast_dds
 from epuck_ros.ros.qos import NEWEST_ONLY, matching
 from epuck_ros.nodes.record_node import message_class

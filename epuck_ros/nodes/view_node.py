@@ -45,18 +45,19 @@ from std_msgs.msg import Float64MultiArray, Int32MultiArray, String, UInt32
 from std_srvs.srv import Empty, Trigger
 
 from epuck_ros.conversions import seconds_from_stamp, yaw_from_quaternion
+from epuck_ros.description import JOINT_NAMES
 from epuck_ros.exit_codes import EXIT_BAD_INPUT
+from epuck_ros.loopback import is_loopback
 from epuck_ros.model import SENSOR_NAMES
 from epuck_ros.ros.dds_profile import use_package_profile
 from epuck_ros.ros.params import ParamSpec, Usage, declare_parameters, prepare_arguments
 from epuck_ros.ros.on_demand import TOPICS_ON_DEMAND_FROM
 from epuck_ros.ros.qos import LATCHED, NEWEST_ONLY, newest
-from epuck_ros.nodes.sim_node import JOINT_NAMES
 from epuck_ros.ros.spinning import handle_shutdown_signals, shutdown_requested
 from epuck_ros.sensors.png import png_bytes
 from epuck_ros.swarm_messages import OBSERVATION_FIELDS, OBSERVATION_TOPIC, SwarmReader
 from epuck_ros.view.follow import CAMERA_TOPIC, DETAIL_TOPICS, SWARM, Topic, wanted_topics
-from epuck_ros.view.server import Action, ActionError, ViewServer, is_loopback
+from epuck_ros.view.server import Action, ActionError, ViewServer
 from epuck_ros.view.state import ViewState, robot_topic
 from epuck_ros.world import WorldError, world_from_yaml
 

@@ -30,9 +30,9 @@ from dataclasses import dataclass
 from http import HTTPStatus
 from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
 from importlib import resources
-from ipaddress import ip_address
 from urllib.parse import parse_qs, urlsplit
 
+from epuck_ros.loopback import is_loopback
 from epuck_ros.view.state import ViewState
 
 MAX_FRAME_RATE = 30.0
@@ -139,13 +139,6 @@ def parse_action(path: str, body: bytes) -> Action:
 
 ActionHandler = Callable[[Action], dict]
 """Carries out an Action (the view node); returns what the page is told; raises ActionError to refuse."""
-
-
-def is_loopback(host: str) -> bool:
-    try:
-        return ip_address(host).is_loopback
-    except ValueError:
-        return host == 'localhost'
 
 
 def static_file(name: str) -> bytes | None:

@@ -34,12 +34,12 @@ from sensor_msgs.msg import Image, Imu, JointState, Range
 from std_msgs.msg import Float64MultiArray, Int32MultiArray, String
 
 from epuck_ros.conversions import nanoseconds_from_stamp, stamp_from_nanoseconds
+from epuck_ros.description import JOINT_NAMES
 from epuck_ros.lockstep import Controller
 from epuck_ros.model import CAMERA_HEIGHT, CAMERA_WIDTH
 from epuck_ros.ros.ack_window import command_qos
 from epuck_ros.ros.declaration import Declarer
 from epuck_ros.ros.qos import LATCHED, LED_QOS, SCRIPT_READS
-from epuck_ros.ros.robot_ports import JOINT_NAMES
 from epuck_ros.ros.sense_ports import SENSE_TOPICS
 from epuck_ros.ros.serialized import array_bytes, array_values
 from epuck_ros.sensors.imu import gyro_values
