@@ -469,3 +469,22 @@ def test_a_swarm_makes_a_robots_topics_once_someone_reads_or_drives_them(launch,
     assert clients.truth['epuck9'][19].twist.twist.angular.z == pytest.approx(1.0)
     assert not any(node.count_publishers(f'/epuck8/{topic}') for topic in made[0])
     assert not any(node.count_subscribers(f'/epuck8/{topic}') for topic in made[1])
+
+
+def test_a_swarm_controller_reads_each_robots_ranges_as_that_robots_own_node_does():
+    """The swarm controller turns every robot's raw IR values into ranges in one NumPy pass
+    (`ranges_from_raw_rows`): the floats, to the bit, of `ranges_from_raw` robot by robot (a per-robot node's and a
+    headless trial's), around the threshold of nothing seen, at each table row, between rows and beyond both ends."""
+    from epuck_ros.behaviours.base import ranges_from_raw, ranges_from_raw_rows
+    table_raws = [raw for _, raw in IR_TABLE]
+    special = table_raws + [math.nextafter(raw, math.inf) for raw in table_raws] + \
+        [math.nextafter(raw, -math.inf) for raw in table_raws] + [0.0, 77.0, 77.2, 80.0, 5000.0, math.nan]
+    rng = np.random.default_rng(4)
+    raws = np.concatenate([np.array(special + [67.19] * (-len(special) % 8)),
+                           rng.uniform(0.0, 4500.0, 8 * 500), rng.uniform(60.0, 130.0, 8 * 500)]).reshape(-1, 8)
+    rows = ranges_from_raw_rows(raws)
+    assert len(rows) == len(raws)
+    for row, raw in zip(rows, raws.tolist()):
+        expected = ranges_from_raw(raw)
+        assert np.array_equal(row, expected) and all(isinstance(value, float) for value in row)
+        assert [math.copysign(1.0, value) for value in row] == [math.copysign(1.0, value) for value in expected]
