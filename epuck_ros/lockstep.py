@@ -190,8 +190,8 @@ class Lockstep:
 
     def _init_answers(self, robots: int) -> None:
         """What is known of each robot's answers and controller: none answered, nobody in lockstep yet."""
-        self._answered = np.zeros(robots, dtype=bool)
-        """An answer to the current step arrived (an array: a swarm's answers are noted at once, `answer_all`)."""
+        self._answered: list[int] = []
+        """The robots an answer to the current step came from (one may be there twice)."""
         self._never_answered = set(range(robots))
         """Robots no answer has come from yet."""
         self._free: set[int] = set()
@@ -255,7 +255,7 @@ class Lockstep:
             raise StepClaimError(f'thread {threading.current_thread().name} stepped without the claim')
         if not resend:
             with self._changed:
-                self._answered[:] = False
+                self._answered = []
                 self._sent, self._stall_reports = time.monotonic(), 0
         self._step(resend)
 
@@ -328,7 +328,7 @@ class Lockstep:
                     self._last_command[robot] = command
             if kind is not Answer.STEP:
                 self._make_free(robot, kind)
-            self._answered[robot] = True
+            self._answered.append(robot)
             self._awaited.discard(robot)
             self._free_awaited.discard(robot)
             self._after_answers()
@@ -345,8 +345,8 @@ class Lockstep:
         step here, as in `answer`."""
         with self._changed:
             self._last_named[robots], self._named[robots] = named, True
-            self._answered[robots] = True
             listed = robots.tolist()
+            self._answered += listed
             for robot in listed if self._last_command else ():   # none in a swarm's run: no loop over its robots
                 self._last_command.pop(robot, None)
             self._awaited.difference_update(listed)
@@ -444,18 +444,18 @@ class Lockstep:
                 self._kinds[robot] = kind = self._controller(robot)
                 if kind.free:
                     free.add(robot)
-        waiting = (driven | members).difference(np.flatnonzero(self._answered).tolist())
+        waiting = (driven | members).difference(self._answered)
         self._free_awaited = waiting & (self._free | free)
         self._awaited = waiting - self._free_awaited
 
     def _take_answers(self) -> None:
         """The current step is answered: note who answered, and clear the answers, so that no thread takes them
         for the next step's."""
-        answered = np.flatnonzero(self._answered).tolist()
+        answered = self._answered
         if self._never_answered:
             self._never_answered.difference_update(answered)
         self._members.update(answered)
         self._members -= self._free   # (`_make_free` takes a robot out of them)
-        self._answered[:] = False
+        self._answered = []
         self._awaited, self._free_awaited = set(), set()
         self._back.clear()   # whoever came back has answered
