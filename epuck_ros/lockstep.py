@@ -203,8 +203,11 @@ class Lockstep:
         conflict."""
         self._named = np.zeros(robots, dtype=bool)
         self._last_command: dict[int, object] = {}
-        """The command of that answer, where it was not None: a second answer to the step with another is a
-        conflict."""
+        """The command of that answer, where it was not None and not one of the last `answer_all`'s: a second answer
+        to the step with another is a conflict."""
+        self._from_batch = np.zeros(robots, dtype=bool)
+        """The robots whose last answer came with the last `answer_all`: their command is `_batch_command(robot)`."""
+        self._batch_command: Callable[[int], object] = lambda robot: None
         self._kinds: dict[int, Controller] = {}
         """What the graph said last of each driven robot that never answered (`controller`)."""
         self._members: set[int] = set()
@@ -292,7 +295,10 @@ class Lockstep:
     def last_answer(self, robot: int) -> tuple[int | None, object]:
         """The step (ns) `robot`'s last named answer named, and its command (what a conflict is told from)."""
         with self._changed:
-            return self._named_by(robot), self._last_command.get(robot)
+            return self._named_by(robot), self._command_of(robot)
+
+    def _command_of(self, robot: int) -> object:
+        return self._batch_command(robot) if self._from_batch[robot] else self._last_command.get(robot)
 
     def _named_by(self, robot: int) -> int | None:
         return int(self._last_named[robot]) if self._named[robot] else None
@@ -308,7 +314,7 @@ class Lockstep:
             if named is None:
                 return Answer.BESIDE if last is not None else Answer.UNSTAMPED
             if named == last:
-                return Answer.REPEATED if command == self._last_command.get(robot) else Answer.CONFLICT
+                return Answer.REPEATED if command == self._command_of(robot) else Answer.CONFLICT
             if last is not None and named < last:
                 return Answer.CONFLICT
             if named > current:
@@ -322,6 +328,7 @@ class Lockstep:
         with self._changed:
             if named is not None:
                 self._last_named[robot], self._named[robot] = named, True
+                self._from_batch[robot] = False
                 if command is None:
                     self._last_command.pop(robot, None)
                 else:
@@ -339,19 +346,33 @@ class Lockstep:
         with self._changed:
             return named == current and not (self._named[robots] & (self._last_named[robots] >= named)).any()
 
-    def answer_all(self, robots: np.ndarray, named: int) -> None:
-        """`answer(robot, Answer.STEP, named)` of each of `robots` (an array of robot indices, each distinct), whose
-        answers `answers_step` found to answer the current step, at once; the step's last answer may take the next
-        step here, as in `answer`."""
+    def answer_all(self, robots: np.ndarray, named: int,
+                   command_of: Callable[[int], object] = lambda robot: None) -> None:
+        """`answer(robot, Answer.STEP, named, command_of(robot))` of each of `robots` (an array of robot indices,
+        each distinct), whose answers `answers_step` found to answer the current step, at once: `command_of` is asked
+        only if a robot's answer is compared with another (a swarm's whole answer sent again is a repeat, robot by
+        robot). The step's last answer may take the next step here, as in `answer`."""
         with self._changed:
-            self._last_named[robots], self._named[robots] = named, True
+            self._keep_batch_commands(robots)
+            self._last_named[robots], self._named[robots], self._from_batch[robots] = named, True, True
+            self._batch_command = command_of
             listed = robots.tolist()
             self._answered += listed
-            for robot in listed if self._last_command else ():   # none in a swarm's run: no loop over its robots
-                self._last_command.pop(robot, None)
             self._awaited.difference_update(listed)
             self._free_awaited.difference_update(listed)
             self._after_answers()
+
+    def _keep_batch_commands(self, robots: np.ndarray) -> None:
+        """Before `answer_all` of `robots`: the last one's commands of robots not among them, kept one by one (none
+        in a swarm's run: each answer names the same robots); `robots`' own are the new answers'."""
+        self._from_batch[robots] = False
+        for robot in np.flatnonzero(self._from_batch).tolist():
+            command = self._batch_command(robot)
+            if command is not None:
+                self._last_command[robot] = command
+        self._from_batch[:] = False
+        for robot in robots.tolist() if self._last_command else ():
+            self._last_command.pop(robot, None)
 
     def _after_answers(self) -> None:
         """Under the condition, answers just noted: wake the holder once the awaited ones are in, or take the next

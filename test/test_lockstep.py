@@ -620,3 +620,21 @@ def test_the_thread_of_answer_all_steps_while_the_holder_lends_its_claim():
     step.close()
     holding.join()
     assert [(count, thread) for count, _, thread in sim.steps] == [(1, 'holder'), (2, 'answers'), (3, 'answers')]
+
+
+def test_a_swarms_answer_sent_again_is_a_repeat_and_a_different_one_a_conflict():
+    """`answer_all`'s commands (asked of `command_of` only when compared) are each robot's, as `answer` notes them;
+    a later batch of other robots keeps the earlier one's commands for the robots it does not name."""
+    step, _ = lockstep(robots=3)
+    step.step()
+    speeds = {0: 1.0, 1: 2.0, 2: 3.0}
+    step.answer_all(np.array([0, 1, 2]), 32, lambda robot: ('/swarm/command', speeds[robot], 0.0))
+    assert step.classify(1, 32, 32, ('/swarm/command', 2.0, 0.0)) is Answer.REPEATED
+    assert step.classify(1, 32, 32, ('/swarm/command', 2.5, 0.0)) is Answer.CONFLICT
+    assert step.last_answer(2) == (32, ('/swarm/command', 3.0, 0.0))
+    step.answer_all(np.array([0, 1]), 64, lambda robot: ('/swarm/command', -speeds[robot], 0.0))
+    assert step.last_answer(0) == (64, ('/swarm/command', -1.0, 0.0))
+    assert step.last_answer(2) == (32, ('/swarm/command', 3.0, 0.0))   # the first batch's, kept
+    step.answer(0, Answer.STEP, 96, ('/epuck0/wheel_cmd', 5.0, 5.0))
+    assert step.last_answer(0) == (96, ('/epuck0/wheel_cmd', 5.0, 5.0))
+    assert step.classify(1, 64, 96, ('/swarm/command', -2.0, 0.0)) is Answer.REPEATED

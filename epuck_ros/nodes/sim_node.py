@@ -313,9 +313,11 @@ class SimNode(Node):
             return   # said already (the first reason stays): no look at the graph for each of an intruder's answers
         last_named, last_command = self._lockstep.last_answer(robot)
         said = f'[{command[1]!r}, {command[2]!r}] on {command[0]}'
-        if last_named == named:
+        if last_named == named and last_command is not None:
             topic, first, second = last_command
             detail = f'[{first!r}, {second!r}] on {topic}, then {said}'
+        elif last_named == named:
+            detail = f'an answer, then {said}'
         else:
             detail = f'{said}, after an answer to t={last_named * 1e-9:.3f} s'
         self._report.conflict(robot, named * 1e-9, detail, self.ports[robot].publishers())
@@ -342,7 +344,9 @@ class SimNode(Node):
         current step for every robot (a lockstep run's every step) it is one NumPy look at them all
         (`Lockstep.answers_step`), the speeds are set in one NumPy operation (`Simulation.command_all_wheels`, the same
         numbers as robot by robot) and the answers are noted at once (`Lockstep.answer_all`); anything else (some
-        robots, a repeat, an unstamped stop, a refused number) robot by robot."""
+        robots, a repeat, an unstamped stop, a refused number) robot by robot, where a whole answer sent again is a
+        repeat (each robot's command is the one `answer_all` noted) and a different one a conflict."""
+        topic = self._swarm.topic
         if self._lockstep_on and named is not None and len(robots) == len(self.ports):
             with self._lock:   # the step cannot change between the verdicts and the commands
                 answered = self._lockstep.answers_step(robots, named, nanoseconds_from_seconds(self._sim.time))
@@ -353,10 +357,9 @@ class SimNode(Node):
                         self._sim.command_all_wheels(everyone)
                     except CommandError:   # each robot's own verdict below
                         answered = False
-            if answered:
-                self._lockstep.answer_all(robots, named)
+            if answered:   # each robot's command as `_on_command` names it, if ever compared (a repeat, a conflict)
+                self._lockstep.answer_all(robots, named, lambda robot: (topic, *everyone[robot].tolist()))
                 return
-        topic = self._swarm.topic
         for robot, (left, right) in zip(robots.tolist(), speeds.tolist()):
             self._on_command(robot, topic, 'wheels', left, right, named)
 
