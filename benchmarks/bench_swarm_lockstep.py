@@ -100,7 +100,7 @@ def headless_lines(robots: int, duration: float, world: Path | None) -> set[str]
     return set(format_figures(tally.figures).splitlines())
 
 
-def main() -> None:
+def arguments() -> argparse.Namespace:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument('--counts', default='1,50,200', help='comma-separated numbers of robots')
     parser.add_argument('--duration', type=float, default=10.0, help='simulated seconds per run')
@@ -108,7 +108,11 @@ def main() -> None:
     parser.add_argument('--baseline-rev', default=BASELINE_REV, help='the commit to compare with ("" for none)')
     parser.add_argument('--domains', default='', help='comma-separated ROS domains the runs take in turn (default: '
                                                       'ROS_DOMAIN_ID and the next); one: each run waits LEASE')
-    args = parser.parse_args()
+    return parser.parse_args()
+
+
+def main() -> None:
+    args = arguments()
     os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
     domain = int(os.environ.setdefault('ROS_DOMAIN_ID', '66'))
     domains = [int(d) for d in args.domains.split(',')] if args.domains else [domain, domain + 1]
@@ -152,6 +156,10 @@ def main() -> None:
                     same = figures['this'] == figures['baseline'] and len(figures['this']) >= 1
                     print(f'{"":8} {robots:5} robots: every robot\'s figures equal in both runs: '
                           f'{"yes" if same else "NO"}', flush=True)
+    print_medians(results)
+
+
+def print_medians(results: dict[tuple[str, int], list[dict]]) -> None:
     print('\nmedians of the runs that exited 0:')
     for (label, robots), found in sorted(results.items(), key=lambda item: (item[0][1], item[0][0] != 'this')):
         good = [r for r in found if r['code'] == 0]
