@@ -502,8 +502,8 @@ def test_a_swarm_answer_sent_again_is_a_repeat_and_a_different_one_a_conflict(la
     from epuck_ros.ros.ack_window import command_qos
     from epuck_ros.swarm_messages import COMMAND_FIELDS, COMMAND_TOPIC, OBSERVATION_TOPIC, SwarmLayout, SwarmReader
     names = ['epuck0', 'epuck1', 'epuck2']
-    sim = start_lockstep_sim(launch, test_node, write_world(tmp_path, [(name, -0.3 + 0.3 * i, 0.0, 0.0)
-                                                                        for i, name in enumerate(names)]))
+    world = write_world(tmp_path, [(name, -0.3 + 0.3 * i, 0.0, 0.0) for i, name in enumerate(names)])
+    sim = start_lockstep_sim(launch, test_node, world)
     commands = test_node.node.create_publisher(Float64MultiArray, COMMAND_TOPIC, command_qos(len(names)))
     layout, reader, answered = SwarmLayout(names, COMMAND_FIELDS), SwarmReader(), []
 
