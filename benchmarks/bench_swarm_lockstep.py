@@ -15,9 +15,11 @@ medians and the ratio this / baseline.
 The baseline is a commit of this repository (`--baseline-rev`, default the one before the swarm topics), unpacked
 with `git archive` into a temporary directory; processes run with PYTHONPATH at each checkout, so each runs its own
 code. Runs alternate which checkout goes first; each run uses ROS_DOMAIN_ID or ROS_DOMAIN_ID + 1 in turn (a run's
-participants linger in the other's graph until their lease ends).
+participants linger in the other's graph until their lease ends), or the domains `--domains` names; with one, each
+run waits LEASE after the one before.
 
     ROS_DOMAIN_ID=66 python benchmarks/bench_swarm_lockstep.py [--counts 1,50,200] [--duration 10] [--repeats 1]
+        [--domains 66]
 """
 from __future__ import annotations
 
@@ -40,6 +42,9 @@ BASELINE_REV = '278215b'
 ARENA_FROM = 200
 """Robots from which the run is in a 10 m x 10 m arena (the built-in 1 m one holds about a hundred e-pucks)."""
 TIMEOUT = 1800.0
+LEASE = 7.0
+"""Wall seconds a run's participants may linger in the graph after it (the package's DDS lease, 6 s, and a margin):
+with one domain, the next run waits so long."""
 SPEED = re.compile(r'\[bringup\] simulated ([\d.]+) s in ([\d.]+) s wall \(([\d.]+)x real time\); ([\d.]+)x real time '
                    r'from the first step, which came ([\d.]+) s after the resume')
 FIGURES = re.compile(r'^\[bringup\] (?!simulated|running|reproducible|note|ROS)(.*)$', re.MULTILINE)
@@ -95,15 +100,22 @@ def headless_lines(robots: int, duration: float, world: Path | None) -> set[str]
     return set(format_figures(tally.figures).splitlines())
 
 
-def main() -> None:
+def arguments() -> argparse.Namespace:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument('--counts', default='1,50,200', help='comma-separated numbers of robots')
     parser.add_argument('--duration', type=float, default=10.0, help='simulated seconds per run')
     parser.add_argument('--repeats', type=int, default=1)
     parser.add_argument('--baseline-rev', default=BASELINE_REV, help='the commit to compare with ("" for none)')
-    args = parser.parse_args()
+    parser.add_argument('--domains', default='', help='comma-separated ROS domains the runs take in turn (default: '
+                                                      'ROS_DOMAIN_ID and the next); one: each run waits LEASE')
+    return parser.parse_args()
+
+
+def main() -> None:
+    args = arguments()
     os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
     domain = int(os.environ.setdefault('ROS_DOMAIN_ID', '66'))
+    domains = [int(d) for d in args.domains.split(',')] if args.domains else [domain, domain + 1]
     results: dict[tuple[str, int], list[dict]] = {}
     runs = 0
     with tempfile.TemporaryDirectory() as scratch:
@@ -121,9 +133,11 @@ def main() -> None:
                     if robots > 1 else None
                 headless_wall = time.monotonic() - started
                 for label in order:
+                    if runs and len(domains) == 1:
+                        time.sleep(LEASE)
                     load = os.getloadavg()[0]
                     result = run_once(checkouts[label], robots, args.duration,
-                                      world if robots >= ARENA_FROM else None, domain + runs % 2)
+                                      world if robots >= ARENA_FROM else None, domains[runs % len(domains)])
                     runs += 1
                     results.setdefault((label, robots), []).append(result)
                     figures[label] = result['figures']
@@ -142,6 +156,10 @@ def main() -> None:
                     same = figures['this'] == figures['baseline'] and len(figures['this']) >= 1
                     print(f'{"":8} {robots:5} robots: every robot\'s figures equal in both runs: '
                           f'{"yes" if same else "NO"}', flush=True)
+    print_medians(results)
+
+
+def print_medians(results: dict[tuple[str, int], list[dict]]) -> None:
     print('\nmedians of the runs that exited 0:')
     for (label, robots), found in sorted(results.items(), key=lambda item: (item[0][1], item[0][0] != 'this')):
         good = [r for r in found if r['code'] == 0]

@@ -42,7 +42,9 @@ import enum
 import math
 import threading
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Collection, Sequence
+
+import numpy as np
 
 RESEND_AFTER = 1.0
 """Wall seconds a step waits for the first answer of a controller before it is sent again."""
@@ -135,7 +137,7 @@ class StepClaimError(RuntimeError):
     """A thread stepped without holding the claim."""
 
 
-def _every_robot(robots: int) -> Callable[[], Sequence[int]]:
+def _every_robot(robots: int) -> Callable[[], Collection[int]]:
     return lambda: range(robots)
 
 
@@ -143,7 +145,7 @@ class Lockstep:
     """The answers to the current step of `robots` robots, and the one right to step (see the module)."""
 
     def __init__(self, robots: int, step: StepFunction, timeout: float = 0.0,
-                 driven: Callable[[], Sequence[int]] | None = None, lend: Callable[[], bool] = lambda: False,
+                 driven: Callable[[], Collection[int]] | None = None, lend: Callable[[], bool] = lambda: False,
                  on_stall: Callable[[Sequence[int], float, Sequence[int]], None] = lambda robots, waited, gone: None,
                  on_resend: Callable[[Sequence[int]], None] = lambda back: None,
                  on_free: Callable[[int, Answer | Controller], None] = lambda robot, why: None,
@@ -188,17 +190,24 @@ class Lockstep:
 
     def _init_answers(self, robots: int) -> None:
         """What is known of each robot's answers and controller: none answered, nobody in lockstep yet."""
-        self._answered = [False] * robots
-        """An answer to the current step arrived."""
-        self._answered_once = [False] * robots
-        self._free = [False] * robots
-        """The controller does not answer each step (see the module): waited for at most OWN_RATE_WAIT."""
+        self._answered: list[int] = []
+        """The robots an answer to the current step came from (one may be there twice)."""
+        self._never_answered = set(range(robots))
+        """Robots no answer has come from yet."""
+        self._free: set[int] = set()
+        """Robots whose controller does not answer each step (see the module): waited for at most OWN_RATE_WAIT."""
         self._first_awaited: dict[int, float] = {}
         """When each robot that never answered was first awaited (monotonic s): FIRST_ANSWER_WAIT counts from it."""
-        self._last_named: list[int | None] = [None] * robots
-        """The step (ns) the robot's last named answer named: a second answer to it is a repeat or a conflict."""
-        self._last_command: list[object] = [None] * robots
-        """The command of that answer: a second answer to the step with another is a conflict."""
+        self._last_named = np.zeros(robots, dtype=np.int64)
+        """The step (ns) the robot's last named answer named, where `_named`: a second answer to it is a repeat or a
+        conflict."""
+        self._named = np.zeros(robots, dtype=bool)
+        self._last_command: dict[int, object] = {}
+        """The command of that answer, where it was not None and not one of the last `answer_all`'s: a second answer
+        to the step with another is a conflict."""
+        self._from_batch = np.zeros(robots, dtype=bool)
+        """The robots whose last answer came with the last `answer_all`: their command is `_batch_command(robot)`."""
+        self._batch_command: Callable[[int], object] = lambda robot: None
         self._kinds: dict[int, Controller] = {}
         """What the graph said last of each driven robot that never answered (`controller`)."""
         self._members: set[int] = set()
@@ -230,7 +239,7 @@ class Lockstep:
         last_report = time.monotonic()
         with self._changed:
             while self._required:
-                driven = list(self._driven())
+                driven = sorted(self._driven())
                 if len(driven) >= self._required:
                     self._required = 0
                     break
@@ -249,7 +258,7 @@ class Lockstep:
             raise StepClaimError(f'thread {threading.current_thread().name} stepped without the claim')
         if not resend:
             with self._changed:
-                self._answered = [False] * self._robots
+                self._answered = []
                 self._sent, self._stall_reports = time.monotonic(), 0
         self._step(resend)
 
@@ -286,7 +295,13 @@ class Lockstep:
     def last_answer(self, robot: int) -> tuple[int | None, object]:
         """The step (ns) `robot`'s last named answer named, and its command (what a conflict is told from)."""
         with self._changed:
-            return self._last_named[robot], self._last_command[robot]
+            return self._named_by(robot), self._command_of(robot)
+
+    def _command_of(self, robot: int) -> object:
+        return self._batch_command(robot) if self._from_batch[robot] else self._last_command.get(robot)
+
+    def _named_by(self, robot: int) -> int | None:
+        return int(self._last_named[robot]) if self._named[robot] else None
 
     def classify(self, robot: int, named: int | None, current: int, command: object = None) -> Answer:
         """What an answer of `robot` naming step `named` (ns; None: it names none) with `command` (anything that
@@ -295,11 +310,11 @@ class Lockstep:
         not the same command) and a step not reached yet are the caller's to drop; the others drive, and all but
         BESIDE answer (`answer`)."""
         with self._changed:
-            last = self._last_named[robot]
+            last = self._named_by(robot)
             if named is None:
                 return Answer.BESIDE if last is not None else Answer.UNSTAMPED
             if named == last:
-                return Answer.REPEATED if command == self._last_command[robot] else Answer.CONFLICT
+                return Answer.REPEATED if command == self._command_of(robot) else Answer.CONFLICT
             if last is not None and named < last:
                 return Answer.CONFLICT
             if named > current:
@@ -312,24 +327,68 @@ class Lockstep:
         the holder, waiting, lends its claim, the next step is taken here, in the calling thread."""
         with self._changed:
             if named is not None:
-                self._last_named[robot], self._last_command[robot] = named, command
+                self._last_named[robot], self._named[robot] = named, True
+                self._from_batch[robot] = False
+                if command is None:
+                    self._last_command.pop(robot, None)
+                else:
+                    self._last_command[robot] = command
             if kind is not Answer.STEP:
                 self._make_free(robot, kind)
-            self._answered[robot] = True
+            self._answered.append(robot)
             self._awaited.discard(robot)
             self._free_awaited.discard(robot)
-            if self._awaited or not self._parked:
-                return   # more answers to come, or nobody waits for them yet
-            if self._free_awaited or self._closed or self._required or not self._lend():
-                self._changed.notify()
-                return
-            self._take_answers()
-            holder, self._holder = self._holder, threading.get_ident()
-            try:
-                self.step()
-            finally:
-                self._holder = holder
-            self._expect()
+            self._after_answers()
+
+    def answers_step(self, robots: np.ndarray, named: int, current: int) -> bool:
+        """Whether `classify` says STEP of an answer naming `named` (ns, without a command) of each of `robots` (an
+        array of robot indices) while step `current` is out: one NumPy look for a swarm's answers to a step."""
+        with self._changed:
+            return named == current and not (self._named[robots] & (self._last_named[robots] >= named)).any()
+
+    def answer_all(self, robots: np.ndarray, named: int,
+                   command_of: Callable[[int], object] = lambda robot: None) -> None:
+        """`answer(robot, Answer.STEP, named, command_of(robot))` of each of `robots` (an array of robot indices,
+        each distinct), whose answers `answers_step` found to answer the current step, at once: `command_of` is asked
+        only if a robot's answer is compared with another (a swarm's whole answer sent again is a repeat, robot by
+        robot). The step's last answer may take the next step here, as in `answer`."""
+        with self._changed:
+            self._keep_batch_commands(robots)
+            self._last_named[robots], self._named[robots], self._from_batch[robots] = named, True, True
+            self._batch_command = command_of
+            listed = robots.tolist()
+            self._answered += listed
+            self._awaited.difference_update(listed)
+            self._free_awaited.difference_update(listed)
+            self._after_answers()
+
+    def _keep_batch_commands(self, robots: np.ndarray) -> None:
+        """Before `answer_all` of `robots`: the last one's commands of robots not among them, kept one by one (none
+        in a swarm's run: each answer names the same robots); `robots`' own are the new answers'."""
+        self._from_batch[robots] = False
+        for robot in np.flatnonzero(self._from_batch).tolist():
+            command = self._batch_command(robot)
+            if command is not None:
+                self._last_command[robot] = command
+        self._from_batch[:] = False
+        for robot in robots.tolist() if self._last_command else ():
+            self._last_command.pop(robot, None)
+
+    def _after_answers(self) -> None:
+        """Under the condition, answers just noted: wake the holder once the awaited ones are in, or take the next
+        step here if it lends its claim."""
+        if self._awaited or not self._parked:
+            return   # more answers to come, or nobody waits for them yet
+        if self._free_awaited or self._closed or self._required or not self._lend():
+            self._changed.notify()
+            return
+        self._take_answers()
+        holder, self._holder = self._holder, threading.get_ident()
+        try:
+            self.step()
+        finally:
+            self._holder = holder
+        self._expect()
 
     # --- under the condition ----------------------------------------------------------------------------
 
@@ -349,7 +408,7 @@ class Lockstep:
                 self._on_resend(sorted(self._back))
                 self._back.clear()
                 return False
-            unanswered = [robot for robot in self._awaited if not self._answered_once[robot]] if self._over_dds else []
+            unanswered = sorted(self._awaited & self._never_answered) if self._over_dds else []
             for robot in unanswered:
                 if self._kinds.get(robot) is Controller.UNDECLARED and \
                         now - self._first_awaited.setdefault(robot, now) >= FIRST_ANSWER_WAIT:
@@ -374,8 +433,8 @@ class Lockstep:
 
     def _make_free(self, robot: int, why: Answer | Controller) -> None:
         """From now on `robot`'s controller is not waited for beyond OWN_RATE_WAIT (said once)."""
-        if not self._free[robot]:
-            self._free[robot] = True
+        if robot not in self._free:
+            self._free.add(robot)
             self._members.discard(robot)
             self._gone.discard(robot)
             self._awaited.discard(robot)
@@ -402,22 +461,22 @@ class Lockstep:
         self._gone = gone
         free = set()
         for robot in driven - members:
-            if not self._answered_once[robot] and not self._free[robot]:
+            if robot in self._never_answered and robot not in self._free:
                 self._kinds[robot] = kind = self._controller(robot)
                 if kind.free:
                     free.add(robot)
-        waiting = {robot for robot in driven | members if not self._answered[robot]}
-        self._free_awaited = {robot for robot in waiting if self._free[robot] or robot in free}
+        waiting = (driven | members).difference(self._answered)
+        self._free_awaited = waiting & (self._free | free)
         self._awaited = waiting - self._free_awaited
 
     def _take_answers(self) -> None:
         """The current step is answered: note who answered, and clear the answers, so that no thread takes them
         for the next step's."""
-        for robot, answered in enumerate(self._answered):
-            if answered:
-                self._answered_once[robot] = True
-                if not self._free[robot]:
-                    self._members.add(robot)
-        self._answered = [False] * self._robots
+        answered = self._answered
+        if self._never_answered:
+            self._never_answered.difference_update(answered)
+        self._members.update(answered)
+        self._members -= self._free   # (`_make_free` takes a robot out of them)
+        self._answered = []
         self._awaited, self._free_awaited = set(), set()
         self._back.clear()   # whoever came back has answered

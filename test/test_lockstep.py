@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import threading
 
+import numpy as np
 import pytest
 
 import epuck_ros.lockstep as lockstep_module
@@ -552,3 +553,88 @@ def test_a_controller_that_leaves_declared_at_its_own_rate_is_no_longer_waited_f
     step.answer(1)
     assert step.await_answers()
     assert len(sim.steps) == 3 and resent == []   # not "back": it left
+
+
+# --- a swarm's answers at once (`answers_step`, `answer_all`) ---------------------------------------------------------
+
+def test_answers_step_says_step_exactly_when_classify_says_it_of_every_robot():
+    """The one NumPy look at a swarm's answers agrees with `classify` robot by robot, whatever each robot answered
+    before: none, this step, an older one, a newer one (a conflict), or a per-robot command."""
+    step, _ = lockstep(robots=4)
+    step.step()
+    step.answer(1, Answer.STEP, 32)                               # an older step
+    step.answer(2, Answer.STEP, 64, ('/epuck2/wheel_cmd', 1.0, 1.0))   # this step, by its own topic
+    step.answer(3, Answer.STEP, 96)                               # a newer one than asked below
+    for robots in ([0], [1], [0, 1], [2], [0, 2], [3], [0, 1, 3], [0, 1, 2, 3]):
+        for named, current in ((64, 64), (32, 64), (96, 64), (64, 96), (96, 96)):
+            robot_by_robot = all(step.classify(robot, named, current) is Answer.STEP for robot in robots)
+            assert step.answers_step(np.array(robots), named, current) is robot_by_robot, (robots, named, current)
+
+
+def test_answer_all_notes_what_answer_notes_robot_by_robot():
+    """After `answer_all` each robot's last answer, a repeat of it and a per-robot command it replaced are what the
+    same answers one by one leave."""
+    by_all, _ = lockstep(robots=3)
+    by_one, _ = lockstep(robots=3)
+    for step in (by_all, by_one):
+        step.step()
+        step.answer(1, Answer.STEP, 32, ('/epuck1/wheel_cmd', 1.0, 1.0))
+    by_all.answer_all(np.array([0, 1, 2]), 64)
+    for robot in range(3):
+        by_one.answer(robot, Answer.STEP, 64)
+    for robot in range(3):
+        assert by_all.last_answer(robot) == by_one.last_answer(robot) == (64, None)
+        for named, command in ((64, None), (64, ('/x', 1.0, 1.0)), (32, None), (96, None)):
+            assert by_all.classify(robot, named, 96, command) is by_one.classify(robot, named, 96, command)
+
+
+def test_a_step_waits_for_the_robots_answer_all_did_not_name():
+    timed_out: list[list[int]] = []
+    step = Lockstep(3, Sim(), SHORT, on_timeout=timed_out.append)
+    step.claim()
+    step.step()
+    step.answer_all(np.array([0, 2]), 0)
+    assert step.await_answers()
+    assert timed_out == [[1]]   # robot 1's answer was still awaited when the time-out passed the step
+
+
+def test_the_thread_of_answer_all_steps_while_the_holder_lends_its_claim():
+    """As `answer`'s last answer: a swarm's answers to a step, noted at once, take the next step in their thread."""
+    waiting = threading.Event()
+    sim = Sim()
+    step = Lockstep(3, sim, LONG, driven=lambda: waiting.set() or [0, 1, 2], lend=lambda: True)
+
+    def holder() -> None:
+        step.claim()
+        step.step()
+        step.await_answers()
+
+    def answers() -> None:
+        waiting.wait()
+        step.answer_all(np.array([2, 0, 1]), 0)   # the first step's answers: the second step is taken here
+        step.answer_all(np.array([0, 1]), 32)
+        step.answer(2, Answer.STEP, 32)           # robot by robot completes it as well: the third step
+
+    holding = in_thread(holder, 'holder')
+    in_thread(answers).join()
+    step.close()
+    holding.join()
+    assert [(count, thread) for count, _, thread in sim.steps] == [(1, 'holder'), (2, 'answers'), (3, 'answers')]
+
+
+def test_a_swarms_answer_sent_again_is_a_repeat_and_a_different_one_a_conflict():
+    """`answer_all`'s commands (asked of `command_of` only when compared) are each robot's, as `answer` notes them;
+    a later batch of other robots keeps the earlier one's commands for the robots it does not name."""
+    step, _ = lockstep(robots=3)
+    step.step()
+    speeds = {0: 1.0, 1: 2.0, 2: 3.0}
+    step.answer_all(np.array([0, 1, 2]), 32, lambda robot: ('/swarm/command', speeds[robot], 0.0))
+    assert step.classify(1, 32, 32, ('/swarm/command', 2.0, 0.0)) is Answer.REPEATED
+    assert step.classify(1, 32, 32, ('/swarm/command', 2.5, 0.0)) is Answer.CONFLICT
+    assert step.last_answer(2) == (32, ('/swarm/command', 3.0, 0.0))
+    step.answer_all(np.array([0, 1]), 64, lambda robot: ('/swarm/command', -speeds[robot], 0.0))
+    assert step.last_answer(0) == (64, ('/swarm/command', -1.0, 0.0))
+    assert step.last_answer(2) == (32, ('/swarm/command', 3.0, 0.0))   # the first batch's, kept
+    step.answer(0, Answer.STEP, 96, ('/epuck0/wheel_cmd', 5.0, 5.0))
+    assert step.last_answer(0) == (96, ('/epuck0/wheel_cmd', 5.0, 5.0))
+    assert step.classify(1, 64, 96, ('/swarm/command', -2.0, 0.0)) is Answer.REPEATED

@@ -469,3 +469,66 @@ def test_a_swarm_makes_a_robots_topics_once_someone_reads_or_drives_them(launch,
     assert clients.truth['epuck9'][19].twist.twist.angular.z == pytest.approx(1.0)
     assert not any(node.count_publishers(f'/epuck8/{topic}') for topic in made[0])
     assert not any(node.count_subscribers(f'/epuck8/{topic}') for topic in made[1])
+
+
+def test_a_swarm_controller_reads_each_robots_ranges_as_that_robots_own_node_does():
+    """The swarm controller turns every robot's raw IR values into ranges in one NumPy pass
+    (`ranges_from_raw_rows`): the floats, to the bit, of `ranges_from_raw` robot by robot (a per-robot node's and a
+    headless trial's), around the threshold of nothing seen, at each table row, between rows and beyond both ends."""
+    from epuck_ros.behaviours.base import ranges_from_raw, ranges_from_raw_rows
+    table_raws = [raw for _, raw in IR_TABLE]
+    special = table_raws + [math.nextafter(raw, math.inf) for raw in table_raws] + \
+        [math.nextafter(raw, -math.inf) for raw in table_raws] + [0.0, 77.0, 77.2, 80.0, 5000.0, math.nan]
+    rng = np.random.default_rng(4)
+    raws = np.concatenate([np.array(special + [67.19] * (-len(special) % 8)),
+                           rng.uniform(0.0, 4500.0, 8 * 500), rng.uniform(60.0, 130.0, 8 * 500)]).reshape(-1, 8)
+    rows = ranges_from_raw_rows(raws)
+    assert len(rows) == len(raws)
+    for row, raw in zip(rows, raws.tolist()):
+        expected = ranges_from_raw(raw)
+        assert np.array_equal(row, expected) and all(isinstance(value, float) for value in row)
+        assert [math.copysign(1.0, value) for value in row] == [math.copysign(1.0, value) for value in expected]
+
+
+def test_a_swarm_answer_sent_again_is_a_repeat_and_a_different_one_a_conflict(launch, test_node, tmp_path):
+    """A swarm controller answers a step sent again with its answer again, byte for byte (`SwarmController`): the
+    simulator drops it as a repeat, as a robot's own repeated wheel_cmd; a second answer that differs is a conflict,
+    said with both commands. Before, the second copy went robot by robot and was compared with no command (the swarm's
+    one NumPy pass noted none): a conflict, and the simulator died in its report (TypeError) - what a big swarm's
+    first step, sent again after RESEND_AFTER while its answer was on its way, would have met."""
+    from diagnostic_msgs.msg import DiagnosticStatus
+
+    from epuck_ros.integrity import STATUS_TOPIC, WARN
+    from epuck_ros.ros.ack_window import command_qos
+    from epuck_ros.swarm_messages import COMMAND_FIELDS, COMMAND_TOPIC, OBSERVATION_TOPIC, SwarmLayout, SwarmReader
+    names = ['epuck0', 'epuck1', 'epuck2']
+    world = write_world(tmp_path, [(name, -0.3 + 0.3 * i, 0.0, 0.0) for i, name in enumerate(names)])
+    sim = start_lockstep_sim(launch, test_node, world)
+    commands = test_node.node.create_publisher(Float64MultiArray, COMMAND_TOPIC, command_qos(len(names)))
+    layout, reader, answered = SwarmLayout(names, COMMAND_FIELDS), SwarmReader(), []
+
+    def on_observation(data: bytes) -> None:
+        read = reader.read(data)
+        if read.stamp in answered:
+            return
+        answered.append(read.stamp)
+        speeds = np.full((len(names), 2), 1.0 + len(answered) % 3)
+        commands.publish(layout.to_bytes(speeds, read.stamp))
+        speeds[1, 0] += len(answered) == 20   # the 20th step's second answer differs for epuck1
+        commands.publish(layout.to_bytes(speeds, read.stamp))   # else the same again, as to a step sent again
+
+    observations = test_node.node.create_subscription(Float64MultiArray, OBSERVATION_TOPIC, on_observation,
+                                                      EVERY_STEP, raw=True)
+    statuses, _ = subscribe(test_node, DiagnosticStatus, STATUS_TOPIC, LATCHED)
+    commands.publish(SwarmLayout(names, ()).to_bytes(np.zeros((len(names), 0)), None))   # the declaration
+    test_node.spin_until(lambda: commands.get_subscription_count() and observations.get_publisher_count(),
+                         what='the swarm topics to match')
+    set_parameter(test_node, 'lockstep_controllers',
+                  ParameterValue(type=ParameterType.PARAMETER_INTEGER, integer_value=len(names)))
+    set_parameter(test_node, 'paused', boolean(False))
+    test_node.spin_until(lambda: len(answered) >= 30, timeout=60, what='30 steps answered')
+    assert sim.proc.poll() is None, sim.output()[-3000:]
+    test_node.spin_until(lambda: statuses and statuses[-1].level == bytes([WARN]), what='the conflict')
+    # the first reason stays: no conflict before the 20th step, t = 0.640 s
+    assert 'epuck1 got two different answers to t=0.640 s ([3.0, 3.0] on /swarm/command, then [4.0, 3.0] on ' \
+           '/swarm/command)' in statuses[-1].message, statuses[-1].message

@@ -15,7 +15,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike
 
-from epuck_ros.ir_sensor import LookupTable
+from epuck_ros.ir_sensor import LookupTable, range_from_raw
 from epuck_ros.model import IR_LOOKUP_TABLE, MAX_WHEEL_SPEED
 
 
@@ -50,6 +50,14 @@ def ranges_from_raw(raw: ArrayLike, table: np.ndarray = IR_LOOKUP_TABLE) -> tupl
     _, far_raw, far_noise = table[-1]
     return tuple(LookupTable(table).ranges_of([float(value) for value in raw],
                                               far_raw * (1.0 + FREE_READING_SIGMAS * far_noise)))
+
+
+def ranges_from_raw_rows(raw: np.ndarray) -> list[tuple[float, ...]]:
+    """`ranges_from_raw` of each row of `raw` (robots x 8, the e-puck's table) in one NumPy pass: a swarm
+    controller reads every robot's values at once. The same floats as robot by robot: `LookupTable` computes with the
+    array path's arithmetic, operation for operation (test_ir_sensor, test_multi_robot_nodes)."""
+    ranges = range_from_raw(raw, raw > _EPUCK_SEEN_ABOVE, IR_LOOKUP_TABLE, _EPUCK_TABLE.inverse)
+    return [tuple(row) for row in ranges.tolist()]
 
 
 @dataclass(frozen=True)

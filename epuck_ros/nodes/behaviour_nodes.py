@@ -51,7 +51,7 @@ from sensor_msgs.msg import Range
 from std_msgs.msg import Float64MultiArray, String
 
 from epuck_ros.behaviours import BEHAVIOURS, BehaviourSpec, ConfigError, Observation, WheelCommand
-from epuck_ros.behaviours.base import Behaviour, describe, ranges_from_raw
+from epuck_ros.behaviours.base import Behaviour, describe, ranges_from_raw, ranges_from_raw_rows
 from epuck_ros.conversions import (nanoseconds_from_stamp, quaternion_from_yaw, stamp_from_nanoseconds,
                                    yaw_from_quaternion)
 from epuck_ros.lockstep import Controller
@@ -375,8 +375,9 @@ class SwarmController(Node):
     """Many robots of a simulator driven from one node: each step's `swarm/observation` in, one `swarm/command` out
     naming the step, with every robot's answer (epuck_ros/swarm_messages.py). Each robot has its own behaviour, asked as
     a `BehaviourNode` would ask it (the same `Decisions`, the odometry's yaw as it travels in a quaternion, the IR
-    values through `ranges_from_raw`), so the run is the one per-robot nodes drive, to the bit; one message each way
-    per step instead of one per robot (and one `/clock` reader instead of one per robot).
+    values through `ranges_from_raw_rows`: every robot's at once, the floats of `ranges_from_raw`), so the run is the
+    one per-robot nodes drive, to the bit; one message each way per step instead of one per robot (and one `/clock`
+    reader instead of one per robot).
 
     Before anything else it declares its robots on `swarm/command` (no fields: they are answered by name), so the
     simulator's lockstep waits for them from the moment it matches this node, however long the first answer takes."""
@@ -441,15 +442,18 @@ class SwarmController(Node):
                 self._publisher.publish(self._last_answer)   # a step sent again (`BehaviourNode._act`)
             return   # an older message come late: answered already
         self._answered = step
-        speeds = self._speeds
-        for robot, (decisions, values) in enumerate(zip(self._decisions, read.data[rows].tolist())):
-            behaviour = decisions.behaviour
+        data = read.data[rows]
+        behaviour = self.behaviour   # every robot's is of one kind: the same needs
+        every_ranges = ranges_from_raw_rows(data[:, _IR_RAW]) if behaviour.needs_proximity else [None] * len(rows)
+        answers = []
+        for decisions, values, ranges in zip(self._decisions, data.tolist(), every_ranges):
             odom = (values[_ODOM_X], values[_ODOM_Y],
                     yaw_from_quaternion(0.0, 0.0, *quaternion_from_yaw(values[_ODOM_YAW]))) \
                 if behaviour.needs_odom else None
-            ranges = ranges_from_raw(values[_IR_RAW]) if behaviour.needs_proximity else None
             command = decisions.answer(step, odom, ranges)
-            speeds[robot] = command.left, command.right
+            answers.append((command.left, command.right))
+        speeds = self._speeds
+        speeds[:] = answers
         self._last_answer = self._commands.to_bytes(speeds, read.stamp)
         self._publisher.publish(self._last_answer)
 

@@ -15,6 +15,7 @@ import os
 import sys
 import threading
 import time
+from collections.abc import Collection
 
 import numpy as np
 import rclpy
@@ -312,9 +313,11 @@ class SimNode(Node):
             return   # said already (the first reason stays): no look at the graph for each of an intruder's answers
         last_named, last_command = self._lockstep.last_answer(robot)
         said = f'[{command[1]!r}, {command[2]!r}] on {command[0]}'
-        if last_named == named:
+        if last_named == named and last_command is not None:
             topic, first, second = last_command
             detail = f'[{first!r}, {second!r}] on {topic}, then {said}'
+        elif last_named == named:
+            detail = f'an answer, then {said}'
         else:
             detail = f'{said}, after an answer to t={last_named * 1e-9:.3f} s'
         self._report.conflict(robot, named * 1e-9, detail, self.ports[robot].publishers())
@@ -336,15 +339,17 @@ class SimNode(Node):
         self.get_logger().warning(f'a declaration on {DECLARATION_TOPIC} refused: {why}',
                                   throttle_duration_sec=WARN_PERIOD)
 
-    def _on_swarm_command(self, robots: list[int], speeds: np.ndarray, named: int | None) -> None:
+    def _on_swarm_command(self, robots: np.ndarray, speeds: np.ndarray, named: int | None) -> None:
         """A swarm controller's answers (`SwarmPorts`): `_on_command`'s rule for each robot. When they answer the
-        current step for every robot (a lockstep run's every step) the speeds are set in one NumPy operation
-        (`Simulation.command_all_wheels`, the same numbers as robot by robot), then each robot's answer goes through
-        `Lockstep.answer`; anything else (some robots, a repeat, an unstamped stop, a refused number) robot by robot."""
+        current step for every robot (a lockstep run's every step) it is one NumPy look at them all
+        (`Lockstep.answers_step`), the speeds are set in one NumPy operation (`Simulation.command_all_wheels`, the same
+        numbers as robot by robot) and the answers are noted at once (`Lockstep.answer_all`); anything else (some
+        robots, a repeat, an unstamped stop, a refused number) robot by robot, where a whole answer sent again is a
+        repeat (each robot's command is the one `answer_all` noted) and a different one a conflict."""
+        topic = self._swarm.topic
         if self._lockstep_on and named is not None and len(robots) == len(self.ports):
             with self._lock:   # the step cannot change between the verdicts and the commands
-                current = nanoseconds_from_seconds(self._sim.time)
-                answered = all(self._lockstep.classify(robot, named, current) is Answer.STEP for robot in robots)
+                answered = self._lockstep.answers_step(robots, named, nanoseconds_from_seconds(self._sim.time))
                 if answered:
                     everyone = np.empty_like(speeds)
                     everyone[robots] = speeds
@@ -352,12 +357,10 @@ class SimNode(Node):
                         self._sim.command_all_wheels(everyone)
                     except CommandError:   # each robot's own verdict below
                         answered = False
-            if answered:
-                for robot in robots:
-                    self._lockstep.answer(robot, Answer.STEP, named)
+            if answered:   # each robot's command as `_on_command` names it, if ever compared (a repeat, a conflict)
+                self._lockstep.answer_all(robots, named, lambda robot: (topic, *everyone[robot].tolist()))
                 return
-        topic = self._swarm.topic
-        for robot, (left, right) in zip(robots, speeds.tolist()):
+        for robot, (left, right) in zip(robots.tolist(), speeds.tolist()):
             self._on_command(robot, topic, 'wheels', left, right, named)
 
     def _on_declare(self, robots: list[int]) -> None:
@@ -501,13 +504,15 @@ class SimNode(Node):
 
     # --- lockstep's view of the node --------------------------------------------------------------------
 
-    def _driven(self) -> list[int]:
+    def _driven(self) -> Collection[int]:
         """The robots with a controller (a matched publisher on wheel_cmd or cmd_vel, or a swarm controller that
-        named them): lockstep waits for them."""
+        named them): lockstep waits for them (asked once a step: no sorting, no copy of a swarm's robots when no
+        robot has a controller of its own)."""
         driven = np.flatnonzero(self._matches[:, CONTROLLERS].any(axis=1)).tolist()
         if self._swarm is None:
             return driven
-        return sorted(self._swarm.driven().union(driven))
+        swarm = self._swarm.driven()
+        return swarm.union(driven) if driven else swarm
 
     def _controller(self, robot: int) -> Controller:
         """What lockstep may expect of a driven robot's controller before its first answer."""

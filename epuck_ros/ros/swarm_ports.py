@@ -29,9 +29,9 @@ from epuck_ros.swarm_messages import (COMMAND_FIELDS, COMMAND_TOPIC, OBSERVATION
                                       SwarmLayout, SwarmReader, observation_values)
 from epuck_ros.simulation import Simulation
 
-CommandsHandler = Callable[[list[int], np.ndarray, 'int | None'], None]
-"""(robots, their wheel speeds (robots x 2, rad/s), the step they answer in ns or None): what the node does with a
-swarm command."""
+CommandsHandler = Callable[[np.ndarray, np.ndarray, 'int | None'], None]
+"""(robots (their indices, each once), their wheel speeds (robots x 2, rad/s), the step they answer in ns or None):
+what the node does with a swarm command."""
 
 
 class SwarmPorts:
@@ -53,8 +53,8 @@ class SwarmPorts:
                                                       COMMAND_READER_QOS, raw=True)
         self.topic = self._subscription.topic_name
         self._reader = SwarmReader()
-        self._rows: tuple[tuple[str, ...], list[int]] = ((), [])
-        """The robots of the last command's layout and their rows in the simulation."""
+        self._rows: tuple[tuple[str, ...], list[int], np.ndarray] = ((), [], np.zeros(0, dtype=np.intp))
+        """The robots of the last command's layout and their rows in the simulation (as a list and as an array)."""
         self._declared: frozenset[int] = frozenset()
         """Robots some swarm controller named (declared or answered for): driven while the topic has a publisher."""
 
@@ -79,27 +79,28 @@ class SwarmPorts:
             self._warn(f'data must be a swarm array of fields {",".join(COMMAND_FIELDS)} (or none: a '
                        f'declaration), got {got}')
             return
-        rows = self._rows_of(read.robots)
-        if rows is None:
+        if not self._rows_of(read.robots):
             return
+        _, rows, indices = self._rows
         if not self._declared.issuperset(rows):
             self._declared = self._declared | frozenset(rows)
         if not read.fields:
             self._on_declare(rows)
             return
-        self._on_commands(rows, read.data, None if read.stamp is None else nanoseconds_from_stamp(*read.stamp))
+        self._on_commands(indices, read.data, None if read.stamp is None else nanoseconds_from_stamp(*read.stamp))
 
-    def _rows_of(self, robots: tuple[str, ...]) -> list[int] | None:
-        """The simulation's rows of `robots` (kept for the next message of the same robots); None: one is unknown or
-        named twice (said)."""
+    def _rows_of(self, robots: tuple[str, ...]) -> bool:
+        """Whether `robots` are the simulation's, each once (`_rows` then holds their rows, kept for the next
+        message of the same robots); if not, said."""
         if robots == self._rows[0]:
-            return self._rows[1]
+            return True
         unknown = [name for name in robots if name not in self._index]
         if unknown or len(set(robots)) != len(robots):
             self._warn(f'no robot {unknown[0]!r} in this simulation' if unknown else 'a robot is named twice')
-            return None
-        self._rows = (robots, [self._index[name] for name in robots])
-        return self._rows[1]
+            return False
+        rows = [self._index[name] for name in robots]
+        self._rows = (robots, rows, np.array(rows, dtype=np.intp))
+        return True
 
     def _warn(self, why: str) -> None:
         self._logger.warning(f'{self.topic} refused: {why}', throttle_duration_sec=WARN_PERIOD)
