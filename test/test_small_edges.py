@@ -7,6 +7,7 @@ import re
 import subprocess
 import sys
 import time
+from pathlib import Path
 
 import pytest
 from conftest import BIN_DIR
@@ -158,3 +159,29 @@ def test_headless_output_into_a_closed_pipe_ends_without_a_traceback():
     run_.stdout.close()
     _, stderr = run_.communicate(timeout=120)
     assert run_.returncode == 0 and b'Traceback' not in stderr and b'BrokenPipe' not in stderr, stderr.decode()
+
+
+CTRL_C_AT_EXIT = """
+import atexit, signal, sys
+from pathlib import Path
+def ctrl_c_ignored_at_exit():   # registered first: runs last, when Python is about to give SIGINT its default back
+    fields = dict(line.split(':', 1) for line in Path('/proc/self/status').read_text().splitlines() if ':' in line)
+    print('ignored' if int(fields['SigIgn'], 16) & (1 << (signal.SIGINT - 1)) else 'default', flush=True)
+atexit.register(ctrl_c_ignored_at_exit)
+{body}
+"""
+
+
+@pytest.mark.parametrize('body', [
+    'from epuck_ros.ros.spinning import handle_shutdown_signals\nhandle_shutdown_signals()',
+    'from epuck_ros.bag_cli import main\nmain(["play", sys.argv[1], "--wait", "0", "--rate", "1000"])',
+])
+def test_a_ctrl_c_while_a_command_ends_by_itself_is_ignored(body, tmp_path):
+    """`bag play` once exited with status -2 in a loaded suite run: its Ctrl-C came as it was ending by itself, in
+    Python's exit, which gives SIGINT its default action back. Once a node's program has returned (and once `bag
+    play` has shut rclpy down), SIGINT is ignored, as the process's exit shows."""
+    bag = Path(__file__).resolve().parents[1] / 'bags' / 'spin'
+    ended = subprocess.run([sys.executable, '-c', CTRL_C_AT_EXIT.format(body=body), str(bag)], capture_output=True,
+                           text=True, timeout=120)
+    assert ended.returncode == 0, ended.stderr
+    assert ended.stdout.splitlines()[-1] == 'ignored', ended.stdout

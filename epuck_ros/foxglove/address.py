@@ -45,5 +45,3 @@ def websocket_url(host: str, port: int) -> str:
     except ValueError:   # a name
         bracketed = host
     return f'ws://{bracketed}:{port}'
-
-

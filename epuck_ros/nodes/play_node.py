@@ -27,6 +27,7 @@ from epuck_ros.conversions import stamp_from_nanoseconds
 from epuck_ros.ros.dds_profile import use_package_profile
 from epuck_ros.ros.matching import FOREIGN_DISCOVERY_WINDOW, wait_until_matched
 from epuck_ros.ros.qos import replayed
+from epuck_ros.ros.spinning import ignore_ctrl_c
 from epuck_ros.nodes.record_node import message_class
 
 MATCH_TIMEOUT = 10.0
@@ -234,4 +235,5 @@ def play(args: argparse.Namespace) -> None:
                 services.join()
             if player is not None:
                 player.destroy_node()
-            rclpy.try_shutdown()
+            rclpy.try_shutdown()   # rclpy's Ctrl-C handler gives way to Python's here
+            ignore_ctrl_c()

@@ -137,8 +137,8 @@ class PatchCache:
 
 @cache
 def _typestore() -> Any:
-    """rosbags' Jazzy typestore, made on first use: it costs every node process 60 ms at import (rosbags builds every
-    distribution's store before Jazzy's), and most never need it."""
+    """The Jazzy typestore of rosbags, made on first use: it cost every node process 60 ms at import (rosbags builds
+    every distribution's store before Jazzy's), and most never need it."""
     from rosbags.typesys import Stores, get_typestore
     return get_typestore(Stores.ROS2_JAZZY)
 
