@@ -175,11 +175,13 @@ atexit.register(ctrl_c_ignored_at_exit)
 @pytest.mark.parametrize('body', [
     'from epuck_ros.ros.spinning import handle_shutdown_signals\nhandle_shutdown_signals()',
     'from epuck_ros.bag_cli import main\nmain(["play", sys.argv[1], "--wait", "0", "--rate", "1000"])',
+    'from epuck_ros.experiments.cli import main\ntry:\n    main(["--help"])\nexcept SystemExit:\n    pass',
+    'from epuck_ros.evolution.cli import main\ntry:\n    main(["--help"])\nexcept SystemExit:\n    pass',
 ])
 def test_a_ctrl_c_while_a_command_ends_by_itself_is_ignored(body, tmp_path):
-    """`bag play` once exited with status -2 in a loaded suite run: its Ctrl-C came as it was ending by itself, in
-    Python's exit, which gives SIGINT its default action back. Once a node's program has returned (and once `bag
-    play` has shut rclpy down), SIGINT is ignored, as the process's exit shows."""
+    """`bag play` and `sweep` once exited with status -2 in loaded suite runs: their Ctrl-C came as they were ending by
+    themselves, in Python's exit, which gives SIGINT its default action back. Once the program of a node, `bag play`,
+    `sweep` or `evolve` has returned, SIGINT is ignored, as the process's exit shows."""
     bag = Path(__file__).resolve().parents[1] / 'bags' / 'spin'
     ended = subprocess.run([sys.executable, '-c', CTRL_C_AT_EXIT.format(body=body), str(bag)], capture_output=True,
                            text=True, timeout=120)

@@ -21,7 +21,7 @@ from epuck_ros.evolution.controller import controller_script
 from epuck_ros.evolution.evaluate import evaluate
 from epuck_ros.evolution.ga import initial_population, next_generation
 from epuck_ros.evolution.network import GENES
-from epuck_ros.exit_codes import EXIT_FAILED, refuse
+from epuck_ros.exit_codes import EXIT_FAILED, ignore_ctrl_c_at_exit, refuse
 from epuck_ros.experiments.cluster import (
     ClusterError, add_cluster_arguments, check_cluster_arguments, default_workers, open_client)
 from epuck_ros.experiments.interruption import exit_code, interrupts_ignored, terminate_as_interrupt
@@ -60,6 +60,7 @@ def parse_args(argv: list[str]) -> argparse.Namespace:
 
 
 def main(argv: list[str] | None = None) -> None:
+    ignore_ctrl_c_at_exit()
     args = parse_args(sys.argv[1:] if argv is None else argv)
     folder = OutputFolder(args.output)
     began = time.monotonic()

@@ -18,7 +18,7 @@ from dataclasses import replace
 from pathlib import Path
 
 from epuck_ros import untrusted_yaml
-from epuck_ros.exit_codes import EXIT_FAILED, refuse
+from epuck_ros.exit_codes import EXIT_FAILED, ignore_ctrl_c_at_exit, refuse
 from epuck_ros.experiments.cluster import (
     ClusterError, add_cluster_arguments, check_cluster_arguments, default_workers, open_client)
 from epuck_ros.experiments.interruption import exit_code, interrupts_ignored, terminate_as_interrupt
@@ -58,6 +58,7 @@ def parse_args(argv: list[str]) -> argparse.Namespace:
 
 
 def main(argv: list[str] | None = None) -> None:
+    ignore_ctrl_c_at_exit()
     args = parse_args(sys.argv[1:] if argv is None else argv)
     try:
         with terminate_as_interrupt():

@@ -24,10 +24,10 @@ from std_srvs.srv import Trigger
 from epuck_ros.bag.play import CLOCK_TOPIC, PlaybackClock, replay_profile
 from epuck_ros.bag.reader import Bag, BagError
 from epuck_ros.conversions import stamp_from_nanoseconds
+from epuck_ros.exit_codes import ignore_ctrl_c_at_exit
 from epuck_ros.ros.dds_profile import use_package_profile
 from epuck_ros.ros.matching import FOREIGN_DISCOVERY_WINDOW, wait_until_matched
 from epuck_ros.ros.qos import replayed
-from epuck_ros.ros.spinning import ignore_ctrl_c
 from epuck_ros.nodes.record_node import message_class
 
 MATCH_TIMEOUT = 10.0
@@ -207,6 +207,7 @@ def _enter_toggles(player: Player) -> None:
 
 def play(args: argparse.Namespace) -> None:
     """`bag play` (see `epuck_ros.bag_cli`): plays until the end (or Ctrl-C / SIGTERM with --loop)."""
+    ignore_ctrl_c_at_exit()
     with Bag(args.path) as bag:
         use_package_profile()
         rclpy.init(args=['bag', *args.ros_args])
@@ -235,5 +236,4 @@ def play(args: argparse.Namespace) -> None:
                 services.join()
             if player is not None:
                 player.destroy_node()
-            rclpy.try_shutdown()   # rclpy's Ctrl-C handler gives way to Python's here
-            ignore_ctrl_c()
+            rclpy.try_shutdown()

@@ -9,7 +9,6 @@ calls `rclpy.try_shutdown()` (exit code 0).
 """
 from __future__ import annotations
 
-import atexit
 import os
 import signal
 import sys
@@ -20,6 +19,8 @@ from rclpy.context import Context
 from rclpy.executors import Executor, ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.signals import SignalHandlerOptions, get_current_signal_handlers_options, uninstall_signal_handlers
+
+from epuck_ros.exit_codes import ignore_ctrl_c_at_exit
 
 SIGNAL_LATENCY = 0.1
 """Wall seconds the spin loop waits for work at most before looking at the flag (a signal does not wake rcl_wait)."""
@@ -33,19 +34,12 @@ def _request_shutdown(signum: int, frame: object) -> None:
 
 def handle_shutdown_signals() -> None:
     """From now on SIGINT and SIGTERM only ask for a shutdown (`shutdown_requested()`); call after `rclpy.init`.
-    Once the program has returned, Ctrl-C is ignored (`ignore_ctrl_c`)."""
+    Once the program has returned, Ctrl-C is ignored (`exit_codes.ignore_ctrl_c_at_exit`)."""
     if get_current_signal_handlers_options() != SignalHandlerOptions.NO:
         uninstall_signal_handlers()
     for signum in (signal.SIGINT, signal.SIGTERM):
         signal.signal(signum, _request_shutdown)
-    atexit.register(ignore_ctrl_c)
-
-
-def ignore_ctrl_c() -> None:
-    """For a process whose work is over: Python's exit gives SIGINT back its default action (ending the process by the
-    signal), and the exit of a process with DDS participants takes a while, so a Ctrl-C that came then, as the
-    command was ending by itself, ended it with status -2 instead of 0 (a `bag play` in a loaded suite run)."""
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    ignore_ctrl_c_at_exit()
 
 
 def shutdown_requested() -> bool:
