@@ -70,6 +70,9 @@ def main():
         rclpy.spin(node)
     except (KeyboardInterrupt, ExternalShutdownException):   # Ctrl-C, or the process told to stop
         pass
+    except Exception:   # rclpy 7.1 fails a wait or take that Ctrl-C's shutdown cuts short (one Ctrl-C in eight)
+        if rclpy.ok():   # an error of the running node: shown
+            raise
     rclpy.try_shutdown()
 
 

@@ -76,6 +76,9 @@ def main() -> None:
         rclpy.spin(node)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
+    except Exception:   # rclpy 7.1 fails a wait or take that Ctrl-C's shutdown cuts short (one Ctrl-C in eight)
+        if rclpy.ok():   # an error of the running node: shown
+            raise
     finally:
         node.destroy_node()
         rclpy.try_shutdown()
