@@ -76,7 +76,7 @@ LONGEST_FILES = ('test_bringup.py', 'test_readme.py', 'test_same_run.py', 'test_
 
 def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
     """The longest files first, then the others by their number of tests (pytest-xdist's own order), each file's
-    tests in their own order: scripts/test.sh's two processes take files in this order (`--dist loadfile
+    tests in their own order: scripts/test.sh's processes take files in this order (`--dist loadfile
     --no-loadscope-reorder`), and a long file taken last would keep one of them busy alone at the end."""
     rank = {name: index for index, name in enumerate(LONGEST_FILES)}
     counts = Counter(item.path.name for item in items)
