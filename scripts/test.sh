@@ -15,9 +15,10 @@ case "${1:-}" in
 esac
 scripts/setup.sh
 . scripts/env.sh
-# Four test processes (pytest-xdist), each on a ROS domain of its own (docs/tests.md: how long it takes; most tests
-# wait on other processes and DDS part of the time, so four keep two cores busier than two or three do).
+# Three test processes (pytest-xdist), each on a ROS domain of its own (docs/tests.md: how long it takes; most tests
+# wait on other processes and DDS part of the time, so three keep two cores busier than two do; four were a minute
+# faster, but their load made discovery races between other processes (a recorder and a controller) show).
 # --dist loadfile keeps each test file in one process: the README's commands build on each other (test_readme.py);
 # the files are handed out longest first (test/conftest.py), not reordered by xdist.
-exec python -m pytest -n 4 --dist loadfile --no-loadscope-reorder "${tier[@]}" \
+exec python -m pytest -n 3 --dist loadfile --no-loadscope-reorder "${tier[@]}" \
   --cov=epuck_ros --cov-branch --cov-report=term:skip-covered "$@"
