@@ -144,10 +144,26 @@ def test_an_answer_before_the_step_does_not_answer_it():
     assert timed_out == [[0]]
 
 
-def test_the_thread_of_the_last_answer_steps_while_the_holder_lends_its_claim():
+def _robot_by_robot(step: Lockstep) -> None:
+    step.answer(0)
+    step.answer(1)      # the first step's last answer: the second step is taken here
+    step.answer(0)
+    step.answer(1)      # and the third
+
+
+def _a_swarm_at_once(step: Lockstep) -> None:
+    step.answer_all(np.array([2, 0, 1]), 0)   # the first step's answers: the second step is taken here
+    step.answer_all(np.array([0, 1]), 32)
+    step.answer(2, Answer.STEP, 32)           # robot by robot completes it as well: the third step
+
+
+@pytest.mark.parametrize('robots, answer', [(2, _robot_by_robot), (3, _a_swarm_at_once)])
+def test_the_thread_of_the_last_answer_steps_while_the_holder_lends_its_claim(robots, answer):
+    """The last answer to a step, robot by robot (`answer`) or a swarm's noted at once (`answer_all`), takes the
+    next step in its own thread while the holder lends its claim."""
     waiting = threading.Event()   # set when the holder reads who is driven, under the lock it releases only to wait
     sim = Sim()
-    step = Lockstep(2, sim, LONG, driven=lambda: waiting.set() or [0, 1], lend=lambda: True)
+    step = Lockstep(robots, sim, LONG, driven=lambda: waiting.set() or list(range(robots)), lend=lambda: True)
 
     def holder() -> None:
         step.claim()
@@ -156,10 +172,7 @@ def test_the_thread_of_the_last_answer_steps_while_the_holder_lends_its_claim():
 
     def answers() -> None:
         waiting.wait()
-        step.answer(0)
-        step.answer(1)      # the first step's last answer: the second step is taken here
-        step.answer(0)
-        step.answer(1)      # and the third
+        answer(step)
 
     holding = in_thread(holder, 'holder')
     in_thread(answers).join()
@@ -596,30 +609,6 @@ def test_a_step_waits_for_the_robots_answer_all_did_not_name():
     step.answer_all(np.array([0, 2]), 0)
     assert step.await_answers()
     assert timed_out == [[1]]   # robot 1's answer was still awaited when the time-out passed the step
-
-
-def test_the_thread_of_answer_all_steps_while_the_holder_lends_its_claim():
-    """As `answer`'s last answer: a swarm's answers to a step, noted at once, take the next step in their thread."""
-    waiting = threading.Event()
-    sim = Sim()
-    step = Lockstep(3, sim, LONG, driven=lambda: waiting.set() or [0, 1, 2], lend=lambda: True)
-
-    def holder() -> None:
-        step.claim()
-        step.step()
-        step.await_answers()
-
-    def answers() -> None:
-        waiting.wait()
-        step.answer_all(np.array([2, 0, 1]), 0)   # the first step's answers: the second step is taken here
-        step.answer_all(np.array([0, 1]), 32)
-        step.answer(2, Answer.STEP, 32)           # robot by robot completes it as well: the third step
-
-    holding = in_thread(holder, 'holder')
-    in_thread(answers).join()
-    step.close()
-    holding.join()
-    assert [(count, thread) for count, _, thread in sim.steps] == [(1, 'holder'), (2, 'answers'), (3, 'answers')]
 
 
 def test_a_swarms_answer_sent_again_is_a_repeat_and_a_different_one_a_conflict():
