@@ -37,7 +37,7 @@ LINKED = ('.venv', 'epuck_ros', 'scripts', 'requirements.txt', 'setup.py', 'setu
 COPIED = ('bags',)
 START_TIMEOUT = 120.0
 """Wall seconds for a command to show it started, on a loaded machine."""
-NATURAL_RUN = 5.0
+NATURAL_RUN = 2.0
 """Wall seconds a started command may go on before it is interrupted (bounds the suite, decides nothing)."""
 INTERRUPTED_EXIT_130 = ('sweep', 'evolve')
 """The commands that keep what they did, say they were interrupted and exit 130 after Ctrl-C (the rest exit 0)."""

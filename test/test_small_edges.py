@@ -61,6 +61,28 @@ def test_bringup_s_monitor_misses_no_step_however_long_it_does_not_read(launch, 
         monitor.close()
 
 
+def test_bringup_s_monitor_takes_what_its_executor_is_not_told_of(test_node):
+    """The monitor's EventsExecutor once stopped being told of `/clock` messages (the test above, in a loaded suite
+    run: 240 s of 384 and nothing more for 600 s); the monitor asks its readers itself. Here its executor is told of
+    nothing at all: the node is taken off it."""
+    from builtin_interfaces.msg import Time
+    from rosgraph_msgs.msg import Clock
+
+    from epuck_ros.bringup.monitor import RunMonitor
+    from epuck_ros.ros.qos import CLOCK_KEPT
+    clock = test_node.node.create_publisher(Clock, '/clock', CLOCK_KEPT)
+    monitor = RunMonitor('', '')
+    try:
+        monitor._executor.remove_node(monitor.node)
+        test_node.spin_until(lambda: clock.get_subscription_count() > 0, what="the monitor's /clock reader")
+        for step in range(1, 31):
+            clock.publish(Clock(clock=Time(sec=step, nanosec=0)))
+        monitor.spin(60, until_sim_time=30.0)
+        assert monitor.sim_time == 30.0
+    finally:
+        monitor.close()
+
+
 def test_bringup_s_summary_under_load_is_the_headless_run_s(launch):
     """Items 11 and 16: not recorded, beside a busy loop on each core, bringup's figures (distance, duration,
     contacts, final pose) are those of the same run headless, to the printed digit: its ground-truth reader keeps

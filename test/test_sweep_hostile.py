@@ -246,6 +246,7 @@ class BannerServer:
             connection.close()
 
     def close(self) -> None:
+        self.server.shutdown(socket.SHUT_RDWR)   # wakes the accept(); close() alone leaves it blocked
         self.server.close()
         self.thread.join(timeout=10)
 

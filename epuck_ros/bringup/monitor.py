@@ -42,6 +42,8 @@ from epuck_ros.world import World, WorldError, world_from_dict
 SIM_NODE = 'sim'
 VIEW_NODE = 'view'
 COMMAND_TOPICS = ('wheel_cmd', 'cmd_vel')
+TAKE_PERIOD = 0.5
+"""Wall seconds of spinning after which the monitor also takes what waits in its readers itself (see `spin`)."""
 REQUEST_RETRY = 2.0
 """Wall seconds after which a parameter request to the simulator is sent again (setting `paused` twice is harmless):
 a first request to a service just discovered can go unanswered, its response's way back not yet matched (seen now
@@ -233,8 +235,10 @@ class RunMonitor:
         this process a slow third party to every lockstep round trip (see bench_bringup in the README)."""
         self._spin_until = until_sim_time
         self._reached = Future()
-        if self.sim_time < until_sim_time - 1e-6:
-            self._executor.spin_until_future_complete(self._reached, timeout_sec=timeout)
+        deadline = time.monotonic() + timeout
+        while self.sim_time < until_sim_time - 1e-6 and (left := deadline - time.monotonic()) > 0:
+            self._executor.spin_until_future_complete(self._reached, timeout_sec=min(TAKE_PERIOD, left))
+            self._take_waiting()
 
     def catch_up(self, timeout: float) -> None:
         """Take the samples still on their way: until every robot's truth reached the last `/clock` (bounded)."""
@@ -242,7 +246,21 @@ class RunMonitor:
         deadline = time.monotonic() + timeout
         while any(not track.stamps or max(track.stamps) < last for track in self.tracks.values()) and \
                 time.monotonic() < deadline:
-            self._executor.spin_once(timeout_sec=0.01)
+            self._executor.spin_until_future_complete(Future(), timeout_sec=min(TAKE_PERIOD, timeout))
+            self._take_waiting()
+
+    def _take_waiting(self) -> None:
+        """Take every message waiting in this node's readers and hand it to its callback, as the executor would.
+
+        rclpy's EventsExecutor (experimental in Jazzy) takes a message when an event says one came, and once in a
+        while it was not told: in suite runs beside a busy loop per core, a monitor that had not read for thousands
+        of steps (its KEEP_LAST `/clock` reader overflowed) got `/clock` up to 240 s and nothing more for 600 s,
+        while the simulator had gone on to its end at 384 s and paused there (test_small_edges). A reader is asked
+        here every TAKE_PERIOD, events or not; a later event finds nothing left and the executor goes on."""
+        for subscription in list(self.node.subscriptions):
+            with subscription.handle:
+                while (taken := subscription.handle.take_message(subscription.msg_type, subscription.raw)) is not None:
+                    subscription.callback(taken[0])
 
     # --- the graph --------------------------------------------------------------------------------------
     def sim_missing(self) -> str:
