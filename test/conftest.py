@@ -157,6 +157,11 @@ def launch(tmp_path: Path) -> Iterator[Callable[..., NodeProcess]]:
         process.stop()
 
 
+ALONE_ON_THE_DOMAIN = {'discovery_window': 0.0}
+"""Simulator parameters for a test's own simulator: each test run claims its ROS domain, so no other simulator can be
+there, and the simulator need not look for one before its first step (as the epuck_sim fixture does)."""
+
+
 def ros_args(params: dict[str, object]) -> list[str]:
     """`--ros-args -p name:=value ...` for a parameter dict."""
     args = ['--ros-args']

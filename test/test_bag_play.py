@@ -177,15 +177,17 @@ def test_the_wait_before_the_first_message_is_said_and_chosen_with_wait(launch):
     from epuck_ros.bag_cli import DEFAULT_WAIT
     from epuck_ros.ros.matching import FOREIGN_DISCOVERY_WINDOW
     assert DEFAULT_WAIT == FOREIGN_DISCOVERY_WINDOW
-    for wait, said in ((None, 'waiting 3.'), ('1.5', 'waiting 1.')):
-        player = launch('bag', 'play', str(SAMPLE), '--rate', '100', '--topics', '/odom',
-                        *(['--wait', wait] if wait else []))
+    # the three players at once: each waits on its own
+    players = {said: launch('bag', 'play', str(SAMPLE), '--rate', '100', '--topics', '/odom',
+                            *(['--wait', wait] if wait else [])) for wait, said in ((None, 'waiting 3.'),
+                                                                                    ('1.5', 'waiting 1.'))}
+    at_once = launch('bag', 'play', str(SAMPLE), '--rate', '100', '--topics', '/odom', '--wait', '0')
+    for said, player in players.items():
         assert wait_for_exit(player) == 0, player.output()
         output = player.output()
         assert f'{said}' in output and 's for subscribers already running to show in the graph (--wait to change)' \
             in output, output
         assert 'subscriptions matched on the played topics; playing' in output, output
         assert output.index('playing') < output.index('played 125 messages in'), output
-    at_once = launch('bag', 'play', str(SAMPLE), '--rate', '100', '--topics', '/odom', '--wait', '0')
     assert wait_for_exit(at_once) == 0, at_once.output()
     assert 'waiting' not in at_once.output() and 'played 125 messages in' in at_once.output(), at_once.output()

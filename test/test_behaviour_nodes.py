@@ -12,11 +12,11 @@ from nav_msgs.msg import Odometry
 from rclpy.qos import DurabilityPolicy, QoSProfile
 from std_msgs.msg import Float64MultiArray, UInt32
 
-from conftest import EVERY_MESSAGE, ros_args, set_sim_parameter
+from conftest import ALONE_ON_THE_DOMAIN, EVERY_MESSAGE, ros_args, set_sim_parameter
 from epuck_ros.nodes.behaviour_nodes import RangeAssembler
 from test_behaviours import fitted_circle
 
-SIM_PARAMS = {'real_time_factor': 0.0, 'lockstep': True}
+SIM_PARAMS = {**ALONE_ON_THE_DOMAIN, 'real_time_factor': 0.0, 'lockstep': True}
 """The sim waits for the behaviour's command after each step: the run is the same however busy the machine is."""
 REAL_TIME_FACTOR = 5.0
 """What lockstep runs reach here (3.5x to 10x real time); the waits below allow a third of it."""

@@ -18,7 +18,7 @@ from sensor_msgs.msg import CameraInfo, Illuminance, Image, LaserScan, Range
 from std_msgs.msg import Bool, Float64MultiArray, Int32, Int32MultiArray, UInt32
 from std_srvs.srv import Trigger
 
-from conftest import EVERY_MESSAGE, ros_args
+from conftest import ALONE_ON_THE_DOMAIN, EVERY_MESSAGE, ros_args
 from epuck_ros import epuck_interface as iface
 from epuck_ros.conversions import stamp_from_label
 from epuck_ros.ir_sensor import distance_from_raw
@@ -203,7 +203,8 @@ class ExampleRun:
         self.test_node, self.duration = test_node, duration
         self.truth = test_node.collect(Odometry, 'ground_truth', EVERY_MESSAGE)
         self.collisions = test_node.collect(UInt32, 'collisions', LATCHED)
-        params = {'real_time_factor': 0.0, 'lockstep': True, 'paused': True, 'pause_at': float(duration),
+        params = {**ALONE_ON_THE_DOMAIN, 'real_time_factor': 0.0, 'lockstep': True, 'paused': True,
+                  'pause_at': float(duration),
                   **({'world': str(world)} if world else {})}
         self.sim = launch('sim', *ros_args(params))
         test_node.wait_for_simulator()

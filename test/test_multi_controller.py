@@ -16,7 +16,7 @@ from nav_msgs.msg import Odometry
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray
 
-from conftest import EVERY_MESSAGE, ros_args, set_sim_parameter
+from conftest import ALONE_ON_THE_DOMAIN, EVERY_MESSAGE, ros_args, set_sim_parameter
 from test_behaviour_nodes import trajectory
 
 PAUSE_AT = 6.0
@@ -24,7 +24,8 @@ PAUSE_AT = 6.0
 HISTORY = 1000
 TIMEOUT = 60.0
 """Wall seconds any one wait may take on a very busy machine (it normally takes one or two)."""
-LOCKSTEP = {'real_time_factor': 0.0, 'lockstep': True, 'paused': True, 'pause_at': PAUSE_AT, 'seed': 4}
+LOCKSTEP = {**ALONE_ON_THE_DOMAIN, 'real_time_factor': 0.0, 'lockstep': True, 'paused': True, 'pause_at': PAUSE_AT,
+            'seed': 4}
 
 
 def three_robot_world(tmp_path: Path) -> Path:

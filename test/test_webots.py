@@ -24,7 +24,7 @@ from rclpy.qos import DurabilityPolicy, QoSProfile
 from sensor_msgs.msg import JointState
 from std_msgs.msg import UInt32
 
-from conftest import EVERY_MESSAGE, ros_args
+from conftest import ALONE_ON_THE_DOMAIN, EVERY_MESSAGE, ros_args
 from epuck_ros.ir_sensor import raw_from_distance
 from epuck_ros.model import FRONT_SENSORS, IR_LOOKUP_TABLE, SENSOR_POSES, RobotModel
 from epuck_ros.simulation import Simulation
@@ -135,8 +135,8 @@ class ControllerRun:
         self.collisions: list[UInt32] = test_node.collect(UInt32, prefix + 'collisions', latched)
         # lockstep_timeout 3 s: a machine so loaded that the controller waits a second for the CPU does not make
         # the simulator step without its answer (a first step the controller missed is re-sent after it).
-        params = {'real_time_factor': 0.0, 'lockstep': True, 'lockstep_timeout': 3.0, 'paused': True,
-                  'pause_at': float(duration),
+        params = {**ALONE_ON_THE_DOMAIN, 'real_time_factor': 0.0, 'lockstep': True, 'lockstep_timeout': 3.0,
+                  'paused': True, 'pause_at': float(duration),
                   'noise': noise, **({'world': str(world)} if world else {}), **(sim_params or {})}
         self.sim = launch(SIM, *ros_args(params))
         test_node.wait_for_simulator()
@@ -580,7 +580,7 @@ def test_a_script_that_stops_stepping_leaves_the_robot_stopped_after_cmd_timeout
         threading.Event().wait()  # busy with something else, for ever
     '''))
     # lockstep_timeout 0.1 s: the sim waits for the controller while it answers, and goes on without it after.
-    run = ControllerRun(launch, test_node, script, 2.5, sim_params={'lockstep_timeout': 0.1, 'cmd_timeout': 0.5})
+    run = ControllerRun(launch, test_node, script, 1.3, sim_params={'lockstep_timeout': 0.1, 'cmd_timeout': 0.5})
     rows = run.finish()
     last_step = float(run.output.split('LAST STEP ')[1].split()[0])
     moving_until = rows[np.flatnonzero(np.diff(rows[:, 1]) > 0)[-1] + 1, 0]
