@@ -34,6 +34,8 @@ BAGS = sorted(p.name for p in SAMPLES.iterdir() if p.is_dir())
 CASES_PER_BAG = 40
 LARGE_BAG = 500_000
 """Bytes; bags larger than this (bags/swarm, five robots) get a fifth of the cases: each costs more."""
+QUICK_CASES = 8
+"""Mutations per bag in `scripts/test.sh`; the others run in its slow tier (`--slow`, which `.ci/run` runs too)."""
 PLOT_EVERY = 15
 """Plotting takes ~1 s (matplotlib): one case in this many also plots."""
 CSV_TOPICS = ('/odom', '/clock', '/world', '/joint_states', '/no_such_topic')
@@ -169,12 +171,14 @@ def intact_outputs() -> dict[str, dict[str, str]]:
     return outputs
 
 
-@pytest.mark.parametrize('name', BAGS)
-def test_mutated_sample_bags_end_in_success_or_one_line(name, intact_outputs, tmp_path):
+@pytest.mark.parametrize('name, first_cases', [(name, True) for name in BAGS] +
+                         [pytest.param(name, False, marks=pytest.mark.slow) for name in BAGS])
+def test_mutated_sample_bags_end_in_success_or_one_line(name, first_cases, intact_outputs, tmp_path):
+    """The first QUICK_CASES mutations of each bag in the default run, the rest in the slow tier."""
     failures, outcomes = [], {0: 0, 2: 0}
     size = sum(f.stat().st_size for f in (SAMPLES / name).iterdir())
     cases = CASES_PER_BAG if size < LARGE_BAG else CASES_PER_BAG // 5
-    for case in range(cases):
+    for case in range(min(cases, QUICK_CASES)) if first_cases else range(QUICK_CASES, cases):
         bag, what = make_case(name, case, tmp_path)
         rng = random.Random(f'{name}-{case}-commands')
         for argv in commands(case, rng, bag, tmp_path):

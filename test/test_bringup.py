@@ -243,6 +243,7 @@ def test_a_second_bringup_on_the_domain_starts_nothing_and_the_first_run_is_unto
     assert second.proc.wait(timeout=120) == 2, second.output()
     assert 'another simulator is running on this ROS domain' in second.output()
     assert 'nothing was started' in second.output() and 'Traceback' not in second.output()
+    set_sim_parameter(test_node, first, 'real_time_factor', 0.0)   # the rest as fast as it goes (lockstep: same run)
     set_sim_parameter(test_node, first, 'paused', False)
     assert first.proc.wait(timeout=120) == 0, first.output()
     assert '[bringup] reproducible: every step' in first.output(), first.output()

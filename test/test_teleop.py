@@ -74,6 +74,17 @@ def test_interrupt_stops_the_robot(test_node, teleop) -> None:
     assert 'stopped' in process.output()
 
 
+def test_ctrl_c_while_stopping_after_the_input_ended_leaves_cleanly(launch) -> None:
+    """Its input empty (EOF at once), teleop stops the robot as soon as it printed its first line, waiting for
+    subscribers to show until FOREIGN_DISCOVERY_WINDOW after its start; a Ctrl-C then was a traceback and an abort
+    (exit -6, seen in test_readme). Now a clean exit 0."""
+    process = launch('teleop', stdin=subprocess.DEVNULL)
+    process.wait_for_output('speed ')
+    process.proc.send_signal(signal.SIGINT)
+    assert process.proc.wait(timeout=30) == 0, process.output()
+    assert 'Traceback' not in process.output()
+
+
 def test_q_stops_at_the_robots_limits_and_the_stop_is_always_zero() -> None:
     """Key q raised the speed to 0.133 m/s, above the e-puck's 0.126; 8,000 of them overflowed it to inf, and the stop
     on exit (0 x inf) became NaN, which the simulator refuses: with cmd_timeout 0 the robot drove on at full speed."""

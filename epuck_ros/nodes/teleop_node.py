@@ -229,7 +229,11 @@ def main(args: list[str] | None = None) -> None:
         pass
     finally:
         if node is not None:
-            node.stop()
+            try:
+                node.stop()
+            except KeyboardInterrupt:   # Ctrl-C while stopping (after the input ended): leave without the wait
+                node.publish()   # stop() zeroed the command first
+                print('teleop: interrupted while stopping: the stop was sent, not waited for', flush=True)
         executor.shutdown()
         if spinner is not None:
             spinner.join()
