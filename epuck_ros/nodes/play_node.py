@@ -18,6 +18,7 @@ import rclpy
 from rclpy.duration import Duration
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
+from rclpy.signals import SignalHandlerOptions
 from rosgraph_msgs.msg import Clock
 from std_srvs.srv import Trigger
 
@@ -28,6 +29,7 @@ from epuck_ros.exit_codes import ignore_ctrl_c_at_exit
 from epuck_ros.ros.dds_profile import use_package_profile
 from epuck_ros.ros.matching import FOREIGN_DISCOVERY_WINDOW, wait_until_matched
 from epuck_ros.ros.qos import replayed
+from epuck_ros.ros.spinning import interrupt_on_signals
 from epuck_ros.nodes.record_node import message_class
 
 MATCH_TIMEOUT = 10.0
@@ -210,7 +212,8 @@ def play(args: argparse.Namespace) -> None:
     ignore_ctrl_c_at_exit()
     with Bag(args.path) as bag:
         use_package_profile()
-        rclpy.init(args=['bag', *args.ros_args])
+        rclpy.init(args=['bag', *args.ros_args], signal_handler_options=SignalHandlerOptions.NO)
+        interrupt_on_signals()
         player, executor, services = None, None, None
         try:
             player = Player(bag, args.topics, args.rate, args.clock, args.start_paused, args.wait)

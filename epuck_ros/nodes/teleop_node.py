@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import argparse
 import os
-import signal
 import sys
 import termios
 import threading
@@ -31,6 +30,7 @@ from epuck_ros.model import RobotModel
 from epuck_ros.ros.dds_profile import use_package_profile
 from epuck_ros.ros.matching import FOREIGN_DISCOVERY_WINDOW, wait_until_matched
 from epuck_ros.ros.params import ParamSpec, Usage, declare_parameters, prepare_arguments, user_arguments
+from epuck_ros.ros.spinning import interrupt_on_signals
 from epuck_ros.world import ROBOT_NAME, ROBOT_NAME_MAX
 
 SPEED_STEP = 1.1
@@ -196,10 +196,6 @@ def parse_options(args: list[str]) -> argparse.Namespace:
     return parser.parse_args(user_arguments(args))
 
 
-def _interrupt(signum: int, frame: object) -> None:
-    raise KeyboardInterrupt
-
-
 def main(args: list[str] | None = None) -> None:
     argv = list(sys.argv if args is None else ['teleop', *args])
     ros_argv = prepare_arguments(argv, PARAMETERS, USAGE, own_options=True)
@@ -208,8 +204,7 @@ def main(args: list[str] | None = None) -> None:
     # SIGTERM become KeyboardInterrupt here, and the `finally` below stops the robot, then shuts down.
     use_package_profile()
     rclpy.init(args=ros_argv, signal_handler_options=SignalHandlerOptions.NO)
-    for signum in (signal.SIGINT, signal.SIGTERM):
-        signal.signal(signum, _interrupt)
+    interrupt_on_signals()
     node, spinner = None, None
     executor = SingleThreadedExecutor()
     try:

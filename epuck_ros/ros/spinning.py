@@ -42,6 +42,20 @@ def handle_shutdown_signals() -> None:
     ignore_ctrl_c_at_exit()
 
 
+def _raise_keyboard_interrupt(signum: int, frame: object) -> None:
+    raise KeyboardInterrupt
+
+
+def interrupt_on_signals() -> None:
+    """From now on SIGINT and SIGTERM raise KeyboardInterrupt in the main thread, for a program whose main thread
+    works outside any spin (teleop's keyboard, `bag play`'s publishing); call after `rclpy.init(...,
+    signal_handler_options=SignalHandlerOptions.NO)`. Its `finally` then ends cleanly with the context still up: under
+    rclpy's own handlers the context went down while `bag play` was publishing, and it died of SIGSEGV (a suite
+    run beside a busy loop per core)."""
+    for signum in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(signum, _raise_keyboard_interrupt)
+
+
 def shutdown_requested() -> bool:
     return _requested.is_set()
 
