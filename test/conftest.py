@@ -17,6 +17,7 @@ from pathlib import Path
 import pytest
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 
+from epuck_ros.bringup.monitor import REQUEST_RETRY
 from epuck_ros.bringup.processes import interrupt
 from epuck_ros.testing.simulator import NoFreeDomain, claim_domain
 
@@ -271,8 +272,15 @@ def set_sim_parameter(test_node: object, sim: object, name: str, value: object) 
     test_node.spin_until(lambda: client.services_are_ready() or sim.proc.poll() is not None, timeout=60.0,
                          what='the sim parameter services')
     assert sim.proc.poll() is None, sim.output()
-    future = client.set_parameters([Parameter(name, value=value)])
-    test_node.spin_until(lambda: future.done() or sim.proc.poll() is not None, timeout=60.0,
-                         what=f'sim to accept {name}')
-    assert future.done(), sim.output()
+    # Asked again every REQUEST_RETRY, as bringup does (setting a parameter twice is harmless): a request to services
+    # just discovered can go unanswered, the response's way back not matched yet (a loaded suite run waited 60 s).
+    deadline = time.monotonic() + 60.0
+    while True:
+        future = client.set_parameters([Parameter(name, value=value)])
+        retry = min(time.monotonic() + REQUEST_RETRY, deadline)
+        while not future.done() and sim.proc.poll() is None and time.monotonic() < retry:
+            test_node.executor.spin_once(timeout_sec=0.05)
+        if future.done() or sim.proc.poll() is not None or time.monotonic() >= deadline:
+            break
+    assert future.done(), f'sim did not accept {name} in 60 s:\n{sim.output()}'
     assert all(result.successful for result in future.result().results)
