@@ -246,8 +246,8 @@ class RunMonitor:
         deadline = time.monotonic() + timeout
         while any(not track.stamps or max(track.stamps) < last for track in self.tracks.values()) and \
                 time.monotonic() < deadline:
-            self._executor.spin_until_future_complete(Future(), timeout_sec=min(TAKE_PERIOD, timeout))
             self._take_waiting()
+            self._executor.spin_once(timeout_sec=0.01)
 
     def _take_waiting(self) -> None:
         """Take every message waiting in this node's readers and hand it to its callback, as the executor would.
