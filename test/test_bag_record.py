@@ -306,3 +306,35 @@ def test_rclpy_still_takes_a_message_as_the_recorder_does(test_node):
     assert isinstance(data, bytes) and data.endswith(b'hello\x00') and 'source_timestamp' in info
     node.destroy_subscription(subscription)
     node.destroy_publisher(publisher)
+
+
+def test_the_recorder_says_which_controllers_it_heard_from(launch, test_node, tmp_path):
+    """For `bringup` to resume a recorded run only once the controllers' answers reach the bag
+    (ros/recorder_heard.py): an answer topic is heard once a message arrives on it, or once a declaration naming it
+    arrives on a reader of declarations made after the topic's own reader. The word is not recorded."""
+    from std_msgs.msg import Float64MultiArray
+
+    from epuck_ros.lockstep import DECLARATION_TOPIC
+    from epuck_ros.ros.qos import declarations_kept
+    from epuck_ros.ros.recorder_heard import HEARD_TOPIC, read_heard
+    node = test_node.node
+    heard = test_node.collect(String, HEARD_TOPIC, LATCHED)
+
+    def heard_is(topics: set[str]) -> None:
+        test_node.spin_until(lambda: bool(heard) and read_heard(heard[-1].data) == topics, what=f'heard {topics}')
+
+    recorder = start_recorder(launch, tmp_path / 'bag')
+    declarations = node.create_publisher(String, DECLARATION_TOPIC, declarations_kept(2))
+    declarations.publish(String(data='lockstep /epuck0/wheel_cmd /epuck1/wheel_cmd'))
+    node.create_publisher(Float64MultiArray, '/epuck0/wheel_cmd', 10)
+    heard_is({'/epuck0/wheel_cmd'})   # epuck1's topic has no publisher yet: the recorder has no reader of it
+    node.create_publisher(Float64MultiArray, '/epuck1/wheel_cmd', 10)
+    heard_is({'/epuck0/wheel_cmd', '/epuck1/wheel_cmd'})
+    swarm = node.create_publisher(Float64MultiArray, '/swarm/command', 10)
+    wait_until_subscribed(test_node, swarm)
+    swarm.publish(Float64MultiArray())
+    heard_is({'/epuck0/wheel_cmd', '/epuck1/wheel_cmd', '/swarm/command'})
+    assert recorder.stop() == 0
+    with Bag(tmp_path / 'bag') as bag:
+        topics = {topic.name for topic in bag.topics.values()}
+    assert HEARD_TOPIC not in topics and DECLARATION_TOPIC in topics, sorted(topics)

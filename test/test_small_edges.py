@@ -83,6 +83,46 @@ def test_bringup_s_monitor_takes_what_its_executor_is_not_told_of(test_node):
         monitor.close()
 
 
+def test_bringup_s_monitor_waits_until_the_recorder_heard_every_controller_it_heard_declare(test_node):
+    """A recorded run is resumed once the recorder has heard from each controller that declared itself (a loaded
+    `bringup --record` of a 2 s swarm run was over before the controller had matched the recorder: no answer in the
+    bag): from a per-robot declaration, and from a swarm controller's declaration on `swarm/command`."""
+    import numpy as np
+    from std_msgs.msg import Float64MultiArray, String
+
+    from epuck_ros.bringup.monitor import RunMonitor
+    from epuck_ros.lockstep import DECLARATION_TOPIC
+    from epuck_ros.ros.qos import LATCHED, declarations_kept
+    from epuck_ros.ros.recorder_heard import HEARD_TOPIC, heard_text
+    from epuck_ros.swarm_messages import COMMAND_TOPIC, SwarmLayout
+    monitor = RunMonitor('', '')
+    node = test_node.node
+    heard = node.create_publisher(String, HEARD_TOPIC, LATCHED)
+    try:
+        assert monitor.recorder_heard()   # nobody declared: nothing to wait for
+        declarations = node.create_publisher(String, DECLARATION_TOPIC, declarations_kept(1))
+        declarations.publish(String(data='lockstep /epuck0/wheel_cmd'))
+        swarm = node.create_publisher(Float64MultiArray, '/' + COMMAND_TOPIC, LATCHED)
+        swarm.publish(SwarmLayout(('epuck1',), ()).to_bytes(np.zeros((1, 0)), None))
+        spin_monitor_until(monitor, lambda: monitor._declared and monitor._swarm.declared, 'the declarations')
+        heard.publish(String(data=heard_text(['/epuck0/wheel_cmd'])))
+        spin_monitor_until(monitor, lambda: monitor._recorder_heard.topics, "the recorder's first word")
+        assert not monitor.recorder_heard()   # not the swarm controller yet
+        heard.publish(String(data=heard_text(['/epuck0/wheel_cmd', '/swarm/command'])))
+        spin_monitor_until(monitor, monitor.recorder_heard, 'the recorder to have heard both')
+        heard.publish(String(data='x' * 5_000_000))   # anyone may publish there: read as nothing, no crash
+        spin_monitor_until(monitor, lambda: not monitor.recorder_heard(), 'a forged word read as nothing')
+    finally:
+        monitor.close()
+
+
+def spin_monitor_until(monitor, predicate, what: str, timeout: float = 20.0) -> None:
+    deadline = time.monotonic() + timeout
+    while not predicate():
+        assert time.monotonic() < deadline, f'timed out waiting for {what}'
+        monitor.spin(0.05)
+
+
 def test_bringup_s_summary_under_load_is_the_headless_run_s(launch):
     """Items 11 and 16: not recorded, beside a busy loop on each core, bringup's figures (distance, duration,
     contacts, final pose) are those of the same run headless, to the printed digit: its ground-truth reader keeps

@@ -31,9 +31,12 @@ from epuck_ros.bag.tally import RunTally
 from epuck_ros.bringup.swarm_follow import SwarmFollower
 from epuck_ros.conversions import nanoseconds_from_seconds, seconds_from_stamp
 from epuck_ros.integrity import STATUS_TOPIC, Integrity, integrity_from
+from epuck_ros.lockstep import Controller
 from epuck_ros.ros.announcements import SIMULATORS_TOPIC, Announcement, parse_announcement
 from epuck_ros.ros.dds_profile import use_package_profile, warn_if_not_fast_dds
+from epuck_ros.ros.declaration import read_declarations
 from epuck_ros.ros.qos import ANNOUNCEMENT_QOS, CLOCK_KEPT, EVERY_STEP, LATCHED
+from epuck_ros.ros.recorder_heard import HeardReader
 from epuck_ros.ros.robot_ports import topic_prefix
 from epuck_ros.ros.sense_ports import RECORDER_NODE
 from epuck_ros.swarm_messages import COMMAND_TOPIC as SWARM_COMMAND_TOPIC
@@ -136,6 +139,8 @@ class RunMonitor:
         self.tally: RunTally | None = None
         """Distance and contacts of every robot so far (the same tally `bag summary` makes from a bag)."""
         self._follow_robots = follow_robots
+        self._followers_matched = not follow_robots
+        """The simulator has matched this node's ground-truth readers (`_on_world`), or there are none."""
         self.sim_enclave = sim_enclave
         """The enclave our simulator was started with: how the graph tells it from another node called sim."""
         self.announcements: set[Announcement] = set()
@@ -147,9 +152,12 @@ class RunMonitor:
         reads the whole graph, a swarm's tens of thousands of endpoints)."""
         self._recorded: set[str] = set()
         """The topics the recorder was seen subscribed to (asked again only about the others, as above)."""
+        self._declared: set[str] = set()
+        """The command topics the controllers declared (lockstep.DECLARATION_TOPIC), as this node heard them."""
         self._parameters = AsyncParameterClient(self.node, SIM_NODE)
         self._subscribe()
         self._swarm = SwarmFollower(self.node)
+        self._recorder_heard = HeardReader(self.node)
 
     def _subscribe(self) -> None:
         """What every run is followed by: /clock, the simulator's world and lockstep status, the announcements."""
@@ -157,6 +165,10 @@ class RunMonitor:
         self.node.create_subscription(String, 'world', self._on_world, LATCHED)
         self.node.create_subscription(DiagnosticStatus, STATUS_TOPIC, self._on_status, LATCHED)
         self.node.create_subscription(String, SIMULATORS_TOPIC, self._on_announcement, ANNOUNCEMENT_QOS)
+        read_declarations(self.node, self._on_declaration, lambda why: None)   # the simulator says why
+
+    def _on_declaration(self, _: Controller, topics: list[str]) -> None:
+        self._declared.update(topics)
 
     # --- what the run did -------------------------------------------------------------------------------
     def _on_status(self, msg: DiagnosticStatus) -> None:
@@ -213,6 +225,13 @@ class RunMonitor:
                                               EVERY_STEP, raw=True)
         if several:
             self._swarm.follow(self.world.names, partial(self._on_swarm_step, steps), EVERY_STEP)
+        # The world again, on a reader made after those: DDS announces a participant's readers in the order they are
+        # made, so the simulator knows them all once it sends its latched world to this one. Without it, a loaded
+        # run's simulator could take its first step before it knew of them and leave it out of the summary.
+        self.node.create_subscription(String, 'world', self._on_followers_matched, LATCHED)
+
+    def _on_followers_matched(self, _: String) -> None:
+        self._followers_matched = True
 
     def _on_swarm_step(self, steps: SwarmSteps, stamp: int, truth: np.ndarray) -> None:
         """Every robot's ground truth of a step, into the tally at once (`RunTally.add_step`); robot by robot when
@@ -272,6 +291,8 @@ class RunMonitor:
             return 'has not published its world'
         if not self._parameters.services_are_ready():
             return 'does not answer parameter requests'
+        if not self._followers_matched:
+            return 'has not matched bringup\'s readers of the robots\' ground truth'
         return ''
 
     def graph_progress(self) -> tuple[int, ...]:
@@ -324,6 +345,15 @@ class RunMonitor:
             elif always or node.count_publishers(topic):
                 return False
         return bool(published)
+
+    def recorder_heard(self) -> bool:
+        """The recorder has heard from every controller this node heard declare itself, on its own declaration
+        (`swarm/command`) or on lockstep.DECLARATION_TOPIC: their answers reach the bag from the first step
+        (ros/recorder_heard.py says why seeing the recorder's readers is not enough)."""
+        wanted = set(self._declared)
+        if self._swarm.declared:
+            wanted.add(self.node.resolve_topic_name(SWARM_COMMAND_TOPIC))
+        return wanted <= self._recorder_heard.topics
 
     def controllers(self, robot: str) -> list[tuple[str, str]]:
         """(name, namespace) of the nodes publishing `robot`'s wheel_cmd or cmd_vel, once their subscriptions are

@@ -191,7 +191,7 @@ class Supervisor:
         monitor = self.monitor
         if monitor.sim_missing() or self.own_announcement() is None:
             return False
-        if self.plan.record_dir is not None and not monitor.recorder_subscribed():
+        if self.plan.record_dir is not None and not (monitor.recorder_subscribed() and monitor.recorder_heard()):
             return False
         if self.args.view and not monitor.view_serving():
             return False
@@ -221,6 +221,8 @@ class Supervisor:
             return f'the simulator did not come up (it {missing})'
         if self.plan.record_dir is not None and not monitor.recorder_subscribed():
             return 'the recorder did not subscribe to the simulator\'s topics'
+        if self.plan.record_dir is not None and not monitor.recorder_heard():
+            return 'the recorder did not hear from the controllers (their declarations did not reach it)'
         if self.args.view and not monitor.view_serving():
             return 'the view did not come up'
         if self.plan.foxglove_port is not None and not self.foxglove_serving():

@@ -33,6 +33,11 @@ class SwarmFollower:
         self._reader = SwarmReader()
         self._declared = DeclaredRobots(node, until_answered=True)   # readiness is decided before the first step
 
+    @property
+    def declared(self) -> bool:
+        """A swarm controller has declared its robots."""
+        return bool(self._declared.robots)
+
     def controllers(self, robot: str) -> list[tuple[str, str]]:
         """(name, namespace) of the swarm controllers that drive `robot`."""
         return self._declared.controllers(robot)

@@ -21,6 +21,9 @@ is recorded once, and the answers (`wheel_cmd`, `cmd_vel`) to the last recorded 
 nothing, and whether they arrived before the recording stopped was a matter of timing. Without ``use_sim_time``
 log_time is the wall clock.
 
+Which controllers' answer topics it has heard from (`ros/recorder_heard.py`) it says, latched, on the hidden
+`/_recorder/heard`: `bringup` resumes a recorded run once that includes every controller that declared itself.
+
 At the end it says what may be missing: samples DDS reported lost (message-lost events) and gaps
 in the header stamps of the bag it wrote (`epuck_ros.bag.gaps`, the same check as ``bag info``).
 If the bag cannot be written (a full disk), it stops with one line and exit code 1; the bag then
@@ -48,6 +51,7 @@ from rclpy.node import Node
 from rclpy.signals import SignalHandlerOptions
 from rclpy.subscription import Subscription
 from rclpy.qos import QoSProfile
+from std_msgs.msg import String
 from rclpy.topic_or_service_is_hidden import topic_or_service_is_hidden
 from rclpy.utilities import remove_ros_args
 from rclpy.validate_topic_name import validate_topic_name
@@ -59,9 +63,11 @@ from epuck_ros.bag.qos import QosProfile
 from epuck_ros.bag.reader import Bag, BagError
 from epuck_ros.bag.writer import COMPRESSIONS, BackgroundWriter, BagExistsError, BagWriteError, BagWriter
 from epuck_ros.exit_codes import EXIT_FAILED, refuse
+from epuck_ros.lockstep import DECLARATION_TOPIC, read_declaration
 from epuck_ros.ros.dds_profile import use_package_profile, warn_if_not_fast_dds
 from epuck_ros.ros.interface_ports import INTERFACE_TOPICS
-from epuck_ros.ros.qos import matching
+from epuck_ros.ros.qos import DECLARATIONS_READ, matching
+from epuck_ros.ros.recorder_heard import HeardPublisher
 from epuck_ros.ros.sense_ports import ON_DEMAND_TOPICS, RECORDER_NODE, SENSE_TOPICS
 
 DISCOVERY_PERIOD = 0.2
@@ -157,6 +163,10 @@ class Recorder(Node):
         self._before_clock: list[tuple[str, bytes, int]] = []
         self._recording: set[str] = set()
         self._subscription_of: dict[str, Subscription] = {}
+        self._heard = HeardPublisher(self)
+        """The answer topics whose controllers have matched the recorder, for `bringup` (ros/recorder_heard.py)."""
+        self._confirming: Subscription | None = None
+        """A reader of the declarations made after the latest answer topic's (`_confirm_after`)."""
         self._skipped: set[str] = set()
         self._lost: dict[str, int] = {}
         """Samples DDS reported lost per topic (message-lost events)."""
@@ -205,6 +215,7 @@ class Recorder(Node):
             self.finished = True
             return
         self._warn_if_idle()
+        answers = False
         for topic, types in self.get_topic_names_and_types():
             if topic in self._recording or topic in self._skipped:
                 continue
@@ -216,6 +227,23 @@ class Recorder(Node):
             if not publishers:
                 continue
             self._subscribe(topic, types, [p.qos_profile for p in publishers])
+            answers = answers or (topic in self._recording and is_answer_topic(topic))
+        if answers:
+            self._confirm_after(frozenset(topic for topic in self._recording if is_answer_topic(topic)))
+
+    def _confirm_after(self, answer_topics: frozenset[str]) -> None:
+        """A new reader of the controllers' declarations, made after the readers of `answer_topics`: a declaration
+        it receives proves the declaring process knows those readers too (ros/recorder_heard.py says why)."""
+        if self._confirming is not None:
+            self.destroy_subscription(self._confirming)
+
+        def on_declaration(message: String) -> None:
+            try:
+                _, topics = read_declaration(message.data)
+            except ValueError:   # the simulator says why it refuses one; the recorder records it as it came
+                return
+            self._heard.add(topic for topic in topics if topic in answer_topics)
+        self._confirming = self.create_subscription(String, DECLARATION_TOPIC, on_declaration, DECLARATIONS_READ)
 
     def _subscribe(self, topic: str, types: list[str], offered: list[QoSProfile]) -> None:
         if len(types) != 1:
@@ -275,6 +303,8 @@ class Recorder(Node):
         takes one message of each ready topic per turn, so a topic of eight messages per step (`proximity`) fell
         behind the others: a lockstep run at real_time_factor 0 left most of its messages unwritten when the
         recording ended (stamps ending early), against none with this."""
+        if topic not in self._heard.topics and is_answer_topic(topic):   # its writer has matched the recorder
+            self._heard.add([topic])
         self._record(topic, data, info)
         subscription = self._subscription_of[topic]
         for _ in range(BACKLOG_PER_CALLBACK):
