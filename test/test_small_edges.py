@@ -104,7 +104,8 @@ def test_bringup_s_monitor_waits_until_the_recorder_heard_every_controller_it_he
         declarations.publish(String(data='lockstep /epuck0/wheel_cmd'))
         swarm = node.create_publisher(Float64MultiArray, '/' + COMMAND_TOPIC, LATCHED)
         swarm.publish(SwarmLayout(('epuck1',), ()).to_bytes(np.zeros((1, 0)), None))
-        spin_monitor_until(monitor, lambda: monitor._declared and monitor._swarm.declared, 'the declarations')
+        spin_monitor_until(monitor, lambda: monitor._recorder_heard.declared and monitor._swarm.declared,
+                           'the declarations')
         heard.publish(String(data=heard_text(['/epuck0/wheel_cmd'])))
         spin_monitor_until(monitor, lambda: monitor._recorder_heard.topics, "the recorder's first word")
         assert not monitor.recorder_heard()   # not the swarm controller yet

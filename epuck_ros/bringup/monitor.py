@@ -31,10 +31,8 @@ from epuck_ros.bag.tally import RunTally
 from epuck_ros.bringup.swarm_follow import SwarmFollower
 from epuck_ros.conversions import nanoseconds_from_seconds, seconds_from_stamp
 from epuck_ros.integrity import STATUS_TOPIC, Integrity, integrity_from
-from epuck_ros.lockstep import Controller
 from epuck_ros.ros.announcements import SIMULATORS_TOPIC, Announcement, parse_announcement
 from epuck_ros.ros.dds_profile import use_package_profile, warn_if_not_fast_dds
-from epuck_ros.ros.declaration import read_declarations
 from epuck_ros.ros.qos import ANNOUNCEMENT_QOS, CLOCK_KEPT, EVERY_STEP, LATCHED
 from epuck_ros.ros.recorder_heard import HeardReader
 from epuck_ros.ros.robot_ports import topic_prefix
@@ -139,8 +137,7 @@ class RunMonitor:
         self.tally: RunTally | None = None
         """Distance and contacts of every robot so far (the same tally `bag summary` makes from a bag)."""
         self._follow_robots = follow_robots
-        self._followers_matched = not follow_robots
-        """The simulator has matched this node's ground-truth readers (`_on_world`), or there are none."""
+        self._followers_matched = not follow_robots   # the simulator knows our ground-truth readers (`_on_world`)
         self.sim_enclave = sim_enclave
         """The enclave our simulator was started with: how the graph tells it from another node called sim."""
         self.announcements: set[Announcement] = set()
@@ -152,8 +149,6 @@ class RunMonitor:
         reads the whole graph, a swarm's tens of thousands of endpoints)."""
         self._recorded: set[str] = set()
         """The topics the recorder was seen subscribed to (asked again only about the others, as above)."""
-        self._declared: set[str] = set()
-        """The command topics the controllers declared (lockstep.DECLARATION_TOPIC), as this node heard them."""
         self._parameters = AsyncParameterClient(self.node, SIM_NODE)
         self._subscribe()
         self._swarm = SwarmFollower(self.node)
@@ -165,10 +160,6 @@ class RunMonitor:
         self.node.create_subscription(String, 'world', self._on_world, LATCHED)
         self.node.create_subscription(DiagnosticStatus, STATUS_TOPIC, self._on_status, LATCHED)
         self.node.create_subscription(String, SIMULATORS_TOPIC, self._on_announcement, ANNOUNCEMENT_QOS)
-        read_declarations(self.node, self._on_declaration, lambda why: None)   # the simulator says why
-
-    def _on_declaration(self, _: Controller, topics: list[str]) -> None:
-        self._declared.update(topics)
 
     # --- what the run did -------------------------------------------------------------------------------
     def _on_status(self, msg: DiagnosticStatus) -> None:
@@ -350,7 +341,7 @@ class RunMonitor:
         """The recorder has heard from every controller this node heard declare itself, on its own declaration
         (`swarm/command`) or on lockstep.DECLARATION_TOPIC: their answers reach the bag from the first step
         (ros/recorder_heard.py says why seeing the recorder's readers is not enough)."""
-        wanted = set(self._declared)
+        wanted = set(self._recorder_heard.declared)
         if self._swarm.declared:
             wanted.add(self.node.resolve_topic_name(SWARM_COMMAND_TOPIC))
         return wanted <= self._recorder_heard.topics

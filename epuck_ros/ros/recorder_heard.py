@@ -20,6 +20,7 @@ from rclpy.node import Node
 from rclpy.publisher import Publisher
 from std_msgs.msg import String
 
+from epuck_ros.ros.declaration import read_declarations
 from epuck_ros.ros.qos import LATCHED
 
 HEARD_TOPIC = '/_recorder/heard'
@@ -58,11 +59,14 @@ class HeardPublisher:
 
 
 class HeardReader:
-    """`bringup`'s side: the topics the recorder last said it heard from."""
+    """`bringup`'s side: the topics the recorder last said it heard from (`topics`), and the command topics the
+    controllers declared, as this node heard them (`declared`)."""
 
     def __init__(self, node: Node) -> None:
         self.topics: frozenset[str] = frozenset()
+        self.declared: set[str] = set()
         node.create_subscription(String, HEARD_TOPIC, self._on_heard, LATCHED)
+        read_declarations(node, lambda _, topics: self.declared.update(topics), lambda why: None)   # the sim says why
 
     def _on_heard(self, message: String) -> None:
         self.topics = read_heard(message.data)
