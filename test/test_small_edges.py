@@ -62,9 +62,9 @@ def test_bringup_s_monitor_misses_no_step_however_long_it_does_not_read(launch, 
 
 
 def test_bringup_s_monitor_takes_what_its_executor_is_not_told_of(test_node):
-    """The monitor's EventsExecutor once stopped being told of `/clock` messages (the test above, in a loaded suite
-    run: 240 s of 384 and nothing more for 600 s); the monitor asks its readers itself. Here its executor is told of
-    nothing at all: the node is taken off it."""
+    """Should rclpy's EventsExecutor not be told of a message (suspected first when the monitor's `/clock` stalled:
+    see the next test), the monitor asks its readers itself. Here its executor is told of nothing at all: the node
+    is taken off it."""
     from builtin_interfaces.msg import Time
     from rosgraph_msgs.msg import Clock
 
@@ -79,6 +79,34 @@ def test_bringup_s_monitor_takes_what_its_executor_is_not_told_of(test_node):
             clock.publish(Clock(clock=Time(sec=step, nanosec=0)))
         monitor.spin(60, until_sim_time=30.0)
         assert monitor.sim_time == 30.0
+    finally:
+        monitor.close()
+
+
+def test_bringup_s_monitor_makes_a_stalled_clock_reader_anew(test_node):
+    """The monitor's `/clock` reader once heard nothing more after 240 s of 384, for 600 s, though nothing waited in
+    it and the simulator had gone on to its end (the first test here, loaded); a new reader got the ticks at once.
+    Here the reader is destroyed under the monitor's feet after the first tick: the monitor makes a new one, which
+    gets the ticks kept for it and drops those heard already."""
+    from builtin_interfaces.msg import Time
+    from rosgraph_msgs.msg import Clock
+
+    from epuck_ros.bringup.monitor import RunMonitor
+    from epuck_ros.ros.qos import CLOCK_KEPT
+    clock = test_node.node.create_publisher(Clock, '/clock', CLOCK_KEPT)
+    monitor = RunMonitor('', '')
+    try:
+        test_node.spin_until(lambda: clock.get_subscription_count() > 0, what="the monitor's /clock reader")
+        clock.publish(Clock(clock=Time(sec=1, nanosec=0)))
+        monitor.spin(20, until_sim_time=1.0)
+        assert monitor.sim_time == 1.0
+        [reader] = [reader for reader in monitor.node.subscriptions if reader.topic_name == '/clock']
+        monitor.node.destroy_subscription(reader)
+        for step in range(2, 31):
+            clock.publish(Clock(clock=Time(sec=step, nanosec=0)))
+        monitor.spin(20, until_sim_time=30.0)
+        assert monitor.sim_time == 30.0
+        assert monitor.clock_messages == 1 + CLOCK_KEPT.depth   # the first, then the last ticks kept
     finally:
         monitor.close()
 

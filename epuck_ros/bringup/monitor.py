@@ -45,6 +45,12 @@ VIEW_NODE = 'view'
 COMMAND_TOPICS = ('wheel_cmd', 'cmd_vel')
 TAKE_PERIOD = 0.5
 """Wall seconds of spinning after which the monitor also takes what waits in its readers itself (see `spin`)."""
+CLOCK_RENEW = 2.0
+"""Wall seconds without a `/clock` message, once the run has ticked, after which the monitor's `/clock` reader is
+made anew (`_renew_stalled_clock`). In suite runs beside a busy loop per core, a monitor that had not read for
+thousands of steps had a `/clock` reader that got nothing more after 240 s of 384, for 600 s, with nothing waiting in
+it, while the simulator had gone on to its end and paused there; a new reader got the ticks up to 384 at once
+(transient local: the last ticks are kept for it). The cause, in Fast DDS or rclpy, was not found."""
 REQUEST_RETRY = 2.0
 """Wall seconds after which a parameter request to the simulator is sent again (setting `paused` twice is harmless):
 a first request to a service just discovered can go unanswered, its response's way back not yet matched (seen now
@@ -156,7 +162,7 @@ class RunMonitor:
 
     def _subscribe(self) -> None:
         """What every run is followed by: /clock, the simulator's world and lockstep status, the announcements."""
-        self.node.create_subscription(Clock, '/clock', self._on_clock, CLOCK_KEPT)
+        self._make_clock_reader()
         self.node.create_subscription(String, 'world', self._on_world, LATCHED)
         self.node.create_subscription(DiagnosticStatus, STATUS_TOPIC, self._on_status, LATCHED)
         self.node.create_subscription(String, SIMULATORS_TOPIC, self._on_announcement, ANNOUNCEMENT_QOS)
@@ -165,8 +171,25 @@ class RunMonitor:
     def _on_status(self, msg: DiagnosticStatus) -> None:
         self.integrity = integrity_from(msg.message, {value.key: value.value for value in msg.values})
 
-    def _on_clock(self, msg: Clock) -> None:
-        self.sim_time = seconds_from_stamp(msg.clock.sec, msg.clock.nanosec)
+    def _make_clock_reader(self) -> None:
+        """A `/clock` reader; a new one (`_renew_stalled_clock`) drops the ticks kept for it up to the latest heard."""
+        heard = self.sim_time if self.last_tick is not None else -math.inf
+        self._clock_made = time.monotonic()
+        self._clock_reader = self.node.create_subscription(Clock, '/clock', partial(self._on_clock, heard), CLOCK_KEPT)
+
+    def _renew_stalled_clock(self) -> None:
+        """Make the `/clock` reader anew once it has heard nothing for CLOCK_RENEW since the last tick (none before
+        the first: a paused simulator is silent) or since it was made."""
+        if self.last_tick is None or time.monotonic() - max(self.last_tick[0], self._clock_made) < CLOCK_RENEW:
+            return
+        self.node.destroy_subscription(self._clock_reader)
+        self._make_clock_reader()
+
+    def _on_clock(self, heard: float, msg: Clock) -> None:
+        sim_time = seconds_from_stamp(msg.clock.sec, msg.clock.nanosec)
+        if sim_time <= heard:   # kept for a new reader, heard already by the one before
+            return
+        self.sim_time = sim_time
         self.clock_messages += 1
         if self.last_tick is not None and self.sim_time > self._advanced[1]:
             stall = time.monotonic() - self._advanced[0]
@@ -249,6 +272,7 @@ class RunMonitor:
         while self.sim_time < until_sim_time - 1e-6 and (left := deadline - time.monotonic()) > 0:
             self._executor.spin_until_future_complete(self._reached, timeout_sec=min(TAKE_PERIOD, left))
             self._take_waiting()
+            self._renew_stalled_clock()
 
     def catch_up(self, timeout: float) -> None:
         """Take the samples still on their way: until every robot's truth reached the last `/clock` (bounded)."""
@@ -262,11 +286,10 @@ class RunMonitor:
     def _take_waiting(self) -> None:
         """Take every message waiting in this node's readers and hand it to its callback, as the executor would.
 
-        rclpy's EventsExecutor (experimental in Jazzy) takes a message when an event says one came, and once in a
-        while it was not told: in suite runs beside a busy loop per core, a monitor that had not read for thousands
-        of steps (its KEEP_LAST `/clock` reader overflowed) got `/clock` up to 240 s and nothing more for 600 s,
-        while the simulator had gone on to its end at 384 s and paused there (test_small_edges). A reader is asked
-        here every TAKE_PERIOD, events or not; a later event finds nothing left and the executor goes on."""
+        rclpy's EventsExecutor (experimental in Jazzy) takes a message when an event says one came. When the
+        monitor's `/clock` stalled (CLOCK_RENEW) a lost event was suspected first, and a reader is asked here every
+        TAKE_PERIOD, events or not (a later event finds nothing left and the executor goes on). That did not cure the
+        stall, whose reader held nothing; it stays as the guard against a lost event it was made for."""
         for subscription in list(self.node.subscriptions):
             with subscription.handle:
                 while (taken := subscription.handle.take_message(subscription.msg_type, subscription.raw)) is not None:
