@@ -15,10 +15,11 @@ case "${1:-}" in
 esac
 scripts/setup.sh
 . scripts/env.sh
-# Three test processes (pytest-xdist), each on a ROS domain of its own (docs/tests.md: how long it takes; most tests
-# wait on other processes and DDS part of the time, so three keep two cores busier than two do; four were a minute
-# faster, but their load made discovery races between other processes (a recorder and a controller) show).
+# Four test processes (pytest-xdist), each on a ROS domain of its own (docs/tests.md: how long it takes; most tests
+# wait on other processes and DDS part of the time, so four keep two cores busier than three do: 6 min 29 s against
+# about 8 min quiet. Four were tried before and made a race of the product show, a recorder a controller had not
+# matched yet at the resume; bringup now waits until the recorder has heard from the controllers).
 # --dist loadfile keeps each test file in one process: the README's commands build on each other (test_readme.py);
 # the files are handed out longest first (test/conftest.py), not reordered by xdist.
-exec python -m pytest -n 3 --dist loadfile --no-loadscope-reorder "${tier[@]}" \
+exec python -m pytest -n 4 --dist loadfile --no-loadscope-reorder "${tier[@]}" \
   --cov=epuck_ros --cov-branch --cov-report=term:skip-covered "$@"

@@ -69,6 +69,17 @@ def _alive(pid: int) -> bool:
     return state != 'Z'
 
 
+def test_the_domain_is_watched_longer_on_a_machine_loaded_beyond_its_cores(monkeypatch):
+    """A second bringup beside four test processes and a busy loop per core heard the first run's simulator only
+    after starting its children: the window before anything starts stretches with the load per core."""
+    from epuck_ros.bringup import run as bringup_run, tables
+    window = float(tables.sim_default('discovery_window'))
+    monkeypatch.setattr(os, 'cpu_count', lambda: 2)
+    for load, stretch in ((0.5, 1.0), (2.0, 1.0), (5.0, 2.5), (40.0, bringup_run.LOAD_STRETCH)):
+        monkeypatch.setattr(os, 'getloadavg', lambda: (load, load, load))
+        assert bringup_run.discovery_window() == pytest.approx(window * stretch), load
+
+
 def test_parameters_go_to_the_node_that_declares_them_as_their_type():
     args, plan = parse_args(['rectangle', '--seed', '7', '--no-noise', '-p', 'turn_mode:=timed',
                              '-p', 'cmd_timeout:=2', '-p', 'rectangle.side_a:=0.2', '-p', 'sim.real_time_factor:=0'])

@@ -36,6 +36,8 @@ CATCH_UP_TIMEOUT = 5.0
 """Wall seconds the end of a run waits for ground-truth samples still on their way."""
 PAUSE_TIMEOUT = 5.0
 """Wall seconds the end of a run waits for the simulator to accept paused:=true."""
+LOAD_STRETCH = 4.0
+"""At most this many times the simulator's discovery window is watched, on a machine loaded beyond its cores."""
 GRAPH_CHECK_PERIOD = 0.5
 """Wall seconds between two looks for another simulator during the run."""
 WATCH_SLICE = 0.02
@@ -174,7 +176,7 @@ class Supervisor:
         """Before any child starts: watch the domain for the simulator's discovery window and refuse (DomainTaken)
         if another simulator is there: its /clock ticking or published, its announcement, a node called sim.
         Started after the check, our controller once drove the other run's robot before our simulator refused."""
-        monitor, window = self.monitor, float(tables.sim_default('discovery_window'))
+        monitor, window = self.monitor, discovery_window()
         while not self.stop_requested.is_set():
             monitor.spin(WATCH_SLICE)
             found = sorted(set(monitor.clock_sources()) | set(monitor.other_simulators())) or \
@@ -340,6 +342,16 @@ def recording_losses(bag_dir: os.PathLike | str) -> list[str]:
             return [gaps.describe() for gaps in bag_gaps(bag)[1]]
     except BagError as error:
         return [f'(the bag cannot be checked: {error})']
+
+
+def discovery_window() -> float:
+    """Wall seconds `bringup` watches the domain for another simulator before it starts anything: the simulator's
+    discovery window (participants announce every 0.5 s), stretched by the load per core when it is over 1, up to
+    LOAD_STRETCH times: a participant starved of CPU announces and answers late. A second `bringup` started beside
+    four test processes and a busy loop per core heard the first run's simulator only after it had started its
+    children (the later check refused it then, exit 1, not 2)."""
+    load = os.getloadavg()[0] / (os.cpu_count() or 1)
+    return float(tables.sim_default('discovery_window')) * min(LOAD_STRETCH, max(1.0, load))
 
 
 def _time_step(plan: Plan) -> float:
