@@ -45,10 +45,12 @@ def test_range_assembler_drops_an_interrupted_cycle_and_ignores_frame_prefixes()
 # --- processes ----------------------------------------------------------------------------------------------------
 
 def trajectory(messages: list[Odometry]) -> np.ndarray:
-    """Rows of (t, x, y, yaw) with the yaw unwrapped."""
+    """Rows of (t, x, y, yaw) with the yaw unwrapped, one per step: a step sent again (lockstep sends a first step
+    again to a controller that has not answered it within a second: on a loaded machine) is kept once."""
     rows = np.array([(m.header.stamp.sec + 1e-9 * m.header.stamp.nanosec, m.pose.pose.position.x,
                       m.pose.pose.position.y, 2.0 * math.atan2(m.pose.pose.orientation.z, m.pose.pose.orientation.w))
                      for m in messages])
+    rows = rows[np.concatenate(([True], np.diff(rows[:, 0]) != 0.0))]
     rows[:, 3] = np.unwrap(rows[:, 3])
     return rows
 
