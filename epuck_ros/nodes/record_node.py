@@ -163,8 +163,8 @@ class Recorder(Node):
         self._before_clock: list[tuple[str, bytes, int]] = []
         self._recording: set[str] = set()
         self._subscription_of: dict[str, Subscription] = {}
-        self._heard = HeardPublisher(self)
-        """The answer topics whose controllers have matched the recorder, for `bringup` (ros/recorder_heard.py)."""
+        self._answer_topics: set[str] = set()   # those recorded that carry controllers' answers (is_answer_topic)
+        self._heard = HeardPublisher(self)   # those whose controllers matched the recorder (ros/recorder_heard.py)
         self._confirming: Subscription | None = None
         """A reader of the declarations made after the latest answer topic's (`_confirm_after`)."""
         self._skipped: set[str] = set()
@@ -215,7 +215,7 @@ class Recorder(Node):
             self.finished = True
             return
         self._warn_if_idle()
-        answers = False
+        answers = len(self._answer_topics)
         for topic, types in self.get_topic_names_and_types():
             if topic in self._recording or topic in self._skipped:
                 continue
@@ -227,9 +227,8 @@ class Recorder(Node):
             if not publishers:
                 continue
             self._subscribe(topic, types, [p.qos_profile for p in publishers])
-            answers = answers or (topic in self._recording and is_answer_topic(topic))
-        if answers:
-            self._confirm_after(frozenset(topic for topic in self._recording if is_answer_topic(topic)))
+        if len(self._answer_topics) > answers:
+            self._confirm_after(frozenset(self._answer_topics))
 
     def _confirm_after(self, answer_topics: frozenset[str]) -> None:
         """A new reader of the controllers' declarations, made after the readers of `answer_topics`: a declaration
@@ -255,6 +254,8 @@ class Recorder(Node):
             self._skip(topic, f'type {types[0]} is not installed here')
             return
         self._recording.add(topic)
+        if is_answer_topic(topic):
+            self._answer_topics.add(topic)
         if self._use_sim_time:
             reader = step_reader(types[0], message_definition(types[0]).text)
             if reader is not None:
@@ -303,7 +304,7 @@ class Recorder(Node):
         takes one message of each ready topic per turn, so a topic of eight messages per step (`proximity`) fell
         behind the others: a lockstep run at real_time_factor 0 left most of its messages unwritten when the
         recording ended (stamps ending early), against none with this."""
-        if topic not in self._heard.topics and is_answer_topic(topic):   # its writer has matched the recorder
+        if topic in self._answer_topics and topic not in self._heard.topics:   # its writer has matched the recorder
             self._heard.add([topic])
         self._record(topic, data, info)
         subscription = self._subscription_of[topic]
